@@ -1,0 +1,142 @@
+//! Located diagnostics (errors and warnings) in the style of rustc.
+
+use std::collections::HashSet;
+use std::fmt;
+use std::sync::{Arc, Mutex};
+
+/// A position in a scene file: `file:line:column`, 1-based.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct FileLoc {
+    /// The file as the user named it (or `<embedded>`/`<command line>` for in-memory text).
+    pub file: Arc<str>,
+    pub line: u32,
+    pub column: u32,
+}
+
+impl FileLoc {
+    pub fn new(file: Arc<str>, line: u32, column: u32) -> Self {
+        FileLoc { file, line, column }
+    }
+    /// The location of things nobody wrote (pbrt-v3's defaults).
+    pub fn builtin() -> Self {
+        FileLoc { file: Arc::from("<default>"), line: 0, column: 0 }
+    }
+    pub fn is_builtin(&self) -> bool {
+        self.line == 0
+    }
+}
+
+impl fmt::Display for FileLoc {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.is_builtin() {
+            write!(f, "{}", self.file)
+        } else {
+            write!(f, "{}:{}:{}", self.file, self.line, self.column)
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Severity {
+    Error,
+    Warning,
+}
+
+/// An error or warning, optionally located, with the offending source line
+/// and a caret under the column when the source is available.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct Diagnostic {
+    pub severity: Severity,
+    pub message: String,
+    pub loc: Option<FileLoc>,
+    /// The source line at `loc`, captured when the diagnostic was made.
+    pub source_line: Option<String>,
+    /// Extra `= note:` lines.
+    pub notes: Vec<String>,
+}
+
+impl Diagnostic {
+    pub fn error(loc: Option<FileLoc>, message: impl Into<String>) -> Self {
+        Diagnostic { severity: Severity::Error, message: message.into(), loc, source_line: None, notes: vec![] }
+    }
+    pub fn warning(loc: Option<FileLoc>, message: impl Into<String>) -> Self {
+        Diagnostic { severity: Severity::Warning, message: message.into(), loc, source_line: None, notes: vec![] }
+    }
+    pub fn with_note(mut self, note: impl Into<String>) -> Self {
+        self.notes.push(note.into());
+        self
+    }
+    pub fn with_source_line(mut self, line: impl Into<String>) -> Self {
+        self.source_line = Some(line.into());
+        self
+    }
+    pub fn is_error(&self) -> bool {
+        self.severity == Severity::Error
+    }
+}
+
+impl fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let tag = match self.severity {
+            Severity::Error => "error",
+            Severity::Warning => "warning",
+        };
+        writeln!(f, "{tag}: {}", self.message)?;
+        if let Some(loc) = &self.loc {
+            let gutter = " ".repeat(loc.line.to_string().len());
+            writeln!(f, "{gutter}--> {loc}")?;
+            if let Some(line) = &self.source_line {
+                // Tabs would misplace the caret: show them as single spaces.
+                let shown: String = line.chars().map(|c| if c == '\t' { ' ' } else { c }).collect();
+                writeln!(f, "{gutter} |")?;
+                writeln!(f, "{} | {}", loc.line, shown)?;
+                let col = (loc.column as usize).saturating_sub(1).min(shown.chars().count());
+                writeln!(f, "{gutter} | {}^", " ".repeat(col))?;
+            }
+        }
+        for n in &self.notes {
+            writeln!(f, "  = note: {n}")?;
+        }
+        Ok(())
+    }
+}
+
+/// A thread-safe collector of warnings that keeps each distinct one once, in order.
+#[derive(Default, Debug)]
+pub struct DiagSink {
+    inner: Mutex<(Vec<Diagnostic>, HashSet<Diagnostic>)>,
+}
+
+impl DiagSink {
+    pub fn new() -> Self {
+        Self::default()
+    }
+    pub fn push(&self, d: Diagnostic) {
+        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        if g.1.insert(d.clone()) {
+            g.0.push(d);
+        }
+    }
+    pub fn warn(&self, loc: Option<FileLoc>, message: impl Into<String>) {
+        self.push(Diagnostic::warning(loc, message));
+    }
+    pub fn extend(&self, ds: impl IntoIterator<Item = Diagnostic>) {
+        for d in ds {
+            self.push(d);
+        }
+    }
+    pub fn take(&self) -> Vec<Diagnostic> {
+        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        g.1.clear();
+        std::mem::take(&mut g.0)
+    }
+    pub fn snapshot(&self) -> Vec<Diagnostic> {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).0.clone()
+    }
+    pub fn len(&self) -> usize {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).0.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
