@@ -1,3 +1,34 @@
-fn main() {
-    println!("penumbra");
+//! `penumbra`: render pbrt-v3 scenes with selectable integrators, compare them, gate image error in CI.
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+mod diff;
+mod info;
+
+#[derive(Parser)]
+#[command(name = "penumbra", version, about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes")]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Parse a scene and print what it contains, with every warning.
+    Info(info::InfoArgs),
+    /// Compare two images with OpenImageIO idiff's metrics and exit codes.
+    Diff(diff::DiffArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Some(Command::Info(a)) => info::run(a),
+        Some(Command::Diff(a)) => diff::run(a),
+        None => {
+            eprintln!("penumbra: rendering is not wired up yet");
+            ExitCode::FAILURE
+        }
+    }
 }
