@@ -2,6 +2,8 @@
 //! samplers, filters, image I/O, metrics, and the integrator interface that
 //! every integrator in `penumbra-integrators` plugs into.
 
+pub mod accel;
+pub mod geometry;
 pub mod mesh;
 pub mod sampler;
 pub mod spectrum;

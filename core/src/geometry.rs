@@ -1,0 +1,198 @@
+//! Rays, frames and pbrt-v3's conservative floating-point error bounds for
+//! spawning rays off surfaces without self-intersection.
+
+use glam::Vec3;
+
+/// A ray `o + t d` for `t` in `(0, t_max)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    pub o: Vec3,
+    pub d: Vec3,
+    pub t_max: f32,
+}
+
+impl Ray {
+    pub fn new(o: Vec3, d: Vec3, t_max: f32) -> Self {
+        Ray { o, d, t_max }
+    }
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.o + self.d * t
+    }
+}
+
+/// pbrt-v3's γ(n) = nε / (1 − nε) with ε = 2⁻²⁴.
+#[inline]
+pub fn gamma(n: i32) -> f32 {
+    let e = f32::EPSILON * 0.5 * n as f32;
+    e / (1.0 - e)
+}
+
+#[inline]
+pub fn next_float_up(v: f32) -> f32 {
+    if v.is_infinite() && v > 0.0 {
+        return v;
+    }
+    let v = if v == -0.0 { 0.0 } else { v };
+    let bits = v.to_bits();
+    let bits = if v >= 0.0 { bits + 1 } else { bits - 1 };
+    f32::from_bits(bits)
+}
+
+#[inline]
+pub fn next_float_down(v: f32) -> f32 {
+    if v.is_infinite() && v < 0.0 {
+        return v;
+    }
+    let v = if v == 0.0 { -0.0 } else { v };
+    let bits = v.to_bits();
+    let bits = if v > 0.0 { bits - 1 } else { bits + 1 };
+    f32::from_bits(bits)
+}
+
+/// Moves `p` (with absolute error bound `p_error`) off the surface with normal `n`,
+/// to the side `w` points to, far enough that the rounded origin is strictly on that side.
+#[inline]
+pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
+    let d = n.abs().dot(p_error);
+    let mut offset = d * n;
+    if w.dot(n) < 0.0 {
+        offset = -offset;
+    }
+    let po = p + offset;
+    let f = |po: f32, off: f32| {
+        if off > 0.0 {
+            next_float_up(po)
+        } else if off < 0.0 {
+            next_float_down(po)
+        } else {
+            po
+        }
+    };
+    Vec3::new(f(po.x, offset.x), f(po.y, offset.y), f(po.z, offset.z))
+}
+
+/// An orthonormal frame; `to_local`/`from_local` map between world and frame coordinates (z = normal).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    pub x: Vec3,
+    pub y: Vec3,
+    pub z: Vec3,
+}
+
+impl Frame {
+    /// A frame around unit vector `n` (Duff et al.'s branchless construction).
+    pub fn from_z(n: Vec3) -> Frame {
+        let sign = 1.0f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        let x = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+        let y = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+        Frame { x, y, z: n }
+    }
+    /// A frame with z = `n` and x along `s` projected onto the plane (falls back to `from_z`).
+    pub fn from_zx(n: Vec3, s: Vec3) -> Frame {
+        let y = n.cross(s);
+        let l = y.length();
+        if !(l > 1e-12) || !l.is_finite() {
+            return Frame::from_z(n);
+        }
+        let y = y / l;
+        Frame { x: y.cross(n), y, z: n }
+    }
+    #[inline]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(self.x), v.dot(self.y), v.dot(self.z))
+    }
+    #[inline]
+    pub fn from_local(&self, v: Vec3) -> Vec3 {
+        self.x * v.x + self.y * v.y + self.z * v.z
+    }
+}
+
+/// `n` flipped, if needed, to lie in the hemisphere of `v`.
+#[inline]
+pub fn face_forward(n: Vec3, v: Vec3) -> Vec3 {
+    if n.dot(v) < 0.0 {
+        -n
+    } else {
+        n
+    }
+}
+
+/// Axis-aligned bounds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds3 {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Default for Bounds3 {
+    fn default() -> Self {
+        Bounds3::EMPTY
+    }
+}
+
+impl Bounds3 {
+    pub const EMPTY: Bounds3 = Bounds3 { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
+    pub fn is_empty(&self) -> bool {
+        self.min.x > self.max.x || self.min.y > self.max.y || self.min.z > self.max.z
+    }
+    pub fn extend(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+    pub fn union(&self, o: &Bounds3) -> Bounds3 {
+        Bounds3 { min: self.min.min(o.min), max: self.max.max(o.max) }
+    }
+    pub fn diagonal(&self) -> Vec3 {
+        if self.is_empty() {
+            Vec3::ZERO
+        } else {
+            self.max - self.min
+        }
+    }
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+    /// Centre and radius of a sphere enclosing the bounds.
+    pub fn bounding_sphere(&self) -> (Vec3, f32) {
+        if self.is_empty() {
+            return (Vec3::ZERO, 0.0);
+        }
+        let c = self.center();
+        (c, (self.max - c).length())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn next_float_steps_one_ulp() {
+        assert!(next_float_up(1.0) > 1.0 && next_float_up(1.0) - 1.0 == f32::EPSILON);
+        assert!(next_float_down(0.0) < 0.0);
+        assert!(next_float_up(-0.0) > 0.0);
+    }
+
+    #[test]
+    fn frames_are_orthonormal() {
+        for n in [Vec3::Z, -Vec3::Z, Vec3::new(0.3, -0.4, 0.5).normalize(), Vec3::new(0.0, -1.0, -1e-9).normalize()] {
+            let f = Frame::from_z(n);
+            assert!((f.x.length() - 1.0).abs() < 1e-5 && (f.y.length() - 1.0).abs() < 1e-5);
+            assert!(f.x.dot(f.y).abs() < 1e-5 && f.x.dot(n).abs() < 1e-5 && f.y.dot(n).abs() < 1e-5);
+            let v = Vec3::new(0.2, 0.7, -0.1);
+            assert!((f.from_local(f.to_local(v)) - v).length() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn offset_origin_lands_on_the_right_side() {
+        let n = Vec3::new(0.0, 1.0, 0.0);
+        let p = Vec3::new(1e4, 0.0, -3.0);
+        let err = Vec3::splat(gamma(7) * 1e4);
+        let up = offset_ray_origin(p, err, n, Vec3::Y);
+        let down = offset_ray_origin(p, err, n, -Vec3::Y);
+        assert!(up.y > 0.0 && down.y < 0.0);
+    }
+}
