@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 mod diff;
 mod info;
+mod render;
 
 #[derive(Parser)]
 #[command(name = "penumbra", version, about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes")]
@@ -15,6 +16,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Render a scene (default: the embedded default scene).
+    Render(render::RenderArgs),
     /// Parse a scene and print what it contains, with every warning.
     Info(info::InfoArgs),
     /// Compare two images with OpenImageIO idiff's metrics and exit codes.
@@ -26,9 +29,7 @@ fn main() -> ExitCode {
     match cli.command {
         Some(Command::Info(a)) => info::run(a),
         Some(Command::Diff(a)) => diff::run(a),
-        None => {
-            eprintln!("penumbra: rendering is not wired up yet");
-            ExitCode::FAILURE
-        }
+        Some(Command::Render(a)) => render::run(a),
+        None => render::run(render::RenderArgs::default()),
     }
 }

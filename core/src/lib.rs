@@ -3,9 +3,16 @@
 //! every integrator in `penumbra-integrators` plugs into.
 
 pub mod accel;
+pub mod camera;
+pub mod film;
+pub mod filter;
+pub mod image;
+pub mod integrator;
 pub mod geometry;
 pub mod mesh;
 pub mod sampler;
+pub mod scene;
+pub mod shapes;
 pub mod spectrum;
 
 pub use glam::{IVec2, UVec2, Vec2, Vec3, Vec3A};

@@ -1,1 +1,32 @@
 //! One module per integrator, plus the registry.
+
+pub mod ao;
+
+use penumbra_core::integrator::Integrator;
+use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
+
+pub type Constructor = fn(&ParamSet, &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic>;
+
+/// An integrator penumbra implements.
+pub struct Entry {
+    pub name: &'static str,
+    pub method: &'static str,
+    pub create: Constructor,
+}
+
+pub const REGISTRY: &[Entry] = &[Entry {
+    name: "ambientocclusion",
+    method: "ray-traced ambient occlusion (pbrt-v3 semantics: nsamples, cossample; pbrt-v4's maxdistance)",
+    create: ao::AmbientOcclusion::create,
+}];
+
+/// pbrt-v3 integrators penumbra does not implement; scenes naming them render with the fallback.
+pub const PBRT_UNIMPLEMENTED: &[&str] = &["path", "whitted", "volpath", "bdpt", "mlt", "sppm"];
+
+pub fn names() -> Vec<&'static str> {
+    REGISTRY.iter().map(|e| e.name).collect()
+}
+
+pub fn find(name: &str) -> Option<&'static Entry> {
+    REGISTRY.iter().find(|e| e.name == name)
+}

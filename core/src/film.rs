@@ -1,0 +1,242 @@
+//! The film: pixel bounds (with pbrt-v3's crop window), filtered accumulation
+//! of samples in tiles, a deterministic merge, per-pixel sample statistics and
+//! integrator-declared extra channels.
+//!
+//! Determinism: tiles are laid on a grid fixed in absolute raster coordinates;
+//! each tile sums its samples in a fixed order into its own buffer, and tiles
+//! are merged into the film in tile-grid order. A pixel's value therefore does
+//! not depend on the thread count, on scheduling, or on the crop window it is
+//! rendered in.
+
+use crate::filter::Filter;
+use crate::image::Image;
+use crate::Rgb;
+use glam::{IVec2, Vec2};
+
+/// Half-open integer rectangle `[min, max)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Bounds2i {
+    pub min: IVec2,
+    pub max: IVec2,
+}
+
+impl Bounds2i {
+    pub fn new(min: IVec2, max: IVec2) -> Self {
+        Bounds2i { min, max }
+    }
+    pub fn is_empty(&self) -> bool {
+        self.max.x <= self.min.x || self.max.y <= self.min.y
+    }
+    pub fn width(&self) -> i32 {
+        (self.max.x - self.min.x).max(0)
+    }
+    pub fn height(&self) -> i32 {
+        (self.max.y - self.min.y).max(0)
+    }
+    pub fn area(&self) -> i64 {
+        self.width() as i64 * self.height() as i64
+    }
+    pub fn intersect(&self, o: &Bounds2i) -> Bounds2i {
+        Bounds2i { min: self.min.max(o.min), max: self.max.min(o.max) }
+    }
+    pub fn contains(&self, p: IVec2) -> bool {
+        p.x >= self.min.x && p.x < self.max.x && p.y >= self.min.y && p.y < self.max.y
+    }
+    /// Pixels in raster order.
+    pub fn iter(&self) -> impl Iterator<Item = IVec2> + '_ {
+        (self.min.y..self.max.y).flat_map(move |y| (self.min.x..self.max.x).map(move |x| IVec2::new(x, y)))
+    }
+}
+
+/// What the film is and where its pixels are.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilmSpec {
+    pub full_resolution: (u32, u32),
+    /// The pixels that are output (pbrt-v3's cropped pixel bounds).
+    pub pixel_bounds: Bounds2i,
+    pub filename: String,
+    /// pbrt-v3's `scale`.
+    pub scale: f32,
+    /// pbrt-v3's `maxsampleluminance`: samples brighter than this are scaled down to it.
+    pub max_sample_luminance: f32,
+}
+
+impl FilmSpec {
+    /// pbrt-v3's crop window (fractions `[x0, x1, y0, y1]`) to pixel bounds.
+    pub fn crop_to_pixels(full: (u32, u32), crop: [f32; 4]) -> Bounds2i {
+        let (w, h) = (full.0 as f32, full.1 as f32);
+        let c = |v: f32| v.clamp(0.0, 1.0);
+        Bounds2i::new(
+            IVec2::new((w * c(crop[0].min(crop[1]))).ceil() as i32, (h * c(crop[2].min(crop[3]))).ceil() as i32),
+            IVec2::new((w * c(crop[1].max(crop[0]))).ceil() as i32, (h * c(crop[3].max(crop[2]))).ceil() as i32),
+        )
+    }
+
+    /// The pixels whose samples can contribute to the output (pixel bounds grown by the filter radius).
+    pub fn sample_bounds(&self, filter_radius: Vec2) -> Bounds2i {
+        let pb = self.pixel_bounds;
+        let lo = (pb.min.as_vec2() + Vec2::splat(0.5) - filter_radius).floor().as_ivec2();
+        let hi = (pb.max.as_vec2() - Vec2::splat(0.5) + filter_radius).ceil().as_ivec2();
+        Bounds2i::new(lo, hi)
+    }
+}
+
+/// Per-pixel accumulators. Sums are in f64 so that thousands of samples per pixel keep their digits.
+#[derive(Clone, Debug, Default)]
+pub struct PixelSums {
+    /// Σ w·L over filter-weighted samples.
+    pub rgb: [f64; 3],
+    /// Σ w.
+    pub weight: f64,
+    /// Σ L and Σ L² over the samples taken *in* this pixel (unweighted), and their count:
+    /// the per-pixel variance estimate used by z-tests against references.
+    pub own_sum: [f64; 3],
+    pub own_sum_sq: [f64; 3],
+    pub own_count: u64,
+}
+
+/// A tile's private accumulation buffer covering its pixels grown by the filter radius.
+pub struct FilmTile {
+    pub bounds: Bounds2i,
+    pub pixels: Vec<PixelSums>,
+    /// Σ w·value for each extra channel, `extra_channels` values per pixel.
+    pub extra: Vec<f64>,
+    pub extra_channels: usize,
+}
+
+pub struct Film {
+    pub spec: FilmSpec,
+    pub extra_channel_names: Vec<String>,
+    pixels: Vec<PixelSums>,
+    extra: Vec<f64>,
+    filter_radius: Vec2,
+}
+
+impl FilmTile {
+    /// Adds one sample at continuous raster position `p_film`.
+    pub fn add_sample(&mut self, filter: &dyn Filter, p_film: Vec2, l: Rgb, extra: &[f32]) {
+        let r = filter.radius();
+        let pd = p_film - Vec2::splat(0.5);
+        let lo = (pd - r).ceil().as_ivec2().max(self.bounds.min);
+        let hi = ((pd + r).floor().as_ivec2() + IVec2::ONE).min(self.bounds.max);
+        let w = self.bounds.width();
+        for y in lo.y..hi.y {
+            for x in lo.x..hi.x {
+                let wt = filter.evaluate(Vec2::new(x as f32 - pd.x, y as f32 - pd.y));
+                if wt == 0.0 {
+                    continue;
+                }
+                let i = ((y - self.bounds.min.y) * w + (x - self.bounds.min.x)) as usize;
+                let px = &mut self.pixels[i];
+                let wt = wt as f64;
+                for c in 0..3 {
+                    px.rgb[c] += wt * l[c] as f64;
+                }
+                px.weight += wt;
+                let base = i * self.extra_channels;
+                for (k, v) in extra.iter().enumerate().take(self.extra_channels) {
+                    self.extra[base + k] += wt * *v as f64;
+                }
+            }
+        }
+        let own = p_film.floor().as_ivec2();
+        if self.bounds.contains(own) {
+            let i = ((own.y - self.bounds.min.y) * w + (own.x - self.bounds.min.x)) as usize;
+            let px = &mut self.pixels[i];
+            for c in 0..3 {
+                px.own_sum[c] += l[c] as f64;
+                px.own_sum_sq[c] += (l[c] as f64) * (l[c] as f64);
+            }
+            px.own_count += 1;
+        }
+    }
+}
+
+impl Film {
+    pub fn new(spec: FilmSpec, filter_radius: Vec2, extra_channel_names: Vec<String>) -> Film {
+        let n = spec.pixel_bounds.area().max(0) as usize;
+        let ne = extra_channel_names.len();
+        Film { spec, pixels: vec![PixelSums::default(); n], extra: vec![0.0; n * ne], extra_channel_names, filter_radius }
+    }
+
+    pub fn pixel_bounds(&self) -> Bounds2i {
+        self.spec.pixel_bounds
+    }
+
+    /// A tile covering the sample pixels `sample_tile`, grown by the filter radius and clipped to the film.
+    pub fn make_tile(&self, sample_tile: Bounds2i) -> FilmTile {
+        let r = self.filter_radius;
+        let lo = (sample_tile.min.as_vec2() - Vec2::splat(0.5) - r).ceil().as_ivec2();
+        let hi = ((sample_tile.max.as_vec2() - Vec2::splat(0.5) + r).floor().as_ivec2()) + IVec2::ONE;
+        let bounds = Bounds2i::new(lo, hi).intersect(&self.spec.pixel_bounds);
+        let bounds = if bounds.is_empty() { Bounds2i::new(lo, lo) } else { bounds };
+        let n = bounds.area() as usize;
+        let ne = self.extra_channel_names.len();
+        FilmTile { bounds, pixels: vec![PixelSums::default(); n], extra: vec![0.0; n * ne], extra_channels: ne }
+    }
+
+    /// Adds a tile's sums (call in a fixed tile order for determinism).
+    pub fn merge_tile(&mut self, tile: &FilmTile) {
+        let pb = self.spec.pixel_bounds;
+        let ne = self.extra_channel_names.len();
+        for (k, p) in tile.bounds.iter().enumerate() {
+            if !pb.contains(p) {
+                continue;
+            }
+            let i = ((p.y - pb.min.y) * pb.width() + (p.x - pb.min.x)) as usize;
+            let (dst, src) = (&mut self.pixels[i], &tile.pixels[k]);
+            for c in 0..3 {
+                dst.rgb[c] += src.rgb[c];
+                dst.own_sum[c] += src.own_sum[c];
+                dst.own_sum_sq[c] += src.own_sum_sq[c];
+            }
+            dst.weight += src.weight;
+            dst.own_count += src.own_count;
+            for e in 0..ne {
+                self.extra[i * ne + e] += tile.extra[k * ne + e];
+            }
+        }
+    }
+
+    pub fn pixel_sums(&self, p: IVec2) -> Option<&PixelSums> {
+        let pb = self.spec.pixel_bounds;
+        pb.contains(p).then(|| &self.pixels[((p.y - pb.min.y) * pb.width() + (p.x - pb.min.x)) as usize])
+    }
+
+    /// The image: `R G B`, then the extra channels, then (if `with_variance`)
+    /// `variance.R/G/B`: the estimated variance of each pixel's mean from its own samples.
+    pub fn to_image(&self, with_variance: bool) -> Image {
+        let pb = self.spec.pixel_bounds;
+        let mut channels: Vec<String> = ["R", "G", "B"].iter().map(|s| s.to_string()).collect();
+        channels.extend(self.extra_channel_names.iter().cloned());
+        if with_variance {
+            channels.extend(["variance.R", "variance.G", "variance.B"].iter().map(|s| s.to_string()));
+        }
+        let nc = channels.len();
+        let ne = self.extra_channel_names.len();
+        let mut data = Vec::with_capacity(self.pixels.len() * nc);
+        let scale = self.spec.scale as f64;
+        for (i, px) in self.pixels.iter().enumerate() {
+            let inv = if px.weight != 0.0 { 1.0 / px.weight } else { 0.0 };
+            for c in 0..3 {
+                data.push((px.rgb[c] * inv * scale) as f32);
+            }
+            for e in 0..ne {
+                data.push((self.extra[i * ne + e] * inv) as f32);
+            }
+            if with_variance {
+                let n = px.own_count as f64;
+                for c in 0..3 {
+                    let v = if n > 1.0 {
+                        let mean = px.own_sum[c] / n;
+                        ((px.own_sum_sq[c] / n - mean * mean).max(0.0) * n / (n - 1.0)) / n
+                    } else {
+                        0.0
+                    };
+                    data.push((v * scale * scale) as f32);
+                }
+            }
+        }
+        Image { width: pb.width() as u32, height: pb.height() as u32, channels, data }
+    }
+}

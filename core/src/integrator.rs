@@ -1,0 +1,189 @@
+//! The integrator interface and the generic parallel driver for per-pixel estimators.
+
+use crate::camera::CameraSample;
+use crate::film::{Bounds2i, Film};
+use crate::geometry::Ray;
+use crate::sampler::Sampler;
+use crate::scene::{Requirements, Scene};
+use crate::Rgb;
+use glam::IVec2;
+use penumbra_parser::DiagSink;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
+
+/// Tiles are laid on this fixed grid of absolute raster coordinates.
+pub const TILE_SIZE: i32 = 16;
+
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("render cancelled")]
+    Cancelled,
+    #[error("{0}")]
+    Failed(String),
+}
+
+/// Everything a render needs besides the scene and the film.
+pub struct RenderContext<'a> {
+    /// Worker threads (0: one per core).
+    pub threads: usize,
+    pub seed: u64,
+    /// Set (e.g. by Ctrl-C) to stop early; the render then returns `RenderError::Cancelled`.
+    pub cancel: &'a AtomicBool,
+    /// Called with (work done, work total) as tiles finish.
+    pub progress: Option<&'a (dyn Fn(u64, u64) + Sync)>,
+    pub warnings: &'a DiagSink,
+}
+
+/// Counters an estimator updates on its own thread; summed at the end.
+#[derive(Clone, Debug, Default)]
+pub struct ThreadStats {
+    pub rays: u64,
+    pub shadow_rays: u64,
+    /// Non-finite or negative radiance values replaced by 0 (pbrt-v3 does the same, with an error).
+    pub bad_samples: u64,
+}
+
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct RenderStats {
+    pub spp: u32,
+    pub camera_samples: u64,
+    pub rays: u64,
+    pub shadow_rays: u64,
+    pub bad_samples: u64,
+    pub render_seconds: f64,
+    pub threads: usize,
+    /// Integrator-specific figures.
+    pub counters: BTreeMap<String, f64>,
+}
+
+pub trait Integrator: Send + Sync {
+    fn name(&self) -> &str;
+    /// What the scene build must provide.
+    fn requirements(&self) -> Requirements;
+    /// Extra film channels this integrator writes (beyond R, G, B).
+    fn extra_channels(&self) -> Vec<String> {
+        Vec::new()
+    }
+    /// Render the whole image into `film`.
+    fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError>;
+}
+
+/// A per-pixel-sample estimator; [`render_pixels`] gives it a whole `render`.
+pub trait PixelEstimator: Send + Sync {
+    /// Request sample arrays before rendering (pbrt-v3's `Request*Array`), on the prototype sampler.
+    fn request_samples(&self, _sampler: &mut dyn Sampler) {}
+    /// Radiance along a camera ray; `aov` holds the integrator's extra channels for this sample.
+    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb;
+}
+
+/// The tiles covering `bounds`, on the fixed grid, in raster order.
+pub fn tiles(bounds: Bounds2i) -> Vec<Bounds2i> {
+    let mut out = Vec::new();
+    if bounds.is_empty() {
+        return out;
+    }
+    let t0 = IVec2::new(bounds.min.x.div_euclid(TILE_SIZE), bounds.min.y.div_euclid(TILE_SIZE));
+    let t1 = IVec2::new((bounds.max.x - 1).div_euclid(TILE_SIZE), (bounds.max.y - 1).div_euclid(TILE_SIZE));
+    for ty in t0.y..=t1.y {
+        for tx in t0.x..=t1.x {
+            let min = IVec2::new(tx, ty) * TILE_SIZE;
+            let t = Bounds2i::new(min, min + IVec2::splat(TILE_SIZE)).intersect(&bounds);
+            if !t.is_empty() {
+                out.push(t);
+            }
+        }
+    }
+    out
+}
+
+/// Runs `f` on a pool of `threads` workers (0: all cores).
+pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> Result<R, RenderError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| RenderError::Failed(format!("cannot start worker threads: {e}")))?;
+    Ok(pool.install(f))
+}
+
+/// The generic driver: tiles in parallel, per-tile sampler clones, deterministic merge.
+pub fn render_pixels(est: &dyn PixelEstimator, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+    let start = Instant::now();
+    let mut proto = scene.sampler.clone_box();
+    est.request_samples(proto.as_mut());
+    let spp = proto.samples_per_pixel();
+    let sample_bounds = film.spec.sample_bounds(scene.filter.radius());
+    let tile_list = tiles(sample_bounds);
+    let total = tile_list.len() as u64;
+    let done = AtomicU64::new(0);
+    let naov = film.extra_channel_names.len();
+    let max_lum = film.spec.max_sample_luminance;
+    let film_ref = &*film;
+    let results: Vec<Option<(crate::film::FilmTile, ThreadStats)>> = with_threads(ctx.threads, || {
+        tile_list
+            .par_iter()
+            .map(|tb| {
+                if ctx.cancel.load(Ordering::Relaxed) {
+                    return None;
+                }
+                let mut sampler = proto.clone_box();
+                let mut tile = film_ref.make_tile(*tb);
+                let mut stats = ThreadStats::default();
+                let mut aov = vec![0.0f32; naov];
+                for p in tb.iter() {
+                    for s in 0..spp {
+                        sampler.start_pixel_sample(p, s);
+                        let cs = CameraSample {
+                            p_film: p.as_vec2() + sampler.get_2d(),
+                            time: sampler.get_1d(),
+                            p_lens: sampler.get_2d(),
+                        };
+                        let ray = scene.camera.generate_ray(&cs);
+                        aov.iter_mut().for_each(|v| *v = 0.0);
+                        let mut l = est.li(&ray, scene, sampler.as_mut(), &mut stats, &mut aov);
+                        stats.rays += 1;
+                        if !l.is_finite() || l.min_element() < 0.0 {
+                            stats.bad_samples += 1;
+                            l = if l.is_finite() { l.max(Rgb::ZERO) } else { Rgb::ZERO };
+                        }
+                        let y = crate::spectrum::luminance(l);
+                        if y > max_lum {
+                            l *= max_lum / y;
+                        }
+                        tile.add_sample(scene.filter.as_ref(), cs.p_film, l, &aov);
+                    }
+                }
+                let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+                if let Some(pr) = ctx.progress {
+                    pr(d, total);
+                }
+                Some((tile, stats))
+            })
+            .collect()
+    })?;
+    if results.iter().any(|r| r.is_none()) {
+        return Err(RenderError::Cancelled);
+    }
+    let mut stats = RenderStats { spp, threads: rayon_threads(ctx.threads), ..Default::default() };
+    for (tile, ts) in results.into_iter().flatten() {
+        film.merge_tile(&tile);
+        stats.rays += ts.rays;
+        stats.shadow_rays += ts.shadow_rays;
+        stats.bad_samples += ts.bad_samples;
+    }
+    stats.camera_samples = sample_bounds.area() as u64 * spp as u64;
+    stats.render_seconds = start.elapsed().as_secs_f64();
+    if stats.bad_samples > 0 {
+        ctx.warnings.warn(None, format!("{} samples had NaN, infinite or negative radiance and were set to 0", stats.bad_samples));
+    }
+    Ok(stats)
+}
+
+fn rayon_threads(requested: usize) -> usize {
+    if requested > 0 {
+        requested
+    } else {
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+    }
+}

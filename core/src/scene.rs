@@ -1,0 +1,321 @@
+//! The renderable scene, built from a `SceneDescription` according to what
+//! the chosen integrator says it needs ([`Requirements`]).
+
+use crate::accel::{interpolate, Accel, Hit, DEFAULT_UV};
+use crate::camera::Camera;
+use crate::film::{Bounds2i, FilmSpec};
+use crate::filter::{create_filter, Filter};
+use crate::geometry::{face_forward, gamma, Bounds3, Frame, Ray};
+use crate::mesh::TriangleMesh;
+use crate::sampler::{create_sampler, Sampler};
+use crate::shapes::{build_shape, ShapeContext};
+use glam::{IVec2, Vec2, Vec3};
+use penumbra_parser::{DiagSink, Diagnostic, Entity, FileLoc, SceneDescription, ShapeDesc};
+use std::time::Instant;
+
+/// What the scene build must provide for an integrator. Everything is off by
+/// default: the builder computes only what is asked for and present.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Requirements {
+    /// A BVH over all geometry for ray queries.
+    pub accel: bool,
+    /// Lights (with their sampling distributions).
+    pub lights: bool,
+    /// Materials and the textures they reference.
+    pub materials: bool,
+    /// Per-mesh edge adjacency (silhouette methods).
+    pub adjacency: bool,
+    /// Light geometry as polygons (analytic area-light methods).
+    pub light_polygons: bool,
+}
+
+/// A crop given on the command line: fractions (pbrt-v3's `cropwindow`) or pixel bounds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Crop {
+    Fraction([f32; 4]),
+    /// `[x0, x1, y0, y1]`, half-open.
+    Pixels([i32; 4]),
+}
+
+/// Command-line overrides of what the scene file says.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BuildOptions {
+    pub spp: Option<u32>,
+    pub seed: u64,
+    pub crop: Option<Crop>,
+    /// Overrides of the film resolution (tests render scenes small).
+    pub resolution: Option<(u32, u32)>,
+}
+
+/// One shape directive (or one shape of one object instance) in the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneObject {
+    /// The shape type as written (`"sphere"`, `"trianglemesh"`…).
+    pub kind: String,
+    pub loc: FileLoc,
+    /// Index into `SceneDescription::materials`; `None` means no surface (pbrt-v3's `Material "none"`).
+    pub material: Option<usize>,
+    /// Index into `SceneDescription::area_lights`.
+    pub area_light: Option<usize>,
+    /// Which `ObjectInstance` this came from, if any.
+    pub instance: Option<usize>,
+}
+
+/// Time spent and what was built, for `penumbra info` and `stats.json`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BuildReport {
+    /// (stage, seconds, detail)
+    pub stages: Vec<(String, f64, String)>,
+}
+
+impl BuildReport {
+    pub fn total_seconds(&self) -> f64 {
+        self.stages.iter().map(|s| s.1).sum()
+    }
+}
+
+pub struct Scene {
+    pub camera: Camera,
+    pub film: FilmSpec,
+    pub filter: Box<dyn Filter>,
+    pub sampler: Box<dyn Sampler>,
+    /// World-space meshes, one per object.
+    pub meshes: Vec<TriangleMesh>,
+    pub objects: Vec<SceneObject>,
+    pub accel: Option<Accel>,
+    pub bounds: Bounds3,
+    /// The scene's own `Integrator` directive.
+    pub integrator: Entity,
+    pub report: BuildReport,
+}
+
+/// The local geometry at a ray hit, with pbrt-v3's conventions for normals.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceInteraction {
+    pub p: Vec3,
+    /// Conservative absolute error bound on `p`.
+    pub p_error: Vec3,
+    /// Geometric normal (pbrt-v3's `n`: flipped by `ReverseOrientation` xor handedness,
+    /// and on the side of the shading normal when the mesh has normals).
+    pub n: Vec3,
+    pub uv: Vec2,
+    pub dpdu: Vec3,
+    pub dpdv: Vec3,
+    /// Shading frame (z = shading normal).
+    pub shading: Frame,
+    /// Direction towards the ray origin.
+    pub wo: Vec3,
+    pub mesh: u32,
+    pub tri: u32,
+}
+
+impl SurfaceInteraction {
+    /// A ray leaving the surface in direction `d`, offset so it cannot re-hit this surface.
+    pub fn spawn_ray(&self, d: Vec3) -> Ray {
+        Ray::new(crate::geometry::offset_ray_origin(self.p, self.p_error, self.n, d), d, f32::INFINITY)
+    }
+    /// A shadow ray from this surface to point `p` (stops just short of it).
+    pub fn spawn_ray_to(&self, p: Vec3) -> Ray {
+        let o = crate::geometry::offset_ray_origin(self.p, self.p_error, self.n, p - self.p);
+        Ray::new(o, p - o, 1.0 - SHADOW_EPSILON)
+    }
+    /// A shadow ray between this surface and another surface point, both ends offset.
+    pub fn spawn_ray_to_surface(&self, p: Vec3, p_error: Vec3, n: Vec3) -> Ray {
+        let o = crate::geometry::offset_ray_origin(self.p, self.p_error, self.n, p - self.p);
+        let t = crate::geometry::offset_ray_origin(p, p_error, n, o - p);
+        Ray::new(o, t - o, 1.0 - SHADOW_EPSILON)
+    }
+}
+
+/// pbrt-v3's `ShadowEpsilon`.
+pub const SHADOW_EPSILON: f32 = 0.0001;
+
+fn film_spec(desc: &SceneDescription, opts: &BuildOptions, warnings: &DiagSink) -> Result<FilmSpec, Diagnostic> {
+    let e = &desc.film;
+    let p = &e.params;
+    if e.kind != "image" {
+        warnings.warn(Some(e.loc.clone()), format!("film \"{}\" is not pbrt-v3's \"image\": treating it as \"image\"", e.kind));
+    }
+    let mut res = (p.get_one_int("xresolution", 1280), p.get_one_int("yresolution", 720));
+    if res.0 <= 0 || res.1 <= 0 || res.0 > 1 << 16 || res.1 > 1 << 16 {
+        return Err(Diagnostic::error(Some(e.loc.clone()), format!("film resolution {}x{} is out of range", res.0, res.1)));
+    }
+    let file_res = (res.0 as u32, res.1 as u32);
+    if let Some(r) = opts.resolution {
+        res = (r.0 as i32, r.1 as i32);
+    }
+    let full = (res.0 as u32, res.1 as u32);
+    let mut crop = [0.0f32, 1.0, 0.0, 1.0];
+    if let Some(c) = p.get_floats("cropwindow") {
+        if c.len() == 4 {
+            crop = [c[0], c[1], c[2], c[3]];
+        } else {
+            warnings.warn(p.loc_of("cropwindow").cloned(), "\"cropwindow\" needs 4 values: ignored");
+        }
+    }
+    let mut pixel_bounds = FilmSpec::crop_to_pixels(full, crop);
+    if let Some(pb) = p.get_ints("pixelbounds") {
+        if pb.len() == 4 && opts.resolution.is_none() {
+            pixel_bounds = pixel_bounds.intersect(&Bounds2i::new(IVec2::new(pb[0], pb[2]), IVec2::new(pb[1], pb[3])));
+        }
+    }
+    match opts.crop {
+        Some(Crop::Fraction(c)) => pixel_bounds = FilmSpec::crop_to_pixels(full, c),
+        Some(Crop::Pixels(c)) => {
+            pixel_bounds = Bounds2i::new(IVec2::new(c[0], c[2]), IVec2::new(c[1], c[3]))
+                .intersect(&Bounds2i::new(IVec2::ZERO, IVec2::new(full.0 as i32, full.1 as i32)))
+        }
+        None => {}
+    }
+    if pixel_bounds.is_empty() {
+        return Err(Diagnostic::error(Some(e.loc.clone()), "the crop window / pixel bounds contain no pixels"));
+    }
+    let _ = file_res;
+    p.get_floats("diagonal");
+    Ok(FilmSpec {
+        full_resolution: full,
+        pixel_bounds,
+        filename: p.get_one_string("filename", "pbrt.exr"),
+        scale: p.get_one_float("scale", 1.0),
+        max_sample_luminance: p.get_one_float("maxsampleluminance", f32::INFINITY),
+    })
+}
+
+impl Scene {
+    /// Builds what `req` asks for. Warnings go to `warnings`; unused parameters of
+    /// every entity the build consumed are reported there too.
+    pub fn build(desc: &SceneDescription, req: Requirements, opts: &BuildOptions, warnings: &DiagSink) -> Result<Scene, Diagnostic> {
+        let mut report = BuildReport::default();
+        let t0 = Instant::now();
+        let film = film_spec(desc, opts, warnings)?;
+        warnings.extend(desc.film.params.report_unused("film \"image\"").into_iter().map(|d| d));
+        let camera = Camera::from_desc(&desc.camera, film.full_resolution, warnings)?;
+        warnings.extend(desc.camera.entity.params.report_unused(&format!("camera \"{}\"", desc.camera.entity.kind)));
+        let filter = create_filter(&desc.filter).map_err(|e| Diagnostic::error(Some(desc.filter.loc.clone()), e.to_string()))?;
+        warnings.extend(desc.filter.params.report_unused(&format!("filter \"{}\"", desc.filter.kind)));
+        let sampler = create_sampler(&desc.sampler, opts.spp, opts.seed, warnings)
+            .map_err(|e| Diagnostic::error(Some(desc.sampler.loc.clone()), e.to_string()))?;
+        warnings.extend(desc.sampler.params.report_unused(&format!("sampler \"{}\"", desc.sampler.kind)));
+        report.stages.push(("camera, film, sampler".into(), t0.elapsed().as_secs_f64(), String::new()));
+
+        if !desc.media.is_empty() || desc.shapes.iter().any(|s| s.inside_medium.is_some() || s.outside_medium.is_some()) {
+            warnings.warn(
+                desc.media.first().map(|m| m.entity.loc.clone()),
+                "participating media are not supported: rendering as if every medium were vacuum",
+            );
+        }
+
+        let t1 = Instant::now();
+        let ctx = ShapeContext { warnings };
+        let mut meshes = Vec::new();
+        let mut objects = Vec::new();
+        let mut add = |s: &ShapeDesc, instance: Option<usize>, meshes: &mut Vec<TriangleMesh>| -> Result<(), Diagnostic> {
+            if let Some(mesh) = build_shape(s, &ctx)? {
+                meshes.push(mesh);
+                objects.push(SceneObject {
+                    kind: s.entity.kind.clone(),
+                    loc: s.entity.loc.clone(),
+                    material: s.material,
+                    area_light: s.area_light,
+                    instance,
+                });
+            }
+            Ok(())
+        };
+        for s in &desc.shapes {
+            add(s, None, &mut meshes)?;
+            warnings.extend(s.entity.params.report_unused(&format!("shape \"{}\"", s.entity.kind)));
+        }
+        for (ii, inst) in desc.instances.iter().enumerate() {
+            let Some(def) = desc.instance_definitions.get(inst.definition) else { continue };
+            for s in &def.shapes {
+                let mut s = s.clone();
+                s.render_from_object.start = inst.render_from_instance.start.compose(&s.render_from_object.start);
+                s.render_from_object.end = inst.render_from_instance.end.compose(&s.render_from_object.end);
+                add(&s, Some(ii), &mut meshes)?;
+            }
+        }
+        let ntris: usize = meshes.iter().map(|m| m.triangle_count()).sum();
+        report.stages.push(("shapes".into(), t1.elapsed().as_secs_f64(), format!("{} meshes, {} triangles", meshes.len(), ntris)));
+
+        let mut bounds = Bounds3::EMPTY;
+        for m in &meshes {
+            for p in &m.positions {
+                bounds.extend(*p);
+            }
+        }
+        let accel = if req.accel {
+            let a = Accel::build(&meshes);
+            report.stages.push(("bvh".into(), a.build_seconds, format!("{} triangles", a.triangle_count())));
+            Some(a)
+        } else {
+            None
+        };
+        Ok(Scene { camera, film, filter, sampler, meshes, objects, accel, bounds, integrator: desc.integrator.clone(), report })
+    }
+
+    /// Closest hit (requires `Requirements::accel`).
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.accel.as_ref().and_then(|a| a.intersect(ray))
+    }
+
+    /// Whether anything blocks `ray` before `ray.t_max`.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.accel.as_ref().is_some_and(|a| a.occluded(ray))
+    }
+
+    /// The surface geometry at a hit, as pbrt-v3's `Triangle::Intersect` computes it.
+    pub fn interaction(&self, ray: &Ray, hit: &Hit) -> SurfaceInteraction {
+        let mesh = &self.meshes[hit.mesh as usize];
+        let tri = hit.tri as usize;
+        let idx = mesh.indices[tri];
+        let pv = mesh.vertices(tri);
+        let b = hit.b;
+        let p = interpolate(pv, b);
+        let p_abs = pv[0].abs() * b[0].abs() + pv[1].abs() * b[1].abs() + pv[2].abs() * b[2].abs();
+        let p_error = gamma(7) * p_abs;
+        let uvv = match &mesh.uvs {
+            Some(uv) => idx.map(|i| uv[i as usize]),
+            None => DEFAULT_UV,
+        };
+        let uv = interpolate(uvv, b);
+        let duv02 = uvv[0] - uvv[2];
+        let duv12 = uvv[1] - uvv[2];
+        let dp02 = pv[0] - pv[2];
+        let dp12 = pv[1] - pv[2];
+        let det = duv02.x * duv12.y - duv02.y * duv12.x;
+        let mut ng = dp02.cross(dp12).normalize_or_zero();
+        if mesh.flip_normals {
+            ng = -ng;
+        }
+        let (dpdu, dpdv) = {
+            let degenerate = det.abs() < 1e-8;
+            let (u, v) = if degenerate {
+                (Vec3::ZERO, Vec3::ZERO)
+            } else {
+                let inv = 1.0 / det;
+                ((duv12.y * dp02 - duv02.y * dp12) * inv, (duv02.x * dp12 - duv12.x * dp02) * inv)
+            };
+            if degenerate || u.cross(v).length_squared() == 0.0 {
+                let f = Frame::from_z(ng);
+                (f.x, f.y)
+            } else {
+                (u, v)
+            }
+        };
+        let mut n = ng;
+        let ns = mesh.normals.as_ref().map(|ns| interpolate(idx.map(|i| ns[i as usize]), b).normalize_or_zero());
+        let shading = match ns {
+            Some(ns) if ns != Vec3::ZERO && ns.is_finite() => {
+                n = face_forward(n, ns);
+                let ss = match &mesh.tangents {
+                    Some(s) => interpolate(idx.map(|i| s[i as usize]), b),
+                    None => dpdu,
+                };
+                Frame::from_zx(ns, ss)
+            }
+            _ => Frame::from_zx(n, dpdu),
+        };
+        SurfaceInteraction { p, p_error, n, uv, dpdu, dpdv, shading, wo: -ray.d.normalize_or_zero(), mesh: hit.mesh, tri: hit.tri }
+    }
+}

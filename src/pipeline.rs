@@ -1,0 +1,113 @@
+//! Load → choose integrator → build → render.
+
+use crate::cli_params;
+use penumbra_core::film::{Film, FilmSpec};
+use penumbra_core::image::Image;
+use penumbra_core::integrator::{Integrator, RenderContext, RenderError, RenderStats};
+use penumbra_core::scene::{BuildOptions, BuildReport, Scene};
+use penumbra_parser::{DiagSink, Diagnostic, Param, ParseOutput, SceneDescription};
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+/// The scene rendered when no file is given.
+pub const DEFAULT_SCENE: &str = include_str!("../scenes/default.pbrt");
+pub const DEFAULT_SCENE_NAME: &str = "<embedded default scene>";
+
+/// The integrator used for scenes that name one penumbra does not implement.
+pub const FALLBACK_INTEGRATOR: &str = "ambientocclusion";
+
+/// Parses `path`, or the embedded default scene when `None`.
+pub fn load_scene(path: Option<&Path>) -> Result<ParseOutput, Diagnostic> {
+    match path {
+        Some(p) => penumbra_parser::parse_file(p),
+        None => penumbra_parser::parse_str(DEFAULT_SCENE, DEFAULT_SCENE_NAME, None),
+    }
+}
+
+/// The integrator to run and its parameters: `-i` wins; otherwise the scene's
+/// own, falling back (with a warning) when penumbra does not implement it.
+pub fn choose_integrator(
+    desc: &SceneDescription,
+    cli_name: Option<&str>,
+    cli_params: &[Param],
+    warnings: &DiagSink,
+) -> Result<Box<dyn Integrator>, Diagnostic> {
+    let scene_name = desc.integrator.kind.as_str();
+    let (name, base) = match cli_name {
+        Some(n) if n == scene_name => (n.to_string(), desc.integrator.params.clone()),
+        Some(n) => {
+            desc.integrator.params.mark_all_used();
+            (n.to_string(), Default::default())
+        }
+        None if penumbra_integrators::find(scene_name).is_some() => (scene_name.to_string(), desc.integrator.params.clone()),
+        None => {
+            let known = penumbra_integrators::PBRT_UNIMPLEMENTED.contains(&scene_name);
+            warnings.warn(
+                Some(desc.integrator.loc.clone()),
+                format!(
+                    "{} integrator \"{scene_name}\" is not implemented by penumbra: rendering with \"{FALLBACK_INTEGRATOR}\" instead (choose one with -i)",
+                    if known { "pbrt-v3" } else { "unknown" }
+                ),
+            );
+            let base = desc.integrator.params.clone();
+            base.mark_all_used();
+            (FALLBACK_INTEGRATOR.to_string(), base)
+        }
+    };
+    let entry = penumbra_integrators::find(&name).ok_or_else(|| {
+        Diagnostic::error(None, format!("unknown integrator \"{name}\"; valid names: {}", penumbra_integrators::names().join(", ")))
+    })?;
+    let params = cli_params::merge(&base, cli_params);
+    let integrator = (entry.create)(&params, warnings)?;
+    warnings.extend(params.report_unused(&format!("integrator \"{name}\"")));
+    Ok(integrator)
+}
+
+/// A finished render.
+pub struct Rendered {
+    pub integrator: String,
+    pub image: Image,
+    pub film: FilmSpec,
+    pub stats: RenderStats,
+    pub build: BuildReport,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error("{0}")]
+    Scene(Diagnostic),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+}
+
+impl From<Diagnostic> for PipelineError {
+    fn from(d: Diagnostic) -> Self {
+        PipelineError::Scene(d)
+    }
+}
+
+pub struct RenderOptions<'a> {
+    pub integrator: Option<&'a str>,
+    pub params: &'a [Param],
+    pub build: BuildOptions,
+    pub threads: usize,
+    pub with_variance: bool,
+    pub cancel: &'a AtomicBool,
+    pub progress: Option<&'a (dyn Fn(u64, u64) + Sync)>,
+}
+
+/// Chooses the integrator, builds what it needs and renders.
+pub fn render(desc: &SceneDescription, opts: &RenderOptions, warnings: &DiagSink) -> Result<Rendered, PipelineError> {
+    let integrator = choose_integrator(desc, opts.integrator, opts.params, warnings)?;
+    let scene = Scene::build(desc, integrator.requirements(), &opts.build, warnings)?;
+    let mut film = Film::new(scene.film.clone(), scene.filter.radius(), integrator.extra_channels());
+    let ctx = RenderContext { threads: opts.threads, seed: opts.build.seed, cancel: opts.cancel, progress: opts.progress, warnings };
+    let stats = integrator.render(&scene, &ctx, &mut film)?;
+    Ok(Rendered {
+        integrator: integrator.name().to_string(),
+        image: film.to_image(opts.with_variance),
+        film: scene.film.clone(),
+        stats,
+        build: scene.report.clone(),
+    })
+}

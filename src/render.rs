@@ -1,0 +1,218 @@
+//! `penumbra render`.
+
+use penumbra::cli_params;
+use penumbra::pipeline::{self, RenderOptions};
+use penumbra_core::scene::{BuildOptions, Crop};
+use penumbra_parser::{DiagSink, Diagnostic};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(clap::Args, Default)]
+pub struct RenderArgs {
+    /// The pbrt-v3 scene file (default: the embedded default scene).
+    pub scene: Option<PathBuf>,
+    /// Integrator to use (overrides the scene's `Integrator`).
+    #[arg(short = 'i', long = "integrator")]
+    pub integrator: Option<String>,
+    /// Integrator parameter `key=value` (repeatable; type inferred).
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+    /// Samples per pixel (overrides the scene's sampler).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Output image (.exr, .png or .pfm; default: the scene's Film filename).
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Crop `x0,x1,y0,y1`: pixel bounds (integers, half-open) or, if any value has a
+    /// decimal point, fractions of the image as pbrt-v3's `cropwindow`.
+    #[arg(long)]
+    pub crop: Option<String>,
+    /// Override the film resolution `WxH` (e.g. for quick previews).
+    #[arg(long)]
+    pub resolution: Option<String>,
+    /// Sampler seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Also write per-pixel variance channels (EXR only).
+    #[arg(long)]
+    pub variance: bool,
+    /// No progress bar.
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
+}
+
+pub fn parse_crop(s: &str) -> Result<Crop, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 4 {
+        return Err(format!("--crop needs 4 comma-separated values x0,x1,y0,y1, got \"{s}\""));
+    }
+    if parts.iter().any(|p| p.contains('.')) {
+        let v: Result<Vec<f32>, _> = parts.iter().map(|p| p.parse::<f32>()).collect();
+        let v = v.map_err(|_| format!("--crop: \"{s}\" is not four numbers"))?;
+        Ok(Crop::Fraction([v[0], v[1], v[2], v[3]]))
+    } else {
+        let v: Result<Vec<i32>, _> = parts.iter().map(|p| p.parse::<i32>()).collect();
+        let v = v.map_err(|_| format!("--crop: \"{s}\" is not four integers"))?;
+        Ok(Crop::Pixels([v[0], v[1], v[2], v[3]]))
+    }
+}
+
+pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("--resolution expects WxH, got \"{s}\""))?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("--resolution: bad width in \"{s}\""))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("--resolution: bad height in \"{s}\""))?;
+    if w == 0 || h == 0 || w > 1 << 16 || h > 1 << 16 {
+        return Err(format!("--resolution {w}x{h} is out of range"));
+    }
+    Ok((w, h))
+}
+
+fn print_warnings(w: &DiagSink) {
+    for d in w.take() {
+        eprint!("{d}");
+    }
+}
+
+fn fail(msg: impl std::fmt::Display) -> ExitCode {
+    eprintln!("error: {msg}");
+    ExitCode::FAILURE
+}
+
+/// `out.exr` → `out.stats.json`.
+pub fn stats_path(image: &Path) -> PathBuf {
+    let stem = image.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "penumbra".into());
+    image.with_file_name(format!("{stem}.stats.json"))
+}
+
+pub fn run(args: RenderArgs) -> ExitCode {
+    let warnings = DiagSink::new();
+    let t0 = Instant::now();
+    let parsed = match pipeline::load_scene(args.scene.as_deref()) {
+        Ok(p) => p,
+        Err(e) => {
+            eprint!("{e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let parse_seconds = t0.elapsed().as_secs_f64();
+    warnings.extend(parsed.warnings);
+    let params: Result<Vec<_>, Diagnostic> = args.params.iter().map(|p| cli_params::parse_param(p)).collect();
+    let params = match params {
+        Ok(p) => p,
+        Err(e) => return fail(e.message),
+    };
+    let crop = match args.crop.as_deref().map(parse_crop).transpose() {
+        Ok(c) => c,
+        Err(e) => return fail(e),
+    };
+    let resolution = match args.resolution.as_deref().map(parse_resolution).transpose() {
+        Ok(r) => r,
+        Err(e) => return fail(e),
+    };
+    let output = args.output.clone().unwrap_or_else(|| PathBuf::from(parsed.scene.film.params.get_one_string("filename", "pbrt.exr")));
+    if !matches!(output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(), Some("exr" | "png" | "pfm")) {
+        return fail(format!("{}: output must end in .exr, .png or .pfm", output.display()));
+    }
+
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let c = cancel.clone();
+        let _ = ctrlc::set_handler(move || {
+            if c.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+        });
+    }
+    let bar = (!args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(|| {
+        let b = indicatif::ProgressBar::new(1);
+        b.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} tiles (eta {eta})")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    });
+    let progress = |done: u64, total: u64| {
+        if let Some(b) = &bar {
+            b.set_length(total);
+            b.set_position(done);
+        }
+    };
+    let opts = RenderOptions {
+        integrator: args.integrator.as_deref(),
+        params: &params,
+        build: BuildOptions { spp: args.spp, seed: args.seed, crop, resolution },
+        threads: args.threads,
+        with_variance: args.variance,
+        cancel: &cancel,
+        progress: Some(&progress),
+    };
+    let result = pipeline::render(&parsed.scene, &opts, &warnings);
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    print_warnings(&warnings);
+    let r = match result {
+        Ok(r) => r,
+        Err(e) => {
+            eprint!("{}", match &e {
+                pipeline::PipelineError::Scene(d) => d.to_string(),
+                other => format!("error: {other}\n"),
+            });
+            if cancel.load(Ordering::SeqCst) {
+                eprintln!("nothing was written");
+            }
+            return ExitCode::FAILURE;
+        }
+    };
+    let mut image = r.image;
+    if !output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) && image.channels.len() > 3 {
+        image = match image.select_channels(&["R", "G", "B"]) {
+            Ok(i) => i,
+            Err(e) => return fail(e),
+        };
+    }
+    if let Err(e) = penumbra_core::image::write(&image, &output) {
+        return fail(e);
+    }
+    let stats = serde_json::json!({
+        "scene": args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| pipeline::DEFAULT_SCENE_NAME.to_string()),
+        "integrator": r.integrator,
+        "parameters": args.params,
+        "image": output.display().to_string(),
+        "resolution": [r.film.full_resolution.0, r.film.full_resolution.1],
+        "pixel_bounds": [r.film.pixel_bounds.min.x, r.film.pixel_bounds.max.x, r.film.pixel_bounds.min.y, r.film.pixel_bounds.max.y],
+        "spp": r.stats.spp,
+        "seed": args.seed,
+        "threads": r.stats.threads,
+        "parse_seconds": parse_seconds,
+        "build_seconds": r.build.total_seconds(),
+        "build": r.build.stages.iter().map(|(s, t, d)| serde_json::json!({"stage": s, "seconds": t, "detail": d})).collect::<Vec<_>>(),
+        "render_seconds": r.stats.render_seconds,
+        "stats": r.stats,
+    });
+    let sp = stats_path(&output);
+    let text = serde_json::to_string_pretty(&stats).unwrap_or_default();
+    if let Err(e) = penumbra_core::image::write_atomic(&sp, |w| w.write_all(text.as_bytes())) {
+        return fail(e);
+    }
+    if !args.quiet {
+        eprintln!(
+            "{}: {} at {} spp, {}x{} px, build {:.3} s, render {:.3} s, {:.2} M rays/s",
+            output.display(),
+            r.integrator,
+            r.stats.spp,
+            image.width,
+            image.height,
+            r.build.total_seconds(),
+            r.stats.render_seconds,
+            (r.stats.rays + r.stats.shadow_rays) as f64 / r.stats.render_seconds.max(1e-9) / 1e6
+        );
+    }
+    ExitCode::SUCCESS
+}
