@@ -8,7 +8,11 @@ mod info;
 mod render;
 
 #[derive(Parser)]
-#[command(name = "penumbra", version, about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes")]
+#[command(
+    name = "penumbra",
+    version,
+    about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,

@@ -39,7 +39,9 @@ pub fn choose_integrator(
             desc.integrator.params.mark_all_used();
             (n.to_string(), Default::default())
         }
-        None if penumbra_integrators::find(scene_name).is_some() => (scene_name.to_string(), desc.integrator.params.clone()),
+        None if penumbra_integrators::find(scene_name).is_some() => {
+            (scene_name.to_string(), desc.integrator.params.clone())
+        }
         None => {
             let known = penumbra_integrators::PBRT_UNIMPLEMENTED.contains(&scene_name);
             warnings.warn(
@@ -55,7 +57,10 @@ pub fn choose_integrator(
         }
     };
     let entry = penumbra_integrators::find(&name).ok_or_else(|| {
-        Diagnostic::error(None, format!("unknown integrator \"{name}\"; valid names: {}", penumbra_integrators::names().join(", ")))
+        Diagnostic::error(
+            None,
+            format!("unknown integrator \"{name}\"; valid names: {}", penumbra_integrators::names().join(", ")),
+        )
     })?;
     let params = cli_params::merge(&base, cli_params);
     let integrator = (entry.create)(&params, warnings)?;
@@ -101,7 +106,13 @@ pub fn render(desc: &SceneDescription, opts: &RenderOptions, warnings: &DiagSink
     let integrator = choose_integrator(desc, opts.integrator, opts.params, warnings)?;
     let scene = Scene::build(desc, integrator.requirements(), &opts.build, warnings)?;
     let mut film = Film::new(scene.film.clone(), scene.filter.radius(), integrator.extra_channels());
-    let ctx = RenderContext { threads: opts.threads, seed: opts.build.seed, cancel: opts.cancel, progress: opts.progress, warnings };
+    let ctx = RenderContext {
+        threads: opts.threads,
+        seed: opts.build.seed,
+        cancel: opts.cancel,
+        progress: opts.progress,
+        warnings,
+    };
     let stats = integrator.render(&scene, &ctx, &mut film)?;
     Ok(Rendered {
         integrator: integrator.name().to_string(),

@@ -115,8 +115,14 @@ pub fn run(args: RenderArgs) -> ExitCode {
         Ok(r) => r,
         Err(e) => return fail(e),
     };
-    let output = args.output.clone().unwrap_or_else(|| PathBuf::from(parsed.scene.film.params.get_one_string("filename", "pbrt.exr")));
-    if !matches!(output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(), Some("exr" | "png" | "pfm")) {
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(parsed.scene.film.params.get_one_string("filename", "pbrt.exr")));
+    if !matches!(
+        output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(),
+        Some("exr" | "png" | "pfm")
+    ) {
         return fail(format!("{}: output must end in .exr, .png or .pfm", output.display()));
     }
 
@@ -132,8 +138,10 @@ pub fn run(args: RenderArgs) -> ExitCode {
     let bar = (!args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(|| {
         let b = indicatif::ProgressBar::new(1);
         b.set_style(
-            indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} tiles (eta {eta})")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            indicatif::ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} tiles (eta {eta})",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
         b
     });
@@ -160,10 +168,13 @@ pub fn run(args: RenderArgs) -> ExitCode {
     let r = match result {
         Ok(r) => r,
         Err(e) => {
-            eprint!("{}", match &e {
-                pipeline::PipelineError::Scene(d) => d.to_string(),
-                other => format!("error: {other}\n"),
-            });
+            eprint!(
+                "{}",
+                match &e {
+                    pipeline::PipelineError::Scene(d) => d.to_string(),
+                    other => format!("error: {other}\n"),
+                }
+            );
             if cancel.load(Ordering::SeqCst) {
                 eprintln!("nothing was written");
             }

@@ -80,7 +80,17 @@ struct RayPrecomp {
 impl RayPrecomp {
     fn new(o: Vec3A, d: Vec3A) -> Self {
         let ad = d.abs();
-        let kz = if ad.x > ad.y { if ad.x > ad.z { 0 } else { 2 } } else if ad.y > ad.z { 1 } else { 2 };
+        let kz = if ad.x > ad.y {
+            if ad.x > ad.z {
+                0
+            } else {
+                2
+            }
+        } else if ad.y > ad.z {
+            1
+        } else {
+            2
+        };
         let kx = (kz + 1) % 3;
         let ky = (kx + 1) % 3;
         let dz = d[kz];
@@ -153,9 +163,15 @@ impl Accel {
                 }
             }
         }
-        let extent = bounds.diagonal().abs().max_element().max(bounds.min.abs().max_element()).max(bounds.max.abs().max_element());
+        let extent = bounds
+            .diagonal()
+            .abs()
+            .max_element()
+            .max(bounds.min.abs().max_element())
+            .max(bounds.max.abs().max_element());
         // s = 2^k with s * extent in [0.5, 1).
-        let scale = if extent > 0.0 && extent.is_finite() { 2f32.powi(-(extent.log2().floor() as i32 + 1)) } else { 1.0 };
+        let scale =
+            if extent > 0.0 && extent.is_finite() { 2f32.powi(-(extent.log2().floor() as i32 + 1)) } else { 1.0 };
         let mut tris = Vec::new();
         let mut refs = Vec::new();
         for (mi, m) in meshes.iter().enumerate() {
@@ -194,7 +210,8 @@ impl Accel {
     }
 
     fn prepare(&self, ray: &Ray) -> Option<(obvhs::ray::Ray, RayPrecomp, f32)> {
-        if self.tris.is_empty() || !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO || ray.t_max.is_nan() {
+        if self.tris.is_empty() || !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO || ray.t_max.is_nan()
+        {
             return None;
         }
         // Normalise the direction in BVH space so BACKUP is a distance.
@@ -213,13 +230,14 @@ impl Accel {
         let (bray, pre, to_bvh) = self.prepare(ray)?;
         let mut hit = RayHit::none();
         let mut best_b = [0.0f32; 3];
-        let found = self.bvh.ray_traverse(bray, &mut hit, |r, id| match pre.intersect(&self.tris[id], BACKUP, r.tmax) {
-            Some((t, b)) => {
-                best_b = b;
-                t
-            }
-            None => f32::INFINITY,
-        });
+        let found =
+            self.bvh.ray_traverse(bray, &mut hit, |r, id| match pre.intersect(&self.tris[id], BACKUP, r.tmax) {
+                Some((t, b)) => {
+                    best_b = b;
+                    t
+                }
+                None => f32::INFINITY,
+            });
         if !found {
             return None;
         }

@@ -15,7 +15,9 @@ pub struct CameraSample {
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Projection {
-    Perspective { tan_half_fov: f32 },
+    Perspective {
+        tan_half_fov: f32,
+    },
     Orthographic,
     /// Latitude-longitude over the whole sphere.
     Environment,
@@ -53,7 +55,10 @@ impl Camera {
         let p = &desc.entity.params;
         let loc = Some(desc.entity.loc.clone());
         if desc.world_from_camera.is_animated() {
-            warnings.warn(loc.clone(), "animated camera transform: motion blur is not supported; using the transform at shutter open");
+            warnings.warn(
+                loc.clone(),
+                "animated camera transform: motion blur is not supported; using the transform at shutter open",
+            );
         }
         let mut shutter = (p.get_one_float("shutteropen", 0.0), p.get_one_float("shutterclose", 1.0));
         if shutter.1 < shutter.0 {
@@ -67,10 +72,17 @@ impl Camera {
             if sw.len() == 4 {
                 screen = [sw[0], sw[1], sw[2], sw[3]];
             } else {
-                warnings.warn(p.loc_of("screenwindow").cloned(), format!("\"screenwindow\" needs 4 values, got {}: ignored", sw.len()));
+                warnings.warn(
+                    p.loc_of("screenwindow").cloned(),
+                    format!("\"screenwindow\" needs 4 values, got {}: ignored", sw.len()),
+                );
             }
         }
-        if !(frame.is_finite() && frame > 0.0) || screen.iter().any(|v| !v.is_finite()) || screen[0] == screen[1] || screen[2] == screen[3] {
+        if !(frame.is_finite() && frame > 0.0)
+            || screen.iter().any(|v| !v.is_finite())
+            || screen[0] == screen[1]
+            || screen[2] == screen[3]
+        {
             return Err(Diagnostic::error(loc, "degenerate camera screen window or frame aspect ratio"));
         }
         let kind = desc.entity.kind.as_str();
@@ -86,7 +98,10 @@ impl Camera {
                     fov = 2.0 * half;
                 }
                 if !(fov > 0.0 && fov < 180.0) {
-                    return Err(Diagnostic::error(p.loc_of("fov").cloned().or(loc), format!("fov must be in (0, 180) degrees, got {fov}")));
+                    return Err(Diagnostic::error(
+                        p.loc_of("fov").cloned().or(loc),
+                        format!("fov must be in (0, 180) degrees, got {fov}"),
+                    ));
                 }
                 Projection::Perspective { tan_half_fov: (fov.to_radians() * 0.5).tan() }
             }
@@ -95,7 +110,9 @@ impl Camera {
             other => {
                 return Err(Diagnostic::error(
                     loc,
-                    format!("unknown camera \"{other}\" (expected perspective, orthographic, environment or realistic)"),
+                    format!(
+                        "unknown camera \"{other}\" (expected perspective, orthographic, environment or realistic)"
+                    ),
                 ))
             }
         };

@@ -156,7 +156,13 @@ impl Film {
     pub fn new(spec: FilmSpec, filter_radius: Vec2, extra_channel_names: Vec<String>) -> Film {
         let n = spec.pixel_bounds.area().max(0) as usize;
         let ne = extra_channel_names.len();
-        Film { spec, pixels: vec![PixelSums::default(); n], extra: vec![0.0; n * ne], extra_channel_names, filter_radius }
+        Film {
+            spec,
+            pixels: vec![PixelSums::default(); n],
+            extra: vec![0.0; n * ne],
+            extra_channel_names,
+            filter_radius,
+        }
     }
 
     pub fn pixel_bounds(&self) -> Bounds2i {

@@ -46,6 +46,11 @@ impl Image {
             .collect::<Result<_, _>>()?;
         let nc = self.channels.len();
         let data = self.data.chunks(nc).flat_map(|px| idx.iter().map(move |&i| px[i])).collect();
-        Ok(Image { width: self.width, height: self.height, channels: names.iter().map(|n| n.as_ref().to_string()).collect(), data })
+        Ok(Image {
+            width: self.width,
+            height: self.height,
+            channels: names.iter().map(|n| n.as_ref().to_string()).collect(),
+            data,
+        })
     }
 }

@@ -108,7 +108,12 @@ pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> Re
 }
 
 /// The generic driver: tiles in parallel, per-tile sampler clones, deterministic merge.
-pub fn render_pixels(est: &dyn PixelEstimator, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+pub fn render_pixels(
+    est: &dyn PixelEstimator,
+    scene: &Scene,
+    ctx: &RenderContext,
+    film: &mut Film,
+) -> Result<RenderStats, RenderError> {
     let start = Instant::now();
     let mut proto = scene.sampler.clone_box();
     est.request_samples(proto.as_mut());
@@ -175,7 +180,10 @@ pub fn render_pixels(est: &dyn PixelEstimator, scene: &Scene, ctx: &RenderContex
     stats.camera_samples = sample_bounds.area() as u64 * spp as u64;
     stats.render_seconds = start.elapsed().as_secs_f64();
     if stats.bad_samples > 0 {
-        ctx.warnings.warn(None, format!("{} samples had NaN, infinite or negative radiance and were set to 0", stats.bad_samples));
+        ctx.warnings.warn(
+            None,
+            format!("{} samples had NaN, infinite or negative radiance and were set to 0", stats.bad_samples),
+        );
     }
     Ok(stats)
 }

@@ -134,11 +134,17 @@ fn film_spec(desc: &SceneDescription, opts: &BuildOptions, warnings: &DiagSink) 
     let e = &desc.film;
     let p = &e.params;
     if e.kind != "image" {
-        warnings.warn(Some(e.loc.clone()), format!("film \"{}\" is not pbrt-v3's \"image\": treating it as \"image\"", e.kind));
+        warnings.warn(
+            Some(e.loc.clone()),
+            format!("film \"{}\" is not pbrt-v3's \"image\": treating it as \"image\"", e.kind),
+        );
     }
     let mut res = (p.get_one_int("xresolution", 1280), p.get_one_int("yresolution", 720));
     if res.0 <= 0 || res.1 <= 0 || res.0 > 1 << 16 || res.1 > 1 << 16 {
-        return Err(Diagnostic::error(Some(e.loc.clone()), format!("film resolution {}x{} is out of range", res.0, res.1)));
+        return Err(Diagnostic::error(
+            Some(e.loc.clone()),
+            format!("film resolution {}x{} is out of range", res.0, res.1),
+        ));
     }
     let file_res = (res.0 as u32, res.1 as u32);
     if let Some(r) = opts.resolution {
@@ -184,21 +190,28 @@ fn film_spec(desc: &SceneDescription, opts: &BuildOptions, warnings: &DiagSink) 
 impl Scene {
     /// Builds what `req` asks for. Warnings go to `warnings`; unused parameters of
     /// every entity the build consumed are reported there too.
-    pub fn build(desc: &SceneDescription, req: Requirements, opts: &BuildOptions, warnings: &DiagSink) -> Result<Scene, Diagnostic> {
+    pub fn build(
+        desc: &SceneDescription,
+        req: Requirements,
+        opts: &BuildOptions,
+        warnings: &DiagSink,
+    ) -> Result<Scene, Diagnostic> {
         let mut report = BuildReport::default();
         let t0 = Instant::now();
         let film = film_spec(desc, opts, warnings)?;
-        warnings.extend(desc.film.params.report_unused("film \"image\"").into_iter().map(|d| d));
+        warnings.extend(desc.film.params.report_unused("film \"image\""));
         let camera = Camera::from_desc(&desc.camera, film.full_resolution, warnings)?;
         warnings.extend(desc.camera.entity.params.report_unused(&format!("camera \"{}\"", desc.camera.entity.kind)));
-        let filter = create_filter(&desc.filter).map_err(|e| Diagnostic::error(Some(desc.filter.loc.clone()), e.to_string()))?;
+        let filter =
+            create_filter(&desc.filter).map_err(|e| Diagnostic::error(Some(desc.filter.loc.clone()), e.to_string()))?;
         warnings.extend(desc.filter.params.report_unused(&format!("filter \"{}\"", desc.filter.kind)));
         let sampler = create_sampler(&desc.sampler, opts.spp, opts.seed, warnings)
             .map_err(|e| Diagnostic::error(Some(desc.sampler.loc.clone()), e.to_string()))?;
         warnings.extend(desc.sampler.params.report_unused(&format!("sampler \"{}\"", desc.sampler.kind)));
         report.stages.push(("camera, film, sampler".into(), t0.elapsed().as_secs_f64(), String::new()));
 
-        if !desc.media.is_empty() || desc.shapes.iter().any(|s| s.inside_medium.is_some() || s.outside_medium.is_some()) {
+        if !desc.media.is_empty() || desc.shapes.iter().any(|s| s.inside_medium.is_some() || s.outside_medium.is_some())
+        {
             warnings.warn(
                 desc.media.first().map(|m| m.entity.loc.clone()),
                 "participating media are not supported: rendering as if every medium were vacuum",
@@ -209,19 +222,20 @@ impl Scene {
         let ctx = ShapeContext { warnings };
         let mut meshes = Vec::new();
         let mut objects = Vec::new();
-        let mut add = |s: &ShapeDesc, instance: Option<usize>, meshes: &mut Vec<TriangleMesh>| -> Result<(), Diagnostic> {
-            if let Some(mesh) = build_shape(s, &ctx)? {
-                meshes.push(mesh);
-                objects.push(SceneObject {
-                    kind: s.entity.kind.clone(),
-                    loc: s.entity.loc.clone(),
-                    material: s.material,
-                    area_light: s.area_light,
-                    instance,
-                });
-            }
-            Ok(())
-        };
+        let mut add =
+            |s: &ShapeDesc, instance: Option<usize>, meshes: &mut Vec<TriangleMesh>| -> Result<(), Diagnostic> {
+                if let Some(mesh) = build_shape(s, &ctx)? {
+                    meshes.push(mesh);
+                    objects.push(SceneObject {
+                        kind: s.entity.kind.clone(),
+                        loc: s.entity.loc.clone(),
+                        material: s.material,
+                        area_light: s.area_light,
+                        instance,
+                    });
+                }
+                Ok(())
+            };
         for s in &desc.shapes {
             add(s, None, &mut meshes)?;
             warnings.extend(s.entity.params.report_unused(&format!("shape \"{}\"", s.entity.kind)));
@@ -236,7 +250,11 @@ impl Scene {
             }
         }
         let ntris: usize = meshes.iter().map(|m| m.triangle_count()).sum();
-        report.stages.push(("shapes".into(), t1.elapsed().as_secs_f64(), format!("{} meshes, {} triangles", meshes.len(), ntris)));
+        report.stages.push((
+            "shapes".into(),
+            t1.elapsed().as_secs_f64(),
+            format!("{} meshes, {} triangles", meshes.len(), ntris),
+        ));
 
         let mut bounds = Bounds3::EMPTY;
         for m in &meshes {
@@ -251,7 +269,18 @@ impl Scene {
         } else {
             None
         };
-        Ok(Scene { camera, film, filter, sampler, meshes, objects, accel, bounds, integrator: desc.integrator.clone(), report })
+        Ok(Scene {
+            camera,
+            film,
+            filter,
+            sampler,
+            meshes,
+            objects,
+            accel,
+            bounds,
+            integrator: desc.integrator.clone(),
+            report,
+        })
     }
 
     /// Closest hit (requires `Requirements::accel`).
@@ -316,6 +345,17 @@ impl Scene {
             }
             _ => Frame::from_zx(n, dpdu),
         };
-        SurfaceInteraction { p, p_error, n, uv, dpdu, dpdv, shading, wo: -ray.d.normalize_or_zero(), mesh: hit.mesh, tri: hit.tri }
+        SurfaceInteraction {
+            p,
+            p_error,
+            n,
+            uv,
+            dpdu,
+            dpdv,
+            shading,
+            wo: -ray.d.normalize_or_zero(),
+            mesh: hit.mesh,
+            tri: hit.tri,
+        }
     }
 }

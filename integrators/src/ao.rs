@@ -5,9 +5,11 @@
 //! unoccluded fraction), skips surfaces without a material, and takes
 //! `nsamples` directions per camera sample from one 2D sample array.
 
-use penumbra_core::geometry::{face_forward, Frame, Ray};
-use penumbra_core::integrator::{render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats};
 use penumbra_core::film::Film;
+use penumbra_core::geometry::{face_forward, Frame, Ray};
+use penumbra_core::integrator::{
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+};
 use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Requirements, Scene};
 use penumbra_core::{Rgb, Vec2, Vec3};
@@ -24,13 +26,20 @@ impl AmbientOcclusion {
     pub fn create(params: &ParamSet, _warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
         let n = params.get_one_int("nsamples", 64);
         if n < 1 || n > 1 << 20 {
-            return Err(Diagnostic::error(params.loc_of("nsamples").cloned(), format!("\"nsamples\" must be in 1..=2^20, got {n}")));
+            return Err(Diagnostic::error(
+                params.loc_of("nsamples").cloned(),
+                format!("\"nsamples\" must be in 1..=2^20, got {n}"),
+            ));
         }
         let max_distance = params.get_one_float("maxdistance", f32::INFINITY);
         if !(max_distance > 0.0) {
             return Err(Diagnostic::error(params.loc_of("maxdistance").cloned(), "\"maxdistance\" must be positive"));
         }
-        Ok(Box::new(AmbientOcclusion { nsamples: n as u32, cos_sample: params.get_one_bool("cossample", true), max_distance }))
+        Ok(Box::new(AmbientOcclusion {
+            nsamples: n as u32,
+            cos_sample: params.get_one_bool("cossample", true),
+            max_distance,
+        }))
     }
 }
 
@@ -66,7 +75,14 @@ impl PixelEstimator for Estimator<'_> {
         sampler.request_2d_array(self.n);
     }
 
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, _aov: &mut [f32]) -> Rgb {
+    fn li(
+        &self,
+        ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        _aov: &mut [f32],
+    ) -> Rgb {
         let mut ray = *ray;
         // Pass through surfaces without a material, as pbrt-v3 does (bounded, in case of a degenerate loop).
         for _ in 0..64 {
@@ -115,7 +131,8 @@ impl Integrator for AmbientOcclusion {
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         let n = scene.sampler.round_count(self.nsamples);
         if n != self.nsamples {
-            ctx.warnings.warn(None, format!("ambientocclusion: taking {n} samples, not {} as specified", self.nsamples));
+            ctx.warnings
+                .warn(None, format!("ambientocclusion: taking {n} samples, not {} as specified", self.nsamples));
         }
         render_pixels(&Estimator { ao: self, n }, scene, ctx, film)
     }

@@ -36,7 +36,17 @@ pub fn create_sampler(
     _warnings: &penumbra_parser::DiagSink,
 ) -> Result<Box<dyn Sampler>, String> {
     let spp = spp_override.unwrap_or(entity.params.get_one_int("pixelsamples", 16).max(1) as u32);
-    Ok(Box::new(StubSampler { spp, seed, state: 0, a1: vec![], a2: vec![], buf1: vec![], buf2: vec![], next1: 0, next2: 0 }))
+    Ok(Box::new(StubSampler {
+        spp,
+        seed,
+        state: 0,
+        a1: vec![],
+        a2: vec![],
+        buf1: vec![],
+        buf2: vec![],
+        next1: 0,
+        next2: 0,
+    }))
 }
 
 #[derive(Clone)]

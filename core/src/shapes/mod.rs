@@ -18,8 +18,10 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
     let pts = p.get_point3s("P").unwrap_or(&[]);
     let idx = p.get_ints("indices").unwrap_or(&[]);
     let t = desc.render_from_object.start;
-    let positions: Vec<Vec3> =
-        pts.iter().map(|q| Vec3::from(t.apply_point([q[0] as f64, q[1] as f64, q[2] as f64]).map(|v| v as f32))).collect();
+    let positions: Vec<Vec3> = pts
+        .iter()
+        .map(|q| Vec3::from(t.apply_point([q[0] as f64, q[1] as f64, q[2] as f64]).map(|v| v as f32)))
+        .collect();
     let mut indices = Vec::new();
     for c in idx.chunks_exact(3) {
         if c.iter().any(|&i| i < 0 || i as usize >= positions.len()) {
@@ -28,7 +30,12 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
         indices.push([c[0] as u32, c[1] as u32, c[2] as u32]);
     }
     let normals = p.get_normals("N").map(|ns| {
-        ns.iter().map(|n| Vec3::from(t.apply_normal([n[0] as f64, n[1] as f64, n[2] as f64]).map(|v| v as f32)).normalize_or_zero()).collect()
+        ns.iter()
+            .map(|n| {
+                Vec3::from(t.apply_normal([n[0] as f64, n[1] as f64, n[2] as f64]).map(|v| v as f32))
+                    .normalize_or_zero()
+            })
+            .collect()
     });
     Ok(Some(TriangleMesh {
         positions,
