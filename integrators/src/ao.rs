@@ -25,7 +25,7 @@ pub struct AmbientOcclusion {
 impl AmbientOcclusion {
     pub fn create(params: &ParamSet, _warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
         let n = params.get_one_int("nsamples", 64);
-        if n < 1 || n > 1 << 20 {
+        if !(1..=1 << 20).contains(&n) {
             return Err(Diagnostic::error(
                 params.loc_of("nsamples").cloned(),
                 format!("\"nsamples\" must be in 1..=2^20, got {n}"),
