@@ -2,9 +2,13 @@
 //! samplers, filters, image I/O, metrics, and the integrator interface that
 //! every integrator in `penumbra-integrators` plugs into.
 
+pub mod filter;
 pub mod mesh;
+pub mod rng;
 pub mod sampler;
+pub mod sampling;
 pub mod spectrum;
+pub mod stats;
 
 pub use glam::{IVec2, UVec2, Vec2, Vec3, Vec3A};
 pub use penumbra_parser as parser;
