@@ -10,10 +10,13 @@ pub mod geometry;
 pub mod image;
 pub mod integrator;
 pub mod mesh;
+pub mod rng;
 pub mod sampler;
+pub mod sampling;
 pub mod scene;
 pub mod shapes;
 pub mod spectrum;
+pub mod stats;
 
 pub use glam::{IVec2, UVec2, Vec2, Vec3, Vec3A};
 pub use penumbra_parser as parser;
