@@ -9,6 +9,7 @@ pub mod filter;
 pub mod geometry;
 pub mod image;
 pub mod integrator;
+pub mod light;
 pub mod mesh;
 pub mod rng;
 pub mod sampler;
