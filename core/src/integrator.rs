@@ -148,11 +148,12 @@ pub fn render_pixels(
                         aov.iter_mut().for_each(|v| *v = 0.0);
                         let mut l = est.li(&ray, scene, sampler.as_mut(), &mut stats, &mut aov);
                         stats.rays += 1;
-                        if !l.is_finite() || l.min_element() < 0.0 {
-                            stats.bad_samples += 1;
-                            l = if l.is_finite() { l.max(Rgb::ZERO) } else { Rgb::ZERO };
-                        }
+                        // pbrt-v3's guard: NaN, infinite or clearly negative luminance becomes black.
                         let y = crate::spectrum::luminance(l);
+                        if !l.is_finite() || y < -1e-5 {
+                            stats.bad_samples += 1;
+                            l = Rgb::ZERO;
+                        }
                         if y > max_lum {
                             l *= max_lum / y;
                         }
