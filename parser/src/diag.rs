@@ -73,6 +73,16 @@ impl Diagnostic {
     pub fn is_error(&self) -> bool {
         self.severity == Severity::Error
     }
+    /// Fills `source_line` from the file (or the [`crate::parse_str`] text) at `loc`,
+    /// for diagnostics raised after parsing (unused parameters, bad indices…).
+    pub fn with_source(mut self) -> Self {
+        if self.source_line.is_none() {
+            if let Some(loc) = &self.loc {
+                self.source_line = crate::source_line(loc);
+            }
+        }
+        self
+    }
 }
 
 impl fmt::Display for Diagnostic {
@@ -87,10 +97,22 @@ impl fmt::Display for Diagnostic {
             writeln!(f, "{gutter}--> {loc}")?;
             if let Some(line) = &self.source_line {
                 // Tabs would misplace the caret: show them as single spaces.
-                let shown: String = line.chars().map(|c| if c == '\t' { ' ' } else { c }).collect();
+                let chars: Vec<char> = line.chars().map(|c| if c == '\t' { ' ' } else { c }).collect();
+                let mut col = (loc.column as usize).saturating_sub(1).min(chars.len());
+                // Long lines (a mesh on one line) are shown as a window around the column.
+                const HALF: usize = 60;
+                let (from, to) = (col.saturating_sub(HALF), (col + HALF).min(chars.len()));
+                let mut shown: String = chars[from..to].iter().collect();
+                col -= from;
+                if from > 0 {
+                    shown.insert_str(0, "...");
+                    col += 3;
+                }
+                if to < chars.len() {
+                    shown.push_str("...");
+                }
                 writeln!(f, "{gutter} |")?;
                 writeln!(f, "{} | {}", loc.line, shown)?;
-                let col = (loc.column as usize).saturating_sub(1).min(shown.chars().count());
                 writeln!(f, "{gutter} | {}^", " ".repeat(col))?;
             }
         }
