@@ -4,6 +4,7 @@
 
 pub mod mesh;
 pub mod sampler;
+pub mod shapes;
 pub mod spectrum;
 
 pub use glam::{IVec2, UVec2, Vec2, Vec3, Vec3A};

@@ -1,0 +1,7 @@
+//! Loop subdivision.
+pub(crate) fn build(
+    _desc: &crate::parser::ShapeDesc,
+    _ctx: &super::ShapeContext,
+) -> Result<Option<super::ObjMesh>, crate::parser::Diagnostic> {
+    Ok(None)
+}
