@@ -25,7 +25,10 @@ pub(crate) fn build(desc: &ShapeDesc, _ctx: &ShapeContext) -> Result<Option<ObjM
         ));
     }
     if let Some(i) = z.iter().position(|v| !v.is_finite()) {
-        return Err(Diagnostic::error(loc_or_entity(desc, "Pz"), format!("heightfield: \"Pz\" value {i} is not finite")));
+        return Err(Diagnostic::error(
+            loc_or_entity(desc, "Pz"),
+            format!("heightfield: \"Pz\" value {i} is not finite"),
+        ));
     }
     if nu * nv > u32::MAX as usize / 2 {
         return Err(Diagnostic::error(loc_or_entity(desc, "Pz"), "heightfield: too many vertices"));

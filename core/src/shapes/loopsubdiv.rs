@@ -21,6 +21,8 @@ const NONE: u32 = u32::MAX;
 pub const MAX_TRIANGLES: usize = 1 << 26;
 
 type V3 = [f64; 3];
+/// Limit positions, limit normals, triangles.
+type Subdivided = (Vec<V3>, Vec<V3>, Vec<[u32; 3]>);
 
 /// Connectivity of a manifold triangle mesh in pbrt-v3's terms.
 struct Topology {
@@ -58,15 +60,12 @@ fn topology(nv: usize, faces: &[[u32; 3]]) -> Result<Topology, String> {
     for (f, t) in faces.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (t[k], t[(k + 1) % 3]);
-            match directed.get(&(b, a)) {
-                Some(&(g, kk)) => {
-                    nbr[f][k] = g;
-                    if (g as usize) < f {
-                        edge_of[f][k] = edge_of[g as usize][kk as usize];
-                        continue;
-                    }
+            if let Some(&(g, kk)) = directed.get(&(b, a)) {
+                nbr[f][k] = g;
+                if (g as usize) < f {
+                    edge_of[f][k] = edge_of[g as usize][kk as usize];
+                    continue;
                 }
-                None => {}
             }
             edge_of[f][k] = edges.len() as u32;
             edges.push([a, b]);
@@ -245,11 +244,7 @@ fn subdivide(p: &[V3], faces: &[[u32; 3]], topo: &Topology) -> (Vec<V3>, Vec<[u3
 }
 
 /// Subdivides `levels` times and returns limit positions, limit normals and triangles.
-pub(crate) fn loop_subdivide(
-    p: &[V3],
-    faces: &[[u32; 3]],
-    levels: u32,
-) -> Result<(Vec<V3>, Vec<V3>, Vec<[u32; 3]>), String> {
+pub(crate) fn loop_subdivide(p: &[V3], faces: &[[u32; 3]], levels: u32) -> Result<Subdivided, String> {
     // Drop vertices no face uses.
     let mut remap = vec![NONE; p.len()];
     let mut pts = vec![];
@@ -464,10 +459,7 @@ mod tests {
         // inconsistent orientation
         let mut idx = TET_I.to_vec();
         idx.swap(0, 1);
-        let d = shape(
-            "loopsubdiv",
-            vec![("indices", ParamValue::Int(idx)), ("P", ParamValue::Point3(TET_P.to_vec()))],
-        );
+        let d = shape("loopsubdiv", vec![("indices", ParamValue::Int(idx)), ("P", ParamValue::Point3(TET_P.to_vec()))]);
         assert!(build_shape(&d, &ctx).is_err());
         // too many levels
         assert!(build_shape(&tet(20), &ctx).is_err());
@@ -476,7 +468,8 @@ mod tests {
     #[test]
     fn open_mesh_uses_boundary_rules() {
         // A single triangle: boundary rules keep points on the triangle's plane and edges.
-        let (lp, ln, lt) = loop_subdivide(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]], 3).unwrap();
+        let (lp, ln, lt) =
+            loop_subdivide(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]], 3).unwrap();
         assert_eq!(lt.len(), 64);
         assert_eq!(lp.len(), 45);
         for (q, n) in lp.iter().zip(&ln) {

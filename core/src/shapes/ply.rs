@@ -266,10 +266,7 @@ pub fn parse_ply(bytes: &[u8]) -> Result<PlyData, String> {
     }
     let slack = if h.format == Format::Ascii { 1 } else { 0 };
     if need > data.len() as u128 + slack {
-        return Err(format!(
-            "the header announces at least {need} bytes of data but only {} are present",
-            data.len()
-        ));
+        return Err(format!("the header announces at least {need} bytes of data but only {} are present", data.len()));
     }
     let vertex_count = h.elements.iter().find(|e| e.name == "vertex").map_or(0, |e| e.count);
     let face_count = h.elements.iter().find(|e| e.name == "face").map_or(0, |e| e.count);
@@ -339,13 +336,13 @@ pub fn parse_ply(bytes: &[u8]) -> Result<PlyData, String> {
                             let mut f = [0u32; 4];
                             for k in 0..c {
                                 let v = r.read(it)?;
-                                if k < 4 {
+                                if let Some(slot) = f.get_mut(k) {
                                     if !(v >= 0.0 && (v as u64) < vertex_count) {
                                         return Err(format!(
                                             "vertex reference {v} is out of bounds (valid range [0..{vertex_count}))"
                                         ));
                                     }
-                                    f[k] = v as u32;
+                                    *slot = v as u32;
                                 }
                             }
                             match c {
@@ -535,7 +532,7 @@ mod tests {
         assert!((m.total_area() - 1.5).abs() < 1e-6);
         assert!(m.normals.is_some() && m.uvs.is_some());
         assert_eq!(sink.len(), 1); // the pentagon
-        // Missing file: error naming it.
+                                   // Missing file: error naming it.
         let d = shape("plymesh", vec![("filename", ParamValue::String(vec!["nope.ply".into()]))]);
         let e = build_shape(&d, &ctx).unwrap_err();
         assert!(e.message.contains("nope.ply"));

@@ -15,16 +15,38 @@ type V3 = [f64; 3];
 #[derive(Clone, Copy, Debug)]
 enum Meridian {
     /// θ(v) = th0 + v (th1 - th0); m = r (sin θ, 0, cos θ).
-    Sphere { r: f64, th0: f64, th1: f64 },
-    Cylinder { r: f64, z0: f64, z1: f64 },
+    Sphere {
+        r: f64,
+        th0: f64,
+        th1: f64,
+    },
+    Cylinder {
+        r: f64,
+        z0: f64,
+        z1: f64,
+    },
     /// ρ(v) = r - v (r - ri) at height h.
-    Disk { h: f64, r: f64, ri: f64 },
+    Disk {
+        h: f64,
+        r: f64,
+        ri: f64,
+    },
     /// ρ = r (1 - v), z = v h.
-    Cone { h: f64, r: f64 },
+    Cone {
+        h: f64,
+        r: f64,
+    },
     /// z = z0 + v (z1 - z0), ρ = r sqrt(z / z1).
-    Paraboloid { r: f64, z0: f64, z1: f64 },
+    Paraboloid {
+        r: f64,
+        z0: f64,
+        z1: f64,
+    },
     /// m = (1 - v) p1 + v p2.
-    Hyperboloid { p1: V3, p2: V3 },
+    Hyperboloid {
+        p1: V3,
+        p2: V3,
+    },
 }
 
 impl Meridian {
@@ -278,12 +300,12 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
     let surf = Surface { m, phi_max, v_lo, v_hi: 1.0, r_ref };
     // Degenerate parameters: pbrt-v3 would render nothing (or NaNs); skip with a warning.
     let degenerate = match m {
-        _ if !(r_ref > 0.0) || !(phi_max > 0.0) => true,
+        _ if r_ref.is_nan() || r_ref <= 0.0 || phi_max.is_nan() || phi_max <= 0.0 => true,
         Meridian::Sphere { th0, th1, .. } => th0 == th1,
         Meridian::Cylinder { z0, z1, .. } => z0 == z1,
         Meridian::Disk { r, ri, .. } => !(ri >= 0.0 && ri < r),
         Meridian::Cone { h, .. } => h == 0.0,
-        Meridian::Paraboloid { z1, .. } => !(z1 > 0.0) || v_lo >= 1.0,
+        Meridian::Paraboloid { z1, .. } => z1.is_nan() || z1 <= 0.0 || v_lo >= 1.0,
         Meridian::Hyperboloid { p1, p2 } => p1[2] == p2[2],
     };
     if degenerate {
@@ -358,7 +380,8 @@ mod tests {
 
     #[test]
     fn partial_sphere_area() {
-        let m = build("sphere", vec![("radius", fl(1.5)), ("zmin", fl(-0.5)), ("zmax", fl(1.0)), ("phimax", fl(250.0))]);
+        let m =
+            build("sphere", vec![("radius", fl(1.5)), ("zmin", fl(-0.5)), ("zmax", fl(1.0)), ("phimax", fl(250.0))]);
         check_area(&m, 250f64.to_radians() * 1.5 * 1.5);
         assert!(!m.build_adjacency().is_closed_manifold());
     }
@@ -410,7 +433,8 @@ mod tests {
             let n = 20000;
             let h = 1.0 / n as f64;
             let g = |v: f64| {
-                let d = (rho((v + 1e-7).min(1.0)) - rho((v - 1e-7).max(0.0))) / ((v + 1e-7).min(1.0) - (v - 1e-7).max(0.0));
+                let d =
+                    (rho((v + 1e-7).min(1.0)) - rho((v - 1e-7).max(0.0))) / ((v + 1e-7).min(1.0) - (v - 1e-7).max(0.0));
                 rho(v) * (d * d + (p2[2] - p1[2]).powi(2)).sqrt()
             };
             let mut s = g(0.0) + g(1.0);

@@ -6,7 +6,7 @@ use crate::parser::{Diagnostic, ShapeDesc};
 /// Validated `indices` (a multiple of 3, each in `0..n_p`) as triangles.
 pub(crate) fn checked_triangles(desc: &ShapeDesc, idx: &[i32], n_p: usize) -> Result<Vec<[u32; 3]>, Diagnostic> {
     let kind = &desc.entity.kind;
-    if idx.len() % 3 != 0 {
+    if !idx.chunks_exact(3).remainder().is_empty() {
         return Err(Diagnostic::error(
             loc_or_entity(desc, "indices"),
             format!("{kind}: \"indices\" has {} values, not a multiple of 3", idx.len()),
@@ -15,7 +15,9 @@ pub(crate) fn checked_triangles(desc: &ShapeDesc, idx: &[i32], n_p: usize) -> Re
     if let Some((i, v)) = idx.iter().enumerate().find(|(_, v)| **v < 0 || **v as usize >= n_p) {
         return Err(Diagnostic::error(
             loc_or_entity(desc, "indices"),
-            format!("{kind}: vertex index {v} (entry {i} of \"indices\") is out of range: {n_p} \"P\" values were given"),
+            format!(
+                "{kind}: vertex index {v} (entry {i} of \"indices\") is out of range: {n_p} \"P\" values were given"
+            ),
         ));
     }
     Ok(idx.chunks_exact(3).map(|c| [c[0] as u32, c[1] as u32, c[2] as u32]).collect())
@@ -82,8 +84,13 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
             );
             uv = None;
         } else if u.len() > n_p {
-            warn(uv_name, format!("trianglemesh: more \"{uv_name}\"s ({}) than \"P\"s ({n_p}); extra ignored", u.len()));
-            uv.as_mut().map(|u| u.truncate(n_p));
+            warn(
+                uv_name,
+                format!("trianglemesh: more \"{uv_name}\"s ({}) than \"P\"s ({n_p}); extra ignored", u.len()),
+            );
+            if let Some(u) = uv.as_mut() {
+                u.truncate(n_p);
+            }
         }
     }
     if uv.as_ref().is_some_and(|u| u.iter().flatten().any(|x| !x.is_finite())) {
@@ -131,7 +138,7 @@ mod tests {
         let ctx = ShapeContext::new(Path::new("."), &sink);
         let mut p = quad_params();
         p.push(("uv", ParamValue::Float(vec![0., 0., 1., 0., 1., 1., 0., 1.])));
-        p.push(("N", ParamValue::Normal(vec![0., 0., 1.].repeat(4))));
+        p.push(("N", ParamValue::Normal([0., 0., 1.].repeat(4))));
         p.push(("radius", ParamValue::Float(vec![1.0])));
         let d = shape("trianglemesh", p);
         let m = build_shape(&d, &ctx).unwrap().unwrap();
@@ -220,9 +227,8 @@ mod tests {
                 assert_eq!(m.sample_normal(0, [1.0 / 3.0; 3]), if ro { -raw } else { raw });
                 // Default uvs stay attached to the original vertices.
                 let uv = m.default_uvs(0);
-                for k in 0..3 {
-                    let orig = m.indices[0][k] as usize;
-                    assert_eq!(uv[k], [Vec2::ZERO, Vec2::X, Vec2::ONE][orig]);
+                for (slot, orig) in uv.iter().zip(m.indices[0]) {
+                    assert_eq!(*slot, [Vec2::ZERO, Vec2::X, Vec2::ONE][orig as usize]);
                 }
             }
         }
