@@ -11,9 +11,14 @@
 //! * every vertex lies exactly (to f64 rounding, then f32 storage) on the surface;
 //! * around the axis, the chord sagitta of every circle is `≤ ε/2 · R`
 //!   (`Δφ = 2 acos(1 - ε/2)`, at most [`MAX_SEGMENTS`] segments over 2π);
-//! * along the axis, intervals of `v` are bisected until the distance from the
+//! * along the axis, `[0, 1]` in `v` is bisected until the distance from the
 //!   surface point at every triangle's centroid and edge midpoints (in (u, v)) to
-//!   the triangle's plane is `≤ ε · R` (at most [`MAX_SEGMENTS`] rows).
+//!   the triangle's plane is `≤ ε · R` (at most 12 bisections, [`MAX_SEGMENTS`] rows);
+//!   planar and ruled pieces (disk, cylinder, cone) keep a single row of cells.
+//! * Poles and apexes get one vertex per cell (u at the cell's centre, so uv stay
+//!   pbrt-v3's) and one triangle per cell: no zero-area triangles; the seam of a
+//!   full revolution is duplicated (u = 0 and u = 1) with bit-identical positions,
+//!   so the mesh is closed after welding by position ([`TriangleMesh::build_adjacency`]).
 //!
 //! So the tessellation deviates from the analytic surface by about `ε · R` at most.
 

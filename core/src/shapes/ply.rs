@@ -518,6 +518,13 @@ mod tests {
         check(&parse_ply(&Sample::ascii()).unwrap());
         check(&parse_ply(&Sample::binary(false)).unwrap());
         check(&parse_ply(&Sample::binary(true)).unwrap());
+        // The other face property name, and s/t texture coordinates.
+        let s = String::from_utf8(Sample::ascii()).unwrap();
+        let s = s
+            .replace("vertex_indices", "vertex_index")
+            .replace("float u\n", "float s\n")
+            .replace("float v\n", "float t\n");
+        check(&parse_ply(s.as_bytes()).unwrap());
     }
 
     #[test]

@@ -157,7 +157,9 @@ impl Surface {
     }
 
     fn refine(&self, du: f64, va: f64, vb: f64, tol: f64, depth: u32, out: &mut Vec<f64>) {
-        if depth < 10 && self.cell_error(du, va, vb) > tol {
+        // A cell between two poles has no triangles: always split it.
+        let split = (self.is_pole(va) && self.is_pole(vb)) || self.cell_error(du, va, vb) > tol;
+        if depth < 12 && split {
             let vm = 0.5 * (va + vb);
             self.refine(du, va, vm, tol, depth + 1, out);
             self.refine(du, vm, vb, tol, depth + 1, out);
@@ -173,13 +175,9 @@ impl Surface {
         let min_u = if full { 3.0 } else { 1.0 };
         let nu = (self.phi_max / dphi).ceil().clamp(min_u, MAX_SEGMENTS as f64) as usize;
         let du = 1.0 / nu as f64;
-        // Rows in v: 4 initial intervals, each bisected (depth ≤ 10) until within tolerance.
+        // Rows in v: [v_lo, v_hi] bisected (depth ≤ 12) until within tolerance.
         let mut rows = vec![self.v_lo];
-        for k in 0..4 {
-            let va = self.v_lo + (self.v_hi - self.v_lo) * k as f64 / 4.0;
-            let vb = if k == 3 { self.v_hi } else { self.v_lo + (self.v_hi - self.v_lo) * (k + 1) as f64 / 4.0 };
-            self.refine(du, va, vb, eps * self.r_ref, 0, &mut rows);
-        }
+        self.refine(du, self.v_lo, self.v_hi, eps * self.r_ref, 0, &mut rows);
         // Angles; the last column of a full revolution repeats the first bit for bit.
         let angles: Vec<(f64, f64)> = (0..=nu)
             .map(|i| if full && i == nu { (0.0f64, 1.0f64) } else { (i as f64 * du * self.phi_max).sin_cos() })
@@ -490,9 +488,11 @@ mod tests {
             assert!(m.triangle_count() > prev);
             prev = m.triangle_count();
         }
-        // Planar/ruled pieces need no refinement of the 4 initial intervals (5 rows).
+        // Planar/ruled pieces need a single row of cells.
         let m = build_shape(&shape("cylinder", vec![]), &ctx).unwrap().unwrap();
-        assert_eq!(m.positions.len(), 5 * (m.triangle_count() / 8 + 1));
+        assert_eq!(m.positions.len(), 2 * (m.triangle_count() / 2 + 1));
+        let m = build_shape(&shape("disk", vec![]), &ctx).unwrap().unwrap();
+        assert_eq!(m.positions.len(), 2 * m.triangle_count() + 1);
     }
 
     #[test]
