@@ -1,24 +1,129 @@
 //! World-space triangle meshes: every shape becomes one of these.
+//!
+//! # Orientation: how to get pbrt-v3's normals for a hit
+//!
+//! pbrt-v3 computes, for a ray hit on a triangle of a mesh, a geometric normal
+//! `n` and a shading normal `ns` (`SurfaceInteraction::n` / `shading.n`).
+//! A [`TriangleMesh`] reproduces them as follows (see [`TriangleMesh::hit_normals`],
+//! which implements exactly this):
+//!
+//! 1. `ng = normalize((p1 - p0) × (p2 - p0))` with the *stored* winding.
+//! 2. If `normals` is `None`: `n = ns = ng` — except for the pbrt-v3 quirk of a
+//!    mesh with tangents `S` but no `N` and `flip_normals` set, where pbrt-v3
+//!    flips twice and ends with `n = ns = -ng`.
+//! 3. If `normals` is `Some`: `ns = normalize(b0 n0 + b1 n1 + b2 n2)`, negated if
+//!    `flip_normals`; then `n = faceforward(ng, ns)` (i.e. `ng`, negated if `ng · ns < 0`).
+//!
+//! The builders (`crate::shapes`) choose the stored winding so that:
+//! * for meshes without per-vertex normals, `ng` *is* pbrt-v3's `n`
+//!   (the winding is reversed exactly when `ReverseOrientation XOR swaps_handedness`);
+//! * for meshes with normals (quadrics, `loopsubdiv`, meshes with `N`), the winding
+//!   agrees with the flipped shading normals on the (area-weighted) majority of
+//!   triangles — for tessellated quadrics that is all of them — so `ng` equals
+//!   pbrt-v3's `n` whenever the given normals agree with the geometry; step 3 is
+//!   still needed for exactness.
+//!
+//! Consequently a consumer that only needs the "outside" of a surface (one-sided
+//! area lights hit by rays, silhouettes, convexity) may use the winding directly.
+//!
+//! pbrt-v3's `Shape::Sample` uses a different rule (only `ReverseOrientation`,
+//! not the handedness of the transform): see [`TriangleMesh::sample_normal`].
+//! The two agree unless the object-to-world transform mirrors.
 
 use glam::{Vec2, Vec3};
+use std::collections::HashMap;
+
+/// pbrt-v3's `"texture alpha"` / `"float alpha"` (and `shadowalpha`) cut-outs.
+///
+/// pbrt-v3 discards a hit where the alpha texture evaluates to exactly `0`
+/// (no stochastic transparency). A constant `"float alpha"` only creates a mask
+/// when it is `0` (the shape is then invisible); any other constant means "no mask"
+/// and is represented by `None`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum AlphaSpec {
+    /// A constant alpha; the builders only produce `Constant(0.0)` (invisible).
+    Constant(f32),
+    /// Index into `SceneDescription::textures` of the float texture to evaluate
+    /// at the hit's (u, v) (the triangle's interpolated `uvs`, or pbrt-v3's default ones).
+    Texture(usize),
+}
 
 /// A triangle mesh in world (render) space.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriangleMesh {
     pub positions: Vec<Vec3>,
-    /// Triangle vertex indices, counter-clockwise seen from the side the
-    /// geometric normal `(p1 - p0) × (p2 - p0)` points to (after `ReverseOrientation`
-    /// and handedness have been applied, the normal points "outside").
+    /// Triangle vertex indices. The geometric normal `(p1 - p0) × (p2 - p0)` points
+    /// to pbrt-v3's "outside" (after `ReverseOrientation` and handedness have been
+    /// applied); see the module documentation for the exact rule.
     pub indices: Vec<[u32; 3]>,
-    /// Per-vertex shading normals, if the shape has them.
+    /// Per-vertex shading normals in world space (unit length, transformed by the
+    /// inverse transpose), *before* the `flip_normals` negation — as pbrt-v3 stores them.
     pub normals: Option<Vec<Vec3>>,
-    /// Per-vertex texture coordinates, if the shape has them (else pbrt-v3's defaults apply).
+    /// Per-vertex texture coordinates, if the shape has them (else pbrt-v3's defaults
+    /// apply: see [`TriangleMesh::default_uvs`]).
     pub uvs: Option<Vec<Vec2>>,
-    /// Per-vertex tangents (`S` in pbrt-v3), if given.
+    /// Per-vertex tangents (`S` in pbrt-v3), transformed as vectors, not normalised.
     pub tangents: Option<Vec<Vec3>>,
-    /// pbrt-v3's `ReverseOrientation` XOR `transformSwapsHandedness`: flips the
-    /// geometric normal relative to the winding when interpreting shading normals.
+    /// pbrt-v3's `ReverseOrientation` XOR `transformSwapsHandedness`: the shading
+    /// normals must be negated (step 3 of the module documentation).
     pub flip_normals: bool,
+    /// The shape's `ReverseOrientation` (needed for pbrt-v3's `Sample` normals).
+    pub reverse_orientation: bool,
+    /// Whether the stored winding is the reverse of the shape's own vertex order
+    /// (stored `[a, c, b]` for a given `[a, b, c]`); matters only for pbrt-v3's
+    /// default per-triangle (u, v) and for [`TriangleMesh::sample_normal`].
+    pub winding_reversed: bool,
+    /// `"alpha"` cut-out: applies to every ray (camera, indirect and shadow rays).
+    pub alpha: Option<AlphaSpec>,
+    /// `"shadowalpha"` cut-out: applies to shadow rays only.
+    pub shadow_alpha: Option<AlphaSpec>,
+}
+
+/// Marker for "no triangle on this side" in [`Edge::tris`].
+pub const BOUNDARY: u32 = u32::MAX;
+
+/// An undirected edge of the position-welded mesh.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Edge {
+    /// Welded vertex ids, in the direction `tris[0]` traverses the edge.
+    pub v: [u32; 2],
+    /// The first two incident triangles; `tris[1] == BOUNDARY` for a boundary edge.
+    pub tris: [u32; 2],
+    /// Number of incident triangles (1 boundary, 2 manifold, more: non-manifold).
+    pub count: u32,
+    /// Whether `tris[1]` traverses the edge in the opposite direction (consistent orientation).
+    pub consistent: bool,
+}
+
+/// Edge adjacency after welding vertices with identical positions.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EdgeAdjacency {
+    /// For each mesh vertex, its welded id.
+    pub weld: Vec<u32>,
+    /// Number of distinct positions.
+    pub welded_count: usize,
+    pub edges: Vec<Edge>,
+    /// For each triangle, its edges (p0p1, p1p2, p2p0) as indices into `edges`;
+    /// `u32::MAX` for an edge whose two ends weld together (degenerate triangle).
+    pub tri_edges: Vec<[u32; 3]>,
+}
+
+impl EdgeAdjacency {
+    pub fn boundary_edges(&self) -> usize {
+        self.edges.iter().filter(|e| e.count == 1).count()
+    }
+    pub fn non_manifold_edges(&self) -> usize {
+        self.edges.iter().filter(|e| e.count > 2).count()
+    }
+    /// Every edge has exactly two consistently oriented triangles.
+    pub fn is_closed_manifold(&self) -> bool {
+        !self.edges.is_empty() && self.edges.iter().all(|e| e.count == 2 && e.consistent)
+    }
+}
+
+fn weld_key(p: Vec3) -> [u32; 3] {
+    // +0.0 so that -0.0 and 0.0 weld together.
+    [(p.x + 0.0).to_bits(), (p.y + 0.0).to_bits(), (p.z + 0.0).to_bits()]
 }
 
 impl TriangleMesh {
@@ -32,5 +137,327 @@ impl TriangleMesh {
     pub fn area(&self, tri: usize) -> f32 {
         let [a, b, c] = self.vertices(tri);
         0.5 * (b - a).cross(c - a).length()
+    }
+    /// Total surface area (accumulated in f64).
+    pub fn total_area(&self) -> f64 {
+        (0..self.indices.len()).map(|t| self.area(t) as f64).sum()
+    }
+    /// `ReverseOrientation XOR flip_normals`.
+    pub fn swaps_handedness(&self) -> bool {
+        self.flip_normals ^ self.reverse_orientation
+    }
+
+    /// Normalised `(p1 - p0) × (p2 - p0)` with the stored winding (zero for a degenerate triangle).
+    pub fn winding_normal(&self, tri: usize) -> Vec3 {
+        let [a, b, c] = self.vertices(tri);
+        (b - a).cross(c - a).normalize_or_zero()
+    }
+
+    /// pbrt-v3's geometric and shading normals `(n, ns)` of `Triangle::Intersect`
+    /// at barycentrics `b` (weights of the stored vertices 0, 1, 2).
+    pub fn hit_normals(&self, tri: usize, b: [f32; 3]) -> (Vec3, Vec3) {
+        let ng = self.winding_normal(tri);
+        match &self.normals {
+            Some(ns_all) => {
+                let [i0, i1, i2] = self.indices[tri].map(|i| i as usize);
+                let mut ns = (b[0] * ns_all[i0] + b[1] * ns_all[i1] + b[2] * ns_all[i2]).normalize_or_zero();
+                if self.flip_normals {
+                    ns = -ns;
+                }
+                let n = if ng.dot(ns) < 0.0 { -ng } else { ng };
+                (n, ns)
+            }
+            None if self.tangents.is_some() && self.flip_normals => (-ng, -ng),
+            None => (ng, ng),
+        }
+    }
+
+    /// pbrt-v3's `Triangle::Sample` normal at barycentrics `b`: the interpolated
+    /// normal (or the cross product in the shape's own vertex order), negated
+    /// when `ReverseOrientation` is set (the transform's handedness is ignored).
+    pub fn sample_normal(&self, tri: usize, b: [f32; 3]) -> Vec3 {
+        let n = match &self.normals {
+            Some(ns) => {
+                let [i0, i1, i2] = self.indices[tri].map(|i| i as usize);
+                (b[0] * ns[i0] + b[1] * ns[i1] + b[2] * ns[i2]).normalize_or_zero()
+            }
+            None => {
+                let ng = self.winding_normal(tri);
+                if self.winding_reversed {
+                    -ng
+                } else {
+                    ng
+                }
+            }
+        };
+        if self.reverse_orientation {
+            -n
+        } else {
+            n
+        }
+    }
+
+    /// The (u, v) of the three stored vertices of `tri`: the mesh's `uvs`, or
+    /// pbrt-v3's defaults (0,0), (1,0), (1,1) in the shape's own vertex order.
+    pub fn default_uvs(&self, tri: usize) -> [Vec2; 3] {
+        if let Some(uv) = &self.uvs {
+            return self.indices[tri].map(|i| uv[i as usize]);
+        }
+        if self.winding_reversed {
+            [Vec2::new(0.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(1.0, 0.0)]
+        } else {
+            [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0)]
+        }
+    }
+
+    /// Edge adjacency after welding vertices with bit-identical positions
+    /// (so seams duplicated for texture coordinates do not count as boundaries).
+    pub fn build_adjacency(&self) -> EdgeAdjacency {
+        let mut map: HashMap<[u32; 3], u32> = HashMap::with_capacity(self.positions.len());
+        let weld: Vec<u32> = self
+            .positions
+            .iter()
+            .map(|p| {
+                let n = map.len() as u32;
+                *map.entry(weld_key(*p)).or_insert(n)
+            })
+            .collect();
+        let welded_count = map.len();
+        let mut edges: Vec<Edge> = Vec::with_capacity(self.indices.len() * 3 / 2);
+        let mut lookup: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.indices.len() * 3 / 2);
+        let mut tri_edges = Vec::with_capacity(self.indices.len());
+        for (t, tri) in self.indices.iter().enumerate() {
+            let w = tri.map(|i| weld.get(i as usize).copied().unwrap_or(u32::MAX));
+            let mut te = [u32::MAX; 3];
+            for k in 0..3 {
+                let (a, b) = (w[k], w[(k + 1) % 3]);
+                if a == b || a == u32::MAX || b == u32::MAX {
+                    continue;
+                }
+                let key = (a.min(b), a.max(b));
+                match lookup.get(&key) {
+                    Some(&ei) => {
+                        let e = &mut edges[ei as usize];
+                        if e.count == 1 {
+                            e.tris[1] = t as u32;
+                            e.consistent = e.v == [b, a];
+                        }
+                        e.count += 1;
+                        te[k] = ei;
+                    }
+                    None => {
+                        let ei = edges.len() as u32;
+                        edges.push(Edge { v: [a, b], tris: [t as u32, BOUNDARY], count: 1, consistent: false });
+                        lookup.insert(key, ei);
+                        te[k] = ei;
+                    }
+                }
+            }
+            tri_edges.push(te);
+        }
+        EdgeAdjacency { weld, welded_count, edges, tri_edges }
+    }
+
+    /// Whether the mesh, after welding by position, is a closed, consistently
+    /// oriented 2-manifold (every edge shared by exactly two triangles traversing
+    /// it in opposite directions) and convex with outward winding: every vertex
+    /// lies on or behind every triangle's plane, within `rel_tol` times the
+    /// bounding-box diagonal.
+    ///
+    /// The test is exact (all vertex/plane pairs) up to 10⁸ pairs; beyond that it
+    /// checks every edge's dihedral angle (local convexity) and connectivity, which
+    /// for a closed connected embedded surface implies convexity (Tietze–Nakajima).
+    pub fn is_closed_convex(&self, rel_tol: f32) -> bool {
+        let adj = self.build_adjacency();
+        if !adj.is_closed_manifold() {
+            return false;
+        }
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for p in &self.positions {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        let tol = (rel_tol.max(0.0) * (hi - lo).length()) as f64;
+        if !tol.is_finite() {
+            return false;
+        }
+        let p64 = |p: Vec3| [p.x as f64, p.y as f64, p.z as f64];
+        let planes: Vec<([f64; 3], f64)> = (0..self.indices.len())
+            .filter_map(|t| {
+                let [a, b, c] = self.vertices(t).map(p64);
+                let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+                let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                if len <= 0.0 || !len.is_finite() {
+                    return None; // degenerate triangles define no plane
+                }
+                let n = [n[0] / len, n[1] / len, n[2] / len];
+                Some((n, n[0] * a[0] + n[1] * a[1] + n[2] * a[2]))
+            })
+            .collect();
+        let behind = |(n, d): &([f64; 3], f64), p: [f64; 3]| n[0] * p[0] + n[1] * p[1] + n[2] * p[2] - d <= tol;
+        // Distinct welded positions.
+        let mut verts = vec![[0.0f64; 3]; adj.welded_count];
+        for (i, w) in adj.weld.iter().enumerate() {
+            verts[*w as usize] = p64(self.positions[i]);
+        }
+        if (planes.len() as u64) * (verts.len() as u64) <= 100_000_000 {
+            return planes.iter().all(|pl| verts.iter().all(|v| behind(pl, *v)));
+        }
+        // Local convexity at every edge plus connectivity.
+        let plane_of = |t: u32| -> Option<([f64; 3], f64)> {
+            let [a, b, c] = self.vertices(t as usize).map(p64);
+            let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+            let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+            let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            (len > 0.0 && len.is_finite()).then(|| {
+                let n = [n[0] / len, n[1] / len, n[2] / len];
+                (n, n[0] * a[0] + n[1] * a[1] + n[2] * a[2])
+            })
+        };
+        for e in &adj.edges {
+            for (s, o) in [(0, 1), (1, 0)] {
+                if let Some(pl) = plane_of(e.tris[s]) {
+                    for &vi in &self.indices[e.tris[o] as usize] {
+                        if !behind(&pl, p64(self.positions[vi as usize])) {
+                            return false;
+                        }
+                    }
+                }
+            }
+        }
+        // Connectivity over triangles.
+        let mut seen = vec![false; self.indices.len()];
+        let mut stack = vec![0usize];
+        seen[0] = true;
+        let mut count = 1;
+        while let Some(t) = stack.pop() {
+            for &ei in &adj.tri_edges[t] {
+                if ei == u32::MAX {
+                    continue;
+                }
+                for &o in &adj.edges[ei as usize].tris {
+                    if o != BOUNDARY && !seen[o as usize] {
+                        seen[o as usize] = true;
+                        count += 1;
+                        stack.push(o as usize);
+                    }
+                }
+            }
+        }
+        count == self.indices.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube() -> TriangleMesh {
+        let positions: Vec<Vec3> =
+            (0..8).map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32)).collect();
+        // Quads with outward counter-clockwise winding.
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let mut indices = vec![];
+        for q in quads {
+            indices.push([q[0], q[1], q[2]]);
+            indices.push([q[0], q[2], q[3]]);
+        }
+        TriangleMesh { positions, indices, ..Default::default() }
+    }
+
+    fn torus(n: usize, m: usize) -> TriangleMesh {
+        let (big, small) = (1.0f32, 0.3f32);
+        let mut positions = vec![];
+        for i in 0..n {
+            for j in 0..m {
+                let (su, cu) = (std::f32::consts::TAU * i as f32 / n as f32).sin_cos();
+                let (sv, cv) = (std::f32::consts::TAU * j as f32 / m as f32).sin_cos();
+                positions.push(Vec3::new((big + small * cv) * cu, (big + small * cv) * su, small * sv));
+            }
+        }
+        let id = |i: usize, j: usize| ((i % n) * m + (j % m)) as u32;
+        let mut indices = vec![];
+        for i in 0..n {
+            for j in 0..m {
+                indices.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                indices.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        TriangleMesh { positions, indices, ..Default::default() }
+    }
+
+    #[test]
+    fn cube_is_closed_convex() {
+        let c = cube();
+        for t in 0..12 {
+            // outward: normal points away from the centre
+            let [a, b, cc] = c.vertices(t);
+            let centroid = (a + b + cc) / 3.0;
+            assert!(c.winding_normal(t).dot(centroid - Vec3::splat(0.5)) > 0.0);
+        }
+        let adj = c.build_adjacency();
+        assert_eq!(adj.edges.len(), 18);
+        assert_eq!(adj.boundary_edges(), 0);
+        assert!(c.is_closed_convex(1e-5));
+        // Inward winding is closed but not convex "with outward normals".
+        let mut inv = c.clone();
+        for t in &mut inv.indices {
+            t.swap(1, 2);
+        }
+        assert!(!inv.is_closed_convex(1e-5));
+    }
+
+    #[test]
+    fn open_cube_is_not_closed() {
+        let mut c = cube();
+        c.indices.truncate(10);
+        let adj = c.build_adjacency();
+        assert_eq!(adj.boundary_edges(), 4);
+        assert!(!adj.is_closed_manifold());
+        assert!(!c.is_closed_convex(1e-5));
+    }
+
+    #[test]
+    fn welding_joins_duplicated_seam_vertices() {
+        // Split the cube into per-face vertices: still closed after welding.
+        let c = cube();
+        let mut s = TriangleMesh::default();
+        for t in 0..c.triangle_count() {
+            let base = s.positions.len() as u32;
+            s.positions.extend(c.vertices(t));
+            s.indices.push([base, base + 1, base + 2]);
+        }
+        assert_eq!(s.build_adjacency().welded_count, 8);
+        assert!(s.is_closed_convex(1e-5));
+    }
+
+    #[test]
+    fn torus_is_closed_not_convex() {
+        let t = torus(24, 12);
+        let adj = t.build_adjacency();
+        assert!(adj.is_closed_manifold());
+        assert_eq!(adj.edges.len(), 3 * 24 * 12);
+        assert!(!t.is_closed_convex(1e-3));
+    }
+
+    #[test]
+    fn hit_normals_follow_pbrt_rules() {
+        let mut m = TriangleMesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            indices: vec![[0, 1, 2]],
+            ..Default::default()
+        };
+        assert_eq!(m.hit_normals(0, [1.0 / 3.0; 3]), (Vec3::Z, Vec3::Z));
+        m.normals = Some(vec![-Vec3::Z; 3]);
+        assert_eq!(m.hit_normals(0, [1.0 / 3.0; 3]), (-Vec3::Z, -Vec3::Z));
+        m.flip_normals = true;
+        assert_eq!(m.hit_normals(0, [1.0 / 3.0; 3]), (Vec3::Z, Vec3::Z));
+        m.reverse_orientation = true;
+        assert_eq!(m.sample_normal(0, [1.0 / 3.0; 3]), Vec3::Z);
+        assert!(!m.swaps_handedness());
     }
 }

@@ -8,7 +8,7 @@ use crate::filter::{create_filter, Filter};
 use crate::geometry::{face_forward, gamma, Bounds3, Frame, Ray};
 use crate::mesh::TriangleMesh;
 use crate::sampler::{create_sampler, Sampler};
-use crate::shapes::{build_shape, ShapeContext};
+use crate::shapes::{build_shape, ShapeContext, Tessellation};
 use glam::{IVec2, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, Entity, FileLoc, SceneDescription, ShapeDesc};
 use std::time::Instant;
@@ -219,7 +219,7 @@ impl Scene {
         }
 
         let t1 = Instant::now();
-        let ctx = ShapeContext { warnings };
+        let ctx = ShapeContext::for_scene(desc, warnings, Tessellation::default());
         let mut meshes = Vec::new();
         let mut objects = Vec::new();
         let mut add =
