@@ -2,7 +2,9 @@
 //! samplers, filters, image I/O, metrics, and the integrator interface that
 //! every integrator in `penumbra-integrators` plugs into.
 
+pub mod image;
 pub mod mesh;
+pub mod metrics;
 pub mod sampler;
 pub mod spectrum;
 
