@@ -678,6 +678,26 @@ pub fn encode_png(image: &Image, exposure: f32, path: &Path) -> Result<Vec<u8>, 
     Ok(out)
 }
 
+/// Encodes already display-ready 8-bit RGB bytes (row-major from the top, 3
+/// bytes per pixel) as a PNG, without any transfer curve; for plots and heat maps.
+pub fn encode_png_rgb8(width: u32, height: u32, rgb: &[u8], path: &Path) -> Result<Vec<u8>, ImageError> {
+    let err = |m: String| encode_err(path, "PNG", m);
+    if width == 0 || height == 0 || rgb.len() != width as usize * height as usize * 3 {
+        return Err(err("empty image or wrong byte count".into()));
+    }
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        let mut w = enc.write_header().map_err(|e| err(e.to_string()))?;
+        w.write_image_data(rgb).map_err(|e| err(e.to_string()))?;
+        w.finish().map_err(|e| err(e.to_string()))?;
+    }
+    Ok(out)
+}
+
 /// Encodes a little-endian PFM: `PF` from the colour channels (see
 /// [`Image::rgb_indices`]), or `Pf` for a single-channel / `Y`-only image.
 pub fn encode_pfm(image: &Image, path: &Path) -> Result<Vec<u8>, ImageError> {

@@ -433,6 +433,36 @@ pub fn z_scores(a: &Image, a_var: &Image, b: &Image, b_var: Option<&Image>) -> R
     Ok(ZScores { width: a.width, height: a.height, nchannels: n, z })
 }
 
+/// Whether this build can compute FLIP (the `flip` cargo feature).
+pub const FLIP_AVAILABLE: bool = cfg!(feature = "flip");
+
+/// Mean LDR-FLIP error (NVIDIA's metric, through the `nv-flip` crate) of test
+/// image `a` against reference `b`, in [0, 1]. Both are converted to 8-bit
+/// sRGB first (colour channels per [`Image::rgb_indices`], clamped, like
+/// [`crate::image::encode_png`] with exposure 0), so for HDR images this is the
+/// FLIP of the clamped display images. `pixels_per_degree` is the viewing
+/// condition (FLIP's default is 67).
+#[cfg(feature = "flip")]
+pub fn flip_mean(a: &Image, b: &Image, pixels_per_degree: f32) -> Result<f64, MetricsError> {
+    check_pair(a, b)?;
+    let to8 = |img: &Image, which: &str| -> Result<Vec<u8>, MetricsError> {
+        let rgb = img.to_rgb().ok_or_else(|| MetricsError::Invalid(format!("image {which} has no colour channels")))?;
+        Ok(rgb
+            .iter()
+            .flat_map(|p| p.to_array())
+            .map(|v| {
+                let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+                (crate::image::srgb_encode(v) * 255.0 + 0.5) as u8
+            })
+            .collect())
+    };
+    let (da, db) = (to8(a, "A")?, to8(b, "B")?);
+    let test = nv_flip::FlipImageRgb8::with_data(a.width, a.height, &da);
+    let reference = nv_flip::FlipImageRgb8::with_data(b.width, b.height, &db);
+    let err = nv_flip::flip(reference, test, pixels_per_degree);
+    Ok(nv_flip::FlipPool::from_image(&err).mean() as f64)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -545,6 +575,17 @@ mod tests {
         assert!(matches!(compare(&a, &c, 0.0, 0.0), Err(MetricsError::ChannelMismatch { .. })));
         let d = a.crop(0, 1, 0, 2).unwrap();
         assert!(matches!(compare(&a, &d, 0.0, 0.0), Err(MetricsError::SizeMismatch { .. })));
+    }
+
+    #[cfg(feature = "flip")]
+    #[test]
+    fn flip_is_zero_for_identical_and_grows_with_error() {
+        let a = img2x2([0.2, 0.4, 0.6, 0.1, 0.1, 0.1, 0.9, 0.5, 0.2, 0.3, 0.3, 0.3]);
+        assert_eq!(flip_mean(&a, &a, 67.0).unwrap(), 0.0);
+        let small = Image { data: a.data.iter().map(|v| v * 1.1).collect(), ..a.clone() };
+        let big = Image { data: a.data.iter().map(|v| 1.0 - v).collect(), ..a.clone() };
+        let (fs, fb) = (flip_mean(&small, &a, 67.0).unwrap(), flip_mean(&big, &a, 67.0).unwrap());
+        assert!(0.0 < fs && fs < fb && fb <= 1.0, "{fs} {fb}");
     }
 
     #[test]
