@@ -1,16 +1,555 @@
-//! `penumbra diff A B`.
+//! `penumbra diff A B`: OpenImageIO idiff's numbers and exit codes, plus
+//! relative MSE, SMAPE, FLIP, NaN/Inf counts, JSON output and a heat map.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use penumbra_core::image::{self, Image};
+use penumbra_core::metrics::{self, CompareResults, MetricsError, Status, Thresholds};
+use serde_json::{json, Value};
+
+/// Exit code: images match within thresholds.
+pub const EXIT_OK: u8 = 0;
+/// Exit code: over the warning threshold.
+pub const EXIT_WARN: u8 = 1;
+/// Exit code: over the failure threshold.
+pub const EXIT_FAIL: u8 = 2;
+/// Exit code: different sizes or channel sets.
+pub const EXIT_DIFFERENT_SIZE: u8 = 3;
+/// Exit code: a file could not be read or written, or a bad option value.
+pub const EXIT_FILE: u8 = 4;
+
 #[derive(clap::Args)]
+#[command(after_help = "\
+Numbers follow OpenImageIO idiff: mean error = mean |A-B| over all values (all pixels and channels),
+RMS error, PSNR = 20 log10(peak / RMS) with peak = max(1, largest |value| in either image),
+max error and its first location; 'pixels over' counts pixels with any channel over the threshold.
+NaN/Inf: matching non-finite pairs are skipped (as idiff); mismatched ones make the max error inf,
+count as failing pixels and are kept out of the means (idiff would turn its means into NaN/inf).
+Extra metrics over finite pairs: MSE, relative MSE = mean (A-B)^2/(B^2+0.01) (B is the reference),
+SMAPE = mean 2|A-B|/(|A|+|B|), and LDR-FLIP of the sRGB-clamped images when built with it.
+
+Exit codes (as idiff): 0 pass, 1 warning, 2 failure, 3 different sizes or channel sets,
+4 unreadable file or bad option value. Unlike idiff, which pads the smaller image with black,
+images of different sizes (or with different channel names) are refused with code 3.
+PNGs are compared on their raw code values v/255 (not linearised), as idiff reads them.")]
 pub struct DiffArgs {
+    /// Test image (EXR, PNG or PFM).
     pub a: PathBuf,
+    /// Reference image (EXR, PNG or PFM).
     pub b: PathBuf,
+    /// Warning threshold on the absolute difference of a value.
+    #[arg(long, default_value_t = 1e-6)]
+    pub warn: f32,
+    /// Failure threshold on the absolute difference of a value.
+    #[arg(long, default_value_t = 1e-6)]
+    pub fail: f32,
+    /// Allow this percentage of pixels over the warning threshold.
+    #[arg(long, default_value_t = 0.0)]
+    pub warnpercent: f32,
+    /// Allow this percentage of pixels over the failure threshold.
+    #[arg(long, default_value_t = 0.0)]
+    pub failpercent: f32,
+    /// Warn if any one value's error exceeds this.
+    #[arg(long, default_value_t = f32::INFINITY)]
+    pub hardwarn: f32,
+    /// Fail if any one value's error exceeds this.
+    #[arg(long, default_value_t = f32::INFINITY)]
+    pub hardfail: f32,
+    /// Print one JSON object instead of text (non-finite numbers as "inf"/"nan" strings).
+    #[arg(long)]
+    pub json: bool,
+    /// Write a heat map of the per-pixel error (max over channels) to this PNG.
+    #[arg(long, value_name = "OUT.png")]
+    pub heatmap: Option<PathBuf>,
+    /// Compare only pixels x0 <= x < x1, y0 <= y < y1.
+    #[arg(long, value_name = "x0,x1,y0,y1")]
+    pub crop: Option<String>,
+    /// Compare only these channels (comma-separated names, e.g. R,G,B).
+    #[arg(long, value_name = "R,G,B")]
+    pub channels: Option<String>,
+    /// Skip the FLIP computation.
+    #[arg(long)]
+    pub no_flip: bool,
+}
+
+struct Failure {
+    code: u8,
+    message: String,
+}
+
+fn fail(code: u8, message: impl Into<String>) -> Failure {
+    Failure { code, message: message.into() }
 }
 
 pub fn run(args: DiffArgs) -> ExitCode {
-    let _ = (args.a, args.b);
-    eprintln!("penumbra diff: not implemented yet");
-    ExitCode::from(4)
+    match run_inner(&args) {
+        Ok(code) => ExitCode::from(code),
+        Err(f) => {
+            eprintln!("penumbra diff: {}", f.message);
+            if args.json {
+                println!("{}", json!({ "a": args.a, "b": args.b, "error": f.message, "exit_code": f.code }));
+            }
+            ExitCode::from(f.code)
+        }
+    }
+}
+
+fn parse_crop(s: &str) -> Result<[u32; 4], Failure> {
+    let v: Vec<u32> = s
+        .split(',')
+        .map(|t| t.trim().parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| fail(EXIT_FILE, format!("--crop {s:?}: expected four non-negative integers x0,x1,y0,y1")))?;
+    match v[..] {
+        [x0, x1, y0, y1] => Ok([x0, x1, y0, y1]),
+        _ => Err(fail(EXIT_FILE, format!("--crop {s:?}: expected four integers x0,x1,y0,y1"))),
+    }
+}
+
+fn metrics_failure(e: MetricsError) -> Failure {
+    match e {
+        MetricsError::Invalid(_) => fail(EXIT_FILE, e.to_string()),
+        _ => fail(EXIT_DIFFERENT_SIZE, e.to_string()),
+    }
+}
+
+fn prepare(img: Image, which: &Path, args: &DiffArgs, crop: Option<[u32; 4]>) -> Result<Image, Failure> {
+    let img = match &args.channels {
+        Some(list) => {
+            let names: Vec<&str> = list.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
+            if names.is_empty() {
+                return Err(fail(EXIT_FILE, "--channels: empty list"));
+            }
+            img.select_channels(&names).map_err(|e| fail(EXIT_DIFFERENT_SIZE, format!("{}: {e}", which.display())))?
+        }
+        None => img,
+    };
+    match crop {
+        Some([x0, x1, y0, y1]) => {
+            img.crop(x0, x1, y0, y1).map_err(|e| fail(EXIT_FILE, format!("{}: --crop: {e}", which.display())))
+        }
+        None => Ok(img),
+    }
+}
+
+fn run_inner(args: &DiffArgs) -> Result<u8, Failure> {
+    let crop = args.crop.as_deref().map(parse_crop).transpose()?;
+    for (name, v) in [("warn", args.warn), ("fail", args.fail), ("warnpercent", args.warnpercent)].into_iter().chain([
+        ("failpercent", args.failpercent),
+        ("hardwarn", args.hardwarn),
+        ("hardfail", args.hardfail),
+    ]) {
+        if v.is_nan() || v < 0.0 {
+            return Err(fail(EXIT_FILE, format!("--{name} must be a non-negative number")));
+        }
+    }
+    let a = image::read(&args.a).map_err(|e| fail(EXIT_FILE, e.to_string()))?;
+    let b = image::read(&args.b).map_err(|e| fail(EXIT_FILE, e.to_string()))?;
+    let a = prepare(a, &args.a, args, crop)?;
+    let b = prepare(b, &args.b, args, crop)?;
+    let t = Thresholds {
+        warn: args.warn,
+        fail: args.fail,
+        warnpercent: args.warnpercent,
+        failpercent: args.failpercent,
+        hardwarn: args.hardwarn,
+        hardfail: args.hardfail,
+    };
+    let mut r = metrics::compare(&a, &b, t.warn, t.fail).map_err(metrics_failure)?;
+    let (ox, oy) = crop.map(|c| (c[0], c[2])).unwrap_or((0, 0));
+    let (max_ax, max_ay) = (r.max_x, r.max_y);
+    r.max_x += ox;
+    r.max_y += oy;
+    let status = r.status(&t);
+    let flip = flip_value(&a, &b, args.no_flip);
+    let code = match status {
+        Status::Pass => EXIT_OK,
+        Status::Warn => EXIT_WARN,
+        Status::Fail => EXIT_FAIL,
+    };
+
+    let heatmap = match &args.heatmap {
+        Some(out) => {
+            let errs = metrics::error_map(&a, &b).map_err(metrics_failure)?;
+            let (lo, hi) = write_heatmap(out, a.width, a.height, &errs).map_err(|e| fail(EXIT_FILE, e.to_string()))?;
+            Some((out.clone(), lo, hi))
+        }
+        None => None,
+    };
+
+    if args.json {
+        println!("{}", report_json(args, &r, &t, status, &flip, heatmap.as_ref()));
+    } else {
+        let values =
+            |img: &Image| img.pixel(max_ax, max_ay).iter().map(|&v| fmt_g(v as f64, 6)).collect::<Vec<_>>().join(", ");
+        let at_max = format!("{} vs {}", values(&a), values(&b));
+        println!("Comparing \"{}\" and \"{}\"", args.a.display(), args.b.display());
+        print!("{}", report_text(&r, &t, &flip, &at_max));
+        if let Some((out, lo, hi)) = &heatmap {
+            println!("  heat map: {} (per-pixel max error, {} to {})", out.display(), fmt_g(*lo, 4), fmt_g(*hi, 4));
+        }
+        println!(
+            "{}",
+            match status {
+                Status::Pass => "PASS",
+                Status::Warn => "WARNING",
+                Status::Fail => "FAILURE",
+            }
+        );
+    }
+    Ok(code)
+}
+
+/// FLIP's value or why it is missing.
+type FlipValue = Result<f64, String>;
+
+#[allow(unused_variables)]
+fn flip_value(a: &Image, b: &Image, skip: bool) -> FlipValue {
+    if skip {
+        return Err("skipped (--no-flip)".into());
+    }
+    #[cfg(feature = "flip")]
+    {
+        metrics::flip_mean(a, b, 67.0).map_err(|e| e.to_string())
+    }
+    #[cfg(not(feature = "flip"))]
+    {
+        Err("not available in this build".into())
+    }
+}
+
+/// A JSON number, or "inf" / "-inf" / "nan" strings for non-finite values.
+fn num(v: f64) -> Value {
+    if v.is_finite() {
+        json!(v)
+    } else if v.is_nan() {
+        json!("nan")
+    } else if v > 0.0 {
+        json!("inf")
+    } else {
+        json!("-inf")
+    }
+}
+
+fn percent(n: u64, of: u64) -> f64 {
+    if of == 0 {
+        0.0
+    } else {
+        100.0 * n as f64 / of as f64
+    }
+}
+
+fn report_json(
+    args: &DiffArgs,
+    r: &CompareResults,
+    t: &Thresholds,
+    status: Status,
+    flip: &FlipValue,
+    heatmap: Option<&(PathBuf, f64, f64)>,
+) -> Value {
+    json!({
+        "a": args.a,
+        "b": args.b,
+        "width": r.width,
+        "height": r.height,
+        "channels": r.channels,
+        "npixels": r.npixels,
+        "nvalues": r.nvalues,
+        "mean_error": num(r.mean_error),
+        "rms_error": num(r.rms_error),
+        "psnr": num(r.psnr),
+        "psnr_peak": num(r.psnr_peak),
+        "max_error": num(r.max_error),
+        "max_x": r.max_x,
+        "max_y": r.max_y,
+        "max_c": r.max_c,
+        "max_channel": r.max_channel_name(),
+        "nwarn": r.nwarn,
+        "nwarn_percent": percent(r.nwarn, r.npixels),
+        "nfail": r.nfail,
+        "nfail_percent": percent(r.nfail, r.npixels),
+        "nan_a": r.nan_a,
+        "inf_a": r.inf_a,
+        "nan_b": r.nan_b,
+        "inf_b": r.inf_b,
+        "nonfinite_matched": r.nonfinite_matched,
+        "nonfinite_mismatched": r.nonfinite_mismatched,
+        "finite_values": r.finite_values,
+        "mse": num(r.mse),
+        "relmse": num(r.relmse),
+        "relmse_epsilon": metrics::RELMSE_EPSILON,
+        "smape": num(r.smape),
+        "flip": flip.as_ref().map(|&v| num(v)).unwrap_or(Value::Null),
+        "flip_status": match flip { Ok(_) => "ok".to_string(), Err(e) => e.clone() },
+        "thresholds": {
+            "warn": num(t.warn as f64),
+            "fail": num(t.fail as f64),
+            "warnpercent": num(t.warnpercent as f64),
+            "failpercent": num(t.failpercent as f64),
+            "hardwarn": num(t.hardwarn as f64),
+            "hardfail": num(t.hardfail as f64),
+        },
+        "heatmap": heatmap.map(|(p, lo, hi)| json!({ "path": p, "min": num(*lo), "max": num(*hi) })),
+        "status": match status { Status::Pass => "pass", Status::Warn => "warn", Status::Fail => "fail" },
+        "exit_code": status as u8,
+    })
+}
+
+fn report_text(r: &CompareResults, t: &Thresholds, flip: &FlipValue, values_at_max: &str) -> String {
+    let mut s = String::new();
+    s += &format!("  Mean error = {}\n", fmt_g(r.mean_error, 6));
+    s += &format!("  RMS error = {}\n", fmt_g(r.rms_error, 6));
+    s += &format!("  Peak SNR = {}\n", fmt_g(r.psnr, 6));
+    s += &format!("  Max error  = {}", fmt_g(r.max_error, 6));
+    if r.max_error != 0.0 {
+        s += &format!(" @ ({}, {}, {})  values are {values_at_max}", r.max_x, r.max_y, r.max_channel_name());
+    }
+    s += "\n";
+    s += &format!(
+        "  {} pixels ({}%) over {}\n",
+        r.nwarn,
+        fmt_g(percent(r.nwarn, r.npixels), 3),
+        fmt_g(t.warn as f64, 6)
+    );
+    s += &format!(
+        "  {} pixels ({}%) over {}\n",
+        r.nfail,
+        fmt_g(percent(r.nfail, r.npixels), 3),
+        fmt_g(t.fail as f64, 6)
+    );
+    s += &format!(
+        "  NaN/Inf values: A {} NaN, {} Inf; B {} NaN, {} Inf; {} mismatched, {} matched\n",
+        r.nan_a, r.inf_a, r.nan_b, r.inf_b, r.nonfinite_mismatched, r.nonfinite_matched
+    );
+    s += &format!("  MSE = {}  relMSE = {}  SMAPE = {}\n", fmt_g(r.mse, 6), fmt_g(r.relmse, 6), fmt_g(r.smape, 6));
+    match flip {
+        Ok(v) => s += &format!("  FLIP (LDR, mean) = {}\n", fmt_g(*v, 6)),
+        Err(e) => s += &format!("  FLIP: {e}\n"),
+    }
+    s
+}
+
+/// Formats like C's `%.{prec}g` (and C++ streams' default): `prec` significant
+/// digits, scientific notation when the exponent is < -4 or >= prec, trailing
+/// zeros removed; "inf", "-inf", "nan" for non-finite values.
+pub fn fmt_g(v: f64, prec: usize) -> String {
+    if v.is_nan() {
+        return "nan".into();
+    }
+    if v.is_infinite() {
+        return if v > 0.0 { "inf".into() } else { "-inf".into() };
+    }
+    if v == 0.0 {
+        return "0".into();
+    }
+    let prec = prec.max(1);
+    // Exponent after rounding to `prec` significant digits.
+    let sci = format!("{:.*e}", prec - 1, v);
+    let (mant, exp) = sci.split_once('e').unwrap_or((&sci, "0"));
+    let exp: i32 = exp.parse().unwrap_or(0);
+    let strip = |m: &str| -> String {
+        if m.contains('.') {
+            m.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            m.to_string()
+        }
+    };
+    if exp < -4 || exp >= prec as i32 {
+        format!("{}e{}{:02}", strip(mant), if exp < 0 { '-' } else { '+' }, exp.abs())
+    } else {
+        let decimals = (prec as i32 - 1 - exp).max(0) as usize;
+        strip(&format!("{:.*}", decimals, v))
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Heat map
+// ---------------------------------------------------------------------------
+
+/// Viridis, sampled at 9 evenly spaced stops (matplotlib's values) and
+/// interpolated linearly in between.
+const VIRIDIS: [[u8; 3]; 9] = [
+    [68, 1, 84],
+    [71, 45, 123],
+    [59, 82, 139],
+    [44, 114, 142],
+    [33, 145, 140],
+    [40, 174, 128],
+    [94, 201, 98],
+    [173, 220, 48],
+    [253, 231, 37],
+];
+
+/// Colour for non-finite errors (a NaN or Inf against something else).
+const NONFINITE_COLOR: [u8; 3] = [255, 0, 255];
+
+fn viridis(t: f64) -> [u8; 3] {
+    let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) } * (VIRIDIS.len() - 1) as f64;
+    let i = (t.floor() as usize).min(VIRIDIS.len() - 2);
+    let f = t - i as f64;
+    let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
+    std::array::from_fn(|k| (a[k] as f64 + (b[k] as f64 - a[k] as f64) * f).round() as u8)
+}
+
+/// 3×5 bitmap glyphs, one row per u8 (low 3 bits, bit 2 = leftmost column).
+fn glyph(c: char) -> Option<[u8; 5]> {
+    Some(match c {
+        '0' => [0b111, 0b101, 0b101, 0b101, 0b111],
+        '1' => [0b010, 0b110, 0b010, 0b010, 0b111],
+        '2' => [0b111, 0b001, 0b111, 0b100, 0b111],
+        '3' => [0b111, 0b001, 0b111, 0b001, 0b111],
+        '4' => [0b101, 0b101, 0b111, 0b001, 0b001],
+        '5' => [0b111, 0b100, 0b111, 0b001, 0b111],
+        '6' => [0b111, 0b100, 0b111, 0b101, 0b111],
+        '7' => [0b111, 0b001, 0b010, 0b010, 0b010],
+        '8' => [0b111, 0b101, 0b111, 0b101, 0b111],
+        '9' => [0b111, 0b101, 0b111, 0b001, 0b111],
+        '.' => [0b000, 0b000, 0b000, 0b000, 0b010],
+        '-' => [0b000, 0b000, 0b111, 0b000, 0b000],
+        '+' => [0b000, 0b010, 0b111, 0b010, 0b000],
+        'e' => [0b111, 0b101, 0b111, 0b100, 0b111],
+        'i' => [0b010, 0b000, 0b010, 0b010, 0b010],
+        'n' => [0b000, 0b110, 0b101, 0b101, 0b101],
+        'f' => [0b011, 0b100, 0b110, 0b100, 0b100],
+        'a' => [0b000, 0b111, 0b011, 0b101, 0b111],
+        ' ' => [0; 5],
+        _ => return None,
+    })
+}
+
+struct Canvas {
+    w: u32,
+    h: u32,
+    rgb: Vec<u8>,
+}
+
+impl Canvas {
+    fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
+        if x >= 0 && y >= 0 && (x as u32) < self.w && (y as u32) < self.h {
+            let o = (y as usize * self.w as usize + x as usize) * 3;
+            self.rgb[o..o + 3].copy_from_slice(&c);
+        }
+    }
+
+    /// Draws text with glyphs scaled by `s`; returns the width drawn.
+    fn text(&mut self, x: i64, y: i64, s: i64, text: &str, c: [u8; 3]) -> i64 {
+        let mut cx = x;
+        for ch in text.chars() {
+            if let Some(g) = glyph(ch) {
+                for (row, bits) in g.iter().enumerate() {
+                    for col in 0..3 {
+                        if bits & (0b100 >> col) != 0 {
+                            for dy in 0..s {
+                                for dx in 0..s {
+                                    self.put(cx + col * s + dx, y + row as i64 * s + dy, c);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            cx += 4 * s;
+        }
+        cx - x
+    }
+}
+
+fn text_width(text: &str, s: i64) -> i64 {
+    text.chars().count() as i64 * 4 * s
+}
+
+/// Writes the heat map: the error image on top, mapped linearly from 0 to the
+/// largest finite per-pixel error through viridis (non-finite errors in
+/// magenta), and under it a legend band with the colour bar and the min/max
+/// error printed at its ends. Returns the (min, max) finite per-pixel error.
+fn write_heatmap(out: &Path, w: u32, h: u32, errs: &[f32]) -> Result<(f64, f64), image::ImageError> {
+    let finite = errs.iter().filter(|e| e.is_finite()).map(|&e| e as f64);
+    let (lo, hi) = finite.fold((f64::INFINITY, 0.0f64), |(lo, hi), e| (lo.min(e), hi.max(e)));
+    let lo = if lo.is_finite() { lo } else { 0.0 };
+    // Legend: scale 2 glyphs (10 px tall), bar 10 px, margins.
+    let s = if w >= 64 { 2 } else { 1 };
+    let band = (10 + 5 * s + 9) as u32;
+    let (cw, ch) = (w, h + band);
+    let mut c = Canvas { w: cw, h: ch, rgb: vec![0u8; cw as usize * ch as usize * 3] };
+    for y in 0..h {
+        for x in 0..w {
+            let e = errs[(y * w + x) as usize] as f64;
+            let col = if !e.is_finite() {
+                NONFINITE_COLOR
+            } else if hi > 0.0 {
+                viridis(e / hi)
+            } else {
+                viridis(0.0)
+            };
+            c.put(x as i64, y as i64, col);
+        }
+    }
+    // Legend band: dark background, colour bar from 0 to max.
+    let bar_y = h as i64 + 3;
+    for x in 0..w {
+        let col = viridis(if w > 1 { x as f64 / (w - 1) as f64 } else { 0.0 });
+        for y in bar_y..bar_y + 10 {
+            c.put(x as i64, y, col);
+        }
+    }
+    let ty = bar_y + 13;
+    let white = [255, 255, 255];
+    let left = "0".to_string();
+    let right = fmt_g(hi, 3);
+    c.text(1, ty, s, &left, white);
+    let rw = text_width(&right, s);
+    c.text((w as i64 - rw).max(text_width(&left, s) + 4 * s), ty, s, &right, white);
+    let mid = format!("min {}", fmt_g(lo, 3));
+    let mw = text_width(&mid, s);
+    if w as i64 > mw + rw + 16 * s {
+        c.text((w as i64 - mw) / 2, ty, s, &mid, [200, 200, 200]);
+    }
+    let bytes = image::encode_png_rgb8(cw, ch, &c.rgb, out)?;
+    image::write_atomic(out, |wr| wr.write_all(&bytes))
+        .map(|_| (lo, hi))
+        .map_err(|e| image::ImageError::Invalid(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fmt_g_matches_c() {
+        assert_eq!(fmt_g(0.0333333333, 6), "0.0333333");
+        assert_eq!(fmt_g(34.31363, 6), "34.3136");
+        assert_eq!(fmt_g(1e-6, 6), "1e-06");
+        assert_eq!(fmt_g(100.0, 3), "100");
+        assert_eq!(fmt_g(0.0999999, 6), "0.0999999");
+        assert_eq!(fmt_g(123456789.0, 6), "1.23457e+08");
+        assert_eq!(fmt_g(0.0001, 6), "0.0001");
+        assert_eq!(fmt_g(0.00001234, 6), "1.234e-05");
+        assert_eq!(fmt_g(999999.5, 6), "1e+06");
+        assert_eq!(fmt_g(-2.5, 6), "-2.5");
+        assert_eq!(fmt_g(f64::INFINITY, 6), "inf");
+        assert_eq!(fmt_g(6.25, 3), "6.25");
+    }
+
+    #[test]
+    fn viridis_endpoints_and_monotone_luma() {
+        assert_eq!(viridis(0.0), [68, 1, 84]);
+        assert_eq!(viridis(1.0), [253, 231, 37]);
+        assert_eq!(viridis(f64::NAN), [68, 1, 84]);
+        let luma = |c: [u8; 3]| 0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64;
+        let mut prev = -1.0;
+        for i in 0..=100 {
+            let l = luma(viridis(i as f64 / 100.0));
+            assert!(l > prev, "luma not increasing at {i}");
+            prev = l;
+        }
+    }
+
+    #[test]
+    fn crop_parsing() {
+        assert_eq!(parse_crop("1,5, 2,9").ok().map(|c| c), Some([1, 5, 2, 9]));
+        assert!(parse_crop("1,2,3").is_err());
+        assert!(parse_crop("a,b,c,d").is_err());
+        assert!(parse_crop("-1,2,3,4").is_err());
+    }
 }

@@ -11,6 +11,7 @@ pub mod image;
 pub mod integrator;
 pub mod light;
 pub mod mesh;
+pub mod metrics;
 pub mod rng;
 pub mod sampler;
 pub mod sampling;
