@@ -2,7 +2,11 @@
 //! samplers, filters, image I/O, metrics, and the integrator interface that
 //! every integrator in `penumbra-integrators` plugs into.
 
+pub mod bxdf;
+pub mod cie_data;
 pub mod mesh;
+pub mod metal_data;
+pub mod microfacet;
 pub mod sampler;
 pub mod spectrum;
 
