@@ -3,8 +3,12 @@
 //! every integrator in `penumbra-integrators` plugs into.
 
 pub mod bxdf;
+#[rustfmt::skip]
+#[allow(clippy::excessive_precision)]
 pub mod cie_data;
 pub mod mesh;
+#[rustfmt::skip]
+#[allow(clippy::excessive_precision)]
 pub mod metal_data;
 pub mod microfacet;
 pub mod sampler;

@@ -227,7 +227,8 @@ fn trowbridge_reitz_sample11(cos_theta: f32, u1: f32, u2: f32) -> (f32, f32) {
     // fit (CDF error up to 7.6e-4, which a chi-square test detects); we start from the
     // same fit and polish it with Newton steps, so the samples are pbrt-v3's up to that error.
     let (s, u2) = if u2 > 0.5 { (1.0, 2.0 * (u2 - 0.5)) } else { (-1.0, 2.0 * (0.5 - u2)) };
-    let mut z = (u2 * (u2 * (u2 * 0.27385 - 0.73369) + 0.46341)) / (u2 * (u2 * (u2 * 0.093073 + 0.309420) - 1.0) + 0.597999);
+    let mut z =
+        (u2 * (u2 * (u2 * 0.27385 - 0.73369) + 0.46341)) / (u2 * (u2 * (u2 * 0.093073 + 0.309420) - 1.0) + 0.597999);
     if z.is_finite() && z >= 0.0 {
         for _ in 0..3 {
             let q = 1.0 + z * z;
@@ -327,7 +328,7 @@ pub fn erf_inv(x: f32) -> f32 {
         p = 0.005_739_507_7 + p * w;
         p = -0.007_622_461 + p * w;
         p = 0.009_438_870_5 + p * w;
-        p = 1.001_674_1 + p * w;
+        p = 1.001_674 + p * w;
         2.832_976_8 + p * w
     };
     p * x
@@ -418,7 +419,7 @@ mod tests {
             (s >> 8) as f32 / (1u32 << 24) as f32
         };
         for d in dists() {
-            for wo in [dir(0.0, 0.0), dir(0.5, 1.0), dir(1.5707, 0.3), -dir(1.2, 5.0), Vec3::new(0.0, 1.0, 1e-7)] {
+            for wo in [dir(0.0, 0.0), dir(0.5, 1.0), dir(1.5706, 0.3), -dir(1.2, 5.0), Vec3::new(0.0, 1.0, 1e-7)] {
                 for _ in 0..2000 {
                     let u = Vec2::new(next(), next());
                     let wh = d.sample_wh(wo, u).expect("non-degenerate wo");

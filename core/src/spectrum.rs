@@ -183,13 +183,13 @@ fn blackbody_f64(lambda_nm: f64, t: f64) -> f64 {
 
 /// Planck's law normalised by its maximum over wavelength (pbrt-v3's `BlackbodyNormalized`).
 pub fn blackbody_normalized(lambda_nm: f32, t: f32) -> f32 {
-    if !(t > 0.0) || !t.is_finite() {
+    if t.is_nan() || t <= 0.0 || t.is_infinite() {
         return 0.0;
     }
     let t = t as f64;
     let lambda_max = 2.897_772_1e-3 / t * 1e9;
     let max_l = blackbody_f64(lambda_max, t);
-    if !(max_l > 0.0) {
+    if max_l.is_nan() || max_l <= 0.0 {
         return 0.0;
     }
     (blackbody_f64(lambda_nm as f64, t) / max_l) as f32
@@ -341,7 +341,7 @@ mod tests {
             assert!(((le - expect) / expect).abs() < 1e-3, "{l} {t} {le}");
         }
         for t in [2700.0f32, 4500.0, 6500.0] {
-            let peak = 2.897_772_1e-3 / t * 1e9;
+            let peak = 2.897_772e-3 / t * 1e9;
             assert!((blackbody_normalized(peak, t) - 1.0).abs() < 1e-6);
             assert!(blackbody_normalized(peak * 0.99, t) < 1.0 && blackbody_normalized(peak * 1.01, t) < 1.0);
         }
@@ -369,10 +369,7 @@ mod tests {
         assert!(spectrum_to_rgb(&SpectrumValue::Rgb(vec![0.1, 0.2])).is_err());
         assert!(spectrum_to_rgb(&SpectrumValue::Sampled(vec![400.0])).is_err());
         assert!(spectrum_to_rgb(&SpectrumValue::Blackbody(vec![])).is_err());
-        assert_eq!(
-            spectrum_to_rgb(&SpectrumValue::Sampled(vec![f32::NAN, 1.0])),
-            Err(SpectrumError::NonFinite)
-        );
+        assert_eq!(spectrum_to_rgb(&SpectrumValue::Sampled(vec![f32::NAN, 1.0])), Err(SpectrumError::NonFinite));
     }
 
     #[test]
