@@ -3,7 +3,11 @@
 //! every integrator in `penumbra-integrators` plugs into.
 
 pub mod accel;
+pub mod bxdf;
 pub mod camera;
+#[rustfmt::skip]
+#[allow(clippy::excessive_precision)]
+pub mod cie_data;
 pub mod film;
 pub mod filter;
 pub mod geometry;
@@ -11,7 +15,11 @@ pub mod image;
 pub mod integrator;
 pub mod light;
 pub mod mesh;
+#[rustfmt::skip]
+#[allow(clippy::excessive_precision)]
+pub mod metal_data;
 pub mod metrics;
+pub mod microfacet;
 pub mod rng;
 pub mod sampler;
 pub mod sampling;
