@@ -16,7 +16,8 @@
 
 use crate::rng::Rng;
 
-/// Minimum toroidal distance² of the points (i/n, C·i) with n = 2^m, or early exit once below `give_up`.
+/// Minimum toroidal distance² of the points (i/n, C·i) with n = 2^m; exits early with a value
+/// ≤ `give_up` as soon as the minimum is known to be at most `give_up`.
 pub fn min_toroidal_distance2(c: &[u32; 32], m: u32, give_up: f64) -> f64 {
     let n = 1usize << m;
     let ys: Vec<f64> = (0..n as u32).map(|i| super::lowdiscrepancy::multiply_generator(c, i) as f64 / 4294967296.0).collect();
@@ -32,7 +33,7 @@ pub fn min_toroidal_distance2(c: &[u32; 32], m: u32, give_up: f64) -> f64 {
             let d2 = dx * dx + dy * dy;
             if d2 < best {
                 best = d2;
-                if best < give_up {
+                if best <= give_up {
                     return best;
                 }
             }
@@ -44,44 +45,77 @@ pub fn min_toroidal_distance2(c: &[u32; 32], m: u32, give_up: f64) -> f64 {
     best
 }
 
-/// Random search (`candidates` tries from `seed`) for a (0,m,2)-net generator matrix with a large
-/// minimum toroidal distance. Returns the matrix and its minimum distance (in units of the ideal
-/// hexagonal-lattice spacing sqrt(2 / (sqrt(3) n)), so values close to 1 are near-optimal).
-pub fn search_maxmin_matrix(m: u32, candidates: u32, seed: u64) -> ([u32; 32], f64) {
-    let mut rng = Rng::new(seed);
-    let mut best = (super::lowdiscrepancy::C_VAN_DER_CORPUT, min_toroidal_distance2(&super::lowdiscrepancy::C_VAN_DER_CORPUT, m, 0.0));
-    let m = m.min(32);
-    for _ in 0..candidates {
-        // Rows are output bits (0 = most significant), columns index bits; column j is a u32 with row r at bit 31 - r.
-        let mut l = [0u32; 32];
-        let mut u = [0u32; 32];
-        for j in 0..m as usize {
-            // L: unit lower triangular (rows r ≥ j); random rows below m as well.
-            let below: u32 = if j + 1 < 32 { rng.uniform_u32() & (u32::MAX >> (j + 1)) } else { 0 };
-            l[j] = (1u32 << (31 - j)) | below;
-            // U: unit upper triangular on the m×m block (rows r ≤ j).
-            let above: u32 = if j > 0 { rng.uniform_u32() & !(u32::MAX >> j) } else { 0 };
-            u[j] = (1u32 << (31 - j)) | above;
-        }
-        // C = L·U: column j of C is L applied to column j of U.
-        let mut c = [0u32; 32];
-        for j in 0..m as usize {
-            let mut v = 0u32;
-            for r in 0..=j {
-                if u[j] >> (31 - r) & 1 == 1 {
-                    v ^= l[r];
-                }
+fn lu_product(l: &[u32; 32], u: &[u32; 32], m: usize) -> [u32; 32] {
+    // C = L·U: column j of C is L applied to column j of U.
+    let mut c = [0u32; 32];
+    for j in 0..m {
+        let mut v = 0u32;
+        for (r, lr) in l.iter().enumerate().take(j + 1) {
+            if u[j] >> (31 - r) & 1 == 1 {
+                v ^= lr;
             }
-            c[j] = v;
         }
-        let d2 = min_toroidal_distance2(&c, m, best.1);
-        if d2 > best.1 {
-            best = (c, d2);
+        c[j] = v;
+    }
+    c
+}
+
+/// Search (from `seed`) for a (0,m,2)-net generator matrix with a large minimum toroidal
+/// distance: `candidates` uniformly random matrices with the net property, then `refinements`
+/// steps of hill climbing that flip one free bit of the best matrix's L or U factor and keep
+/// the change when the minimum distance does not decrease. Returns the matrix and its minimum
+/// distance in units of the hexagonal-lattice spacing sqrt(2 / (sqrt(3) n)) (1 is the ideal).
+pub fn search_maxmin_matrix(m: u32, candidates: u32, refinements: u32, seed: u64) -> ([u32; 32], f64) {
+    let m = m.min(32);
+    let mu = m as usize;
+    let mut rng = Rng::new(seed);
+    // Rows are output bits (0 = most significant), columns index bits; column j is a u32 with row r at bit 31 - r.
+    let mut identity = [0u32; 32];
+    for (j, v) in identity.iter_mut().enumerate() {
+        *v = 1 << (31 - j);
+    }
+    let mut best_lu = (identity, identity);
+    let mut best = min_toroidal_distance2(&lu_product(&identity, &identity, mu), m, 0.0);
+    for _ in 0..candidates {
+        let (mut l, mut u) = (identity, identity);
+        for j in 0..mu {
+            // L: unit lower triangular, with random output bits below row m as well.
+            if j + 1 < 32 {
+                l[j] |= rng.uniform_u32() & (u32::MAX >> (j + 1));
+            }
+            // U: unit upper triangular on the m×m block.
+            if j > 0 {
+                u[j] |= rng.uniform_u32() & !(u32::MAX >> j);
+            }
+        }
+        let d2 = min_toroidal_distance2(&lu_product(&l, &u, mu), m, best);
+        if d2 > best {
+            best = d2;
+            best_lu = (l, u);
+        }
+    }
+    for _ in 0..refinements {
+        if mu == 0 {
+            break;
+        }
+        let (mut l, mut u) = best_lu;
+        let j = rng.uniform_u32_below(m) as usize;
+        if rng.uniform_u32() & 1 == 0 && j + 1 < 32 {
+            l[j] ^= 1 << (30 - j - rng.uniform_u32_below(31 - j as u32) as usize);
+        } else if j > 0 {
+            u[j] ^= 1 << (31 - rng.uniform_u32_below(j as u32) as usize);
+        } else {
+            continue;
+        }
+        let d2 = min_toroidal_distance2(&lu_product(&l, &u, mu), m, best);
+        if d2 >= best {
+            best = d2;
+            best_lu = (l, u);
         }
     }
     let n = (1u64 << m) as f64;
     let ideal = (2.0 / (3f64.sqrt() * n)).sqrt();
-    (best.0, best.1.sqrt() / ideal)
+    (lu_product(&best_lu.0, &best_lu.1, mu), best.sqrt() / ideal)
 }
 
 /// See the module documentation.
@@ -96,12 +130,12 @@ mod tests {
     fn print_maxmin_matrices() {
         println!("[");
         for m in 0..=16u32 {
-            let tries = match m {
-                0..=8 => 20_000,
-                9..=12 => 2_000,
-                _ => 150,
+            let (tries, climbs) = match m {
+                0..=8 => (20_000, 20_000),
+                9..=12 => (1_000, 6_000),
+                _ => (100, 3_000),
             };
-            let (c, q) = search_maxmin_matrix(m, tries, 0x6d61_786d_696e + m as u64);
+            let (c, q) = search_maxmin_matrix(m, tries, climbs, 0x6d61_786d_696e + m as u64);
             eprintln!("m={m}: min distance {q:.3} of hexagonal");
             let cols: Vec<String> = c.iter().map(|v| format!("{v:#010x}")).collect();
             println!("    [{}],", cols.join(", "));

@@ -242,7 +242,9 @@ fn deterministic_whatever_the_visit_order_or_clone() {
 
 #[test]
 fn every_dimension_is_uniform() {
-    let (nbins, side) = (32usize, 16i32);
+    // 16 bins = spp: pbrt-v3's per-pixel XOR scrambles move all of a pixel's points together
+    // within their strata, so finer bins would see pixel-level clumping, not non-uniformity.
+    let (nbins, side) = (16usize, 16i32);
     for kind in ALL {
         let mut s = make(kind, &[], Some(16), 9);
         s.set_sample_bounds(IVec2::ZERO, IVec2::splat(side));
@@ -279,7 +281,9 @@ fn every_dimension_is_uniform() {
             // Šidák-style margin for the 6×16 tests.
             assert!(p > 1e-5, "{kind} dim {d}: chi2 {chi2} dof {dof} p {p}");
             let mean = sums[d] / n as f64;
-            assert!((mean - 0.5).abs() < 0.02, "{kind} dim {d}: mean {mean}");
+            // pbrt-v3's maxmindist puts film x at i / spp (the left edge of each stratum).
+            let expect = if kind == "maxmindist" && d == 0 { 0.5 - 0.5 / 16.0 } else { 0.5 };
+            assert!((mean - expect).abs() < 0.02, "{kind} dim {d}: mean {mean}");
         }
     }
 }
