@@ -7,7 +7,7 @@
 
 use super::lowdiscrepancy::{
     inverse_radical_inverse, prime_sums, primes, radical_inverse, radical_inverse_permutations,
-    scrambled_radical_inverse, sobol_sample_bits, sobol_column, NUM_SOBOL_DIMENSIONS, PRIME_TABLE_SIZE,
+    scrambled_radical_inverse, sobol_column, sobol_sample_bits, NUM_SOBOL_DIMENSIONS, PRIME_TABLE_SIZE,
 };
 use super::Sampler;
 use crate::rng::{hash_words, mix_bits, Rng, ONE_MINUS_EPSILON_F32};
@@ -74,12 +74,14 @@ impl<P: GlobalPattern> GlobalSampler<P> {
         &self.pattern
     }
 
-    fn next_dimension(&mut self) -> u32 {
-        if self.dimension >= ARRAY_START_DIM && self.dimension < self.array_end_dim {
+    /// The next `width` (1 or 2) dimensions, skipping those reserved for arrays (as pbrt-v3,
+    /// a 2D sample never straddles the start of the array dimensions).
+    fn next_dimensions(&mut self, width: u32) -> u32 {
+        if self.dimension + width > ARRAY_START_DIM && self.dimension < self.array_end_dim {
             self.dimension = self.array_end_dim;
         }
-        self.dimension += 1;
-        self.dimension - 1
+        self.dimension += width;
+        self.dimension - width
     }
 }
 
@@ -123,12 +125,11 @@ impl<P: GlobalPattern> Sampler for GlobalSampler<P> {
         }
     }
     fn get_1d(&mut self) -> f32 {
-        let d = self.next_dimension();
+        let d = self.next_dimensions(1);
         self.pattern.sample_dimension(self.pixel, self.index, d)
     }
     fn get_2d(&mut self) -> Vec2 {
-        let d = self.next_dimension();
-        self.dimension += 1;
+        let d = self.next_dimensions(2);
         Vec2::new(
             self.pattern.sample_dimension(self.pixel, self.index, d),
             self.pattern.sample_dimension(self.pixel, self.index, d + 1),
@@ -235,9 +236,8 @@ impl GlobalPattern for HaltonPattern {
         let mut offset = 0u64;
         if self.sample_stride > 1 {
             let pm = [pixel.x.rem_euclid(HALTON_MAX_RESOLUTION), pixel.y.rem_euclid(HALTON_MAX_RESOLUTION)];
-            for i in 0..2 {
-                let base = if i == 0 { 2 } else { 3 };
-                let dim_offset = inverse_radical_inverse(base, pm[i] as u64, self.base_exponents[i]);
+            for (i, (&p, base)) in pm.iter().zip([2u64, 3]).enumerate() {
+                let dim_offset = inverse_radical_inverse(base, p as u64, self.base_exponents[i]);
                 offset += dim_offset * (self.sample_stride / self.base_scales[i]) * self.mult_inverse[i];
             }
             offset %= self.sample_stride;
@@ -287,8 +287,13 @@ pub struct SobolPattern {
 
 impl SobolPattern {
     pub fn new(seed: u64) -> Self {
-        let mut p =
-            SobolPattern { log2_resolution: 0, bounds_min: IVec2::ZERO, inverse_rows: vec![], high_columns: vec![], seed };
+        let mut p = SobolPattern {
+            log2_resolution: 0,
+            bounds_min: IVec2::ZERO,
+            inverse_rows: vec![],
+            high_columns: vec![],
+            seed,
+        };
         p.set_sample_bounds(IVec2::ZERO, IVec2::splat(1024));
         p
     }
@@ -377,7 +382,7 @@ impl GlobalPattern for SobolPattern {
     }
     fn sample_dimension(&self, _pixel: IVec2, index: u64, dim: u32) -> f32 {
         if dim >= NUM_SOBOL_DIMENSIONS {
-            return hashed_uniform(self.seed ^ 0x534f_424f_4c, index, dim);
+            return hashed_uniform(self.seed ^ 0x53_4f42_4f4c, index, dim);
         }
         let v = sobol_sample_bits(index, dim);
         if dim < 2 {
@@ -402,6 +407,40 @@ impl SobolSampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A pattern whose value is its dimension, to observe which dimensions are drawn.
+    #[derive(Clone)]
+    struct DimPattern;
+    impl GlobalPattern for DimPattern {
+        const NAME: &'static str = "dims";
+        fn set_sample_bounds(&mut self, _: IVec2, _: IVec2) {}
+        fn index_for_sample(&self, _: IVec2, sample: u64) -> u64 {
+            sample
+        }
+        fn sample_dimension(&self, _: IVec2, _: u64, dim: u32) -> f32 {
+            dim as f32
+        }
+    }
+
+    #[test]
+    fn dimensions_skip_the_array_block() {
+        let mut s = GlobalSampler::new(DimPattern, 4);
+        s.request_1d_array(3);
+        s.request_2d_array(2);
+        s.start_pixel_sample(IVec2::ZERO, 1);
+        assert_eq!(s.get_1d_array(3).unwrap(), &[5.0; 3]);
+        assert_eq!(s.get_2d_array(2).unwrap(), &[Vec2::new(6.0, 7.0); 2]);
+        // Camera: film (0,1), time 2, lens (3,4); then past the arrays (5..8).
+        assert_eq!(s.get_2d(), Vec2::new(0.0, 1.0));
+        assert_eq!(s.get_1d(), 2.0);
+        assert_eq!(s.get_2d(), Vec2::new(3.0, 4.0));
+        assert_eq!(s.get_1d(), 8.0);
+        s.start_pixel_sample(IVec2::ZERO, 2);
+        s.get_2d();
+        s.get_2d();
+        // A 2D sample starting at dimension 4 would straddle the array block: it skips it.
+        assert_eq!(s.get_2d(), Vec2::new(8.0, 9.0));
+    }
 
     #[test]
     fn halton_pixel_mapping() {
@@ -435,8 +474,8 @@ mod tests {
                     let gi = p.index_for_sample(pixel, s);
                     assert!(seen.insert(gi));
                     assert_eq!(gi >> (2 * p.log2_resolution()), s);
-                    let x = sobol_sample_bits(gi, 0) as u64 * res >> 32;
-                    let y = sobol_sample_bits(gi, 1) as u64 * res >> 32;
+                    let x = (sobol_sample_bits(gi, 0) as u64 * res) >> 32;
+                    let y = (sobol_sample_bits(gi, 1) as u64 * res) >> 32;
                     assert_eq!((x as i32, y as i32), ((pixel - min).x, (pixel - min).y), "{pixel} {s}");
                 }
             }

@@ -69,14 +69,19 @@ pub fn multiply_generator(c: &[u32; 32], a: u32) -> u32 {
 pub fn primes() -> &'static [u32] {
     static P: OnceLock<Vec<u32>> = OnceLock::new();
     P.get_or_init(|| {
+        // Sieve of Eratosthenes; the 1000th prime is 7919.
+        const LIMIT: usize = 7920;
+        let mut composite = vec![false; LIMIT];
         let mut v = Vec::with_capacity(PRIME_TABLE_SIZE);
-        let mut n = 2u32;
-        while v.len() < PRIME_TABLE_SIZE {
-            if v.iter().take_while(|&&p| p * p <= n).all(|&p| n % p != 0) {
-                v.push(n);
+        for n in 2..LIMIT {
+            if !composite[n] {
+                v.push(n as u32);
+                for k in (n * n..LIMIT).step_by(n) {
+                    composite[k] = true;
+                }
             }
-            n += 1;
         }
+        v.truncate(PRIME_TABLE_SIZE);
         v
     })
 }
@@ -100,7 +105,8 @@ pub fn prime_sums() -> &'static [usize] {
 /// The radical inverse of `a` in the `base_index`-th prime base (0 → base 2), in `[0, 1)`.
 pub fn radical_inverse(base_index: usize, a: u64) -> f32 {
     if base_index == 0 {
-        return ((a.reverse_bits() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)).min(ONE_MINUS_EPSILON_F32 as f64) as f32;
+        return ((a.reverse_bits() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)).min(ONE_MINUS_EPSILON_F32 as f64)
+            as f32;
     }
     let base = primes()[base_index.min(PRIME_TABLE_SIZE - 1)] as u64;
     let inv_base = 1.0 / base as f64;

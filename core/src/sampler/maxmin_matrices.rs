@@ -20,7 +20,8 @@ use crate::rng::Rng;
 /// ≤ `give_up` as soon as the minimum is known to be at most `give_up`.
 pub fn min_toroidal_distance2(c: &[u32; 32], m: u32, give_up: f64) -> f64 {
     let n = 1usize << m;
-    let ys: Vec<f64> = (0..n as u32).map(|i| super::lowdiscrepancy::multiply_generator(c, i) as f64 / 4294967296.0).collect();
+    let ys: Vec<f64> =
+        (0..n as u32).map(|i| super::lowdiscrepancy::multiply_generator(c, i) as f64 / 4294967296.0).collect();
     let mut best = f64::INFINITY;
     for d in 1..n {
         let dx = d.min(n - d) as f64 / n as f64;
@@ -130,10 +131,12 @@ mod tests {
     fn print_maxmin_matrices() {
         println!("[");
         for m in 0..=16u32 {
+            // PENUMBRA_MAXMIN_EFFORT scales the hill-climbing budget (the committed table used 10).
+            let effort: u32 = std::env::var("PENUMBRA_MAXMIN_EFFORT").ok().and_then(|v| v.parse().ok()).unwrap_or(1);
             let (tries, climbs) = match m {
-                0..=8 => (20_000, 20_000),
-                9..=12 => (1_000, 6_000),
-                _ => (100, 3_000),
+                0..=8 => (20_000, 20_000 * effort),
+                9..=12 => (1_000, 6_000 * effort),
+                _ => (100, 3_000 * effort),
             };
             let (c, q) = search_maxmin_matrix(m, tries, climbs, 0x6d61_786d_696e + m as u64);
             eprintln!("m={m}: min distance {q:.3} of hexagonal");

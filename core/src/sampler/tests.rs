@@ -94,7 +94,8 @@ fn zero_two_sequence_is_stratified() {
             lens.push((l.x as f64, l.y as f64));
             let a1 = s.get_1d_array(8).expect("1d array").to_vec();
             assert_stratified_1d(&a1, "02 1d array");
-            let a2: Vec<(f64, f64)> = s.get_2d_array(16).expect("2d array").iter().map(|q| (q.x as f64, q.y as f64)).collect();
+            let a2: Vec<(f64, f64)> =
+                s.get_2d_array(16).expect("2d array").iter().map(|q| (q.x as f64, q.y as f64)).collect();
             assert_0m2_net(&a2, 4, "02 2d array");
         }
         assert_0m2_net(&film, 8, "02 film");
@@ -227,7 +228,7 @@ fn deterministic_whatever_the_visit_order_or_clone() {
         let mut c = proto.clone_box();
         for (k, &p) in pixels.iter().rev().enumerate() {
             for i in [7u32, 0, 5, 2, 1, 6, 3, 4] {
-                let s = if (k + i as usize) % 2 == 0 { b.as_mut() } else { c.as_mut() };
+                let s = if (k + i as usize) & 1 == 0 { b.as_mut() } else { c.as_mut() };
                 assert_eq!(draw(s, p, i), forward[&(p, i)], "{kind} {p} {i}");
             }
         }
