@@ -150,7 +150,7 @@ fn sinc(x: f32) -> f32 {
 impl LanczosSincFilter {
     fn windowed_sinc(&self, x: f32, radius: f32) -> f32 {
         let x = x.abs();
-        if x > radius {
+        if x.is_nan() || x > radius {
             return 0.0;
         }
         sinc(x) * sinc(x / self.tau)
@@ -330,6 +330,7 @@ mod tests {
                 assert_eq!(f.evaluate(p), 0.0, "{k} {p:?}");
             }
             assert!(f.evaluate(Vec2::ZERO) > 0.0);
+            assert_eq!(f.evaluate(Vec2::new(f32::NAN, 0.0)), 0.0, "{k}");
         }
     }
 

@@ -328,7 +328,7 @@ impl Distribution1D {
         if self.is_uniform_fallback() {
             1.0 / self.count() as f32
         } else {
-            self.func[index] / (self.func_int * self.count() as f32)
+            (self.func[index] as f64 / (self.func_int as f64 * self.count() as f64)).min(1.0) as f32
         }
     }
 
@@ -662,6 +662,29 @@ mod tests {
         for (k, &fk) in f.iter().enumerate() {
             let c = Vec2::new(((k % nu) as f32 + 0.5) / nu as f32, ((k / nu) as f32 + 0.5) / nv as f32);
             assert!((d.pdf(c) as f64 - fk as f64 / mean).abs() < 1e-4);
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn distributions_never_panic(
+            func in proptest::collection::vec(proptest::num::f32::ANY, 0..40),
+            nu in 0usize..8,
+            u in proptest::num::f32::ANY,
+            v in proptest::num::f32::ANY,
+        ) {
+            let d = Distribution1D::new(&func);
+            let (x, pdf, off) = d.sample_continuous(u);
+            proptest::prop_assert!((0.0..1.0).contains(&x) && pdf.is_finite() && pdf >= 0.0 && off < d.count());
+            let (i, p, r) = d.sample_discrete(u);
+            proptest::prop_assert!(i < d.count() && (0.0..=1.0).contains(&p) && (0.0..1.0).contains(&r));
+            let nv = if nu == 0 { 1 } else { func.len() / nu };
+            let d2 = Distribution2D::new(&func, nu, nv);
+            let (q, pdf2) = d2.sample_continuous(Vec2::new(u, v));
+            proptest::prop_assert!(q.cmpge(Vec2::ZERO).all() && q.cmplt(Vec2::ONE).all());
+            proptest::prop_assert!(pdf2.is_finite() && pdf2 >= 0.0);
+            let back = d2.pdf(q);
+            proptest::prop_assert!(back.is_finite());
         }
     }
 }

@@ -215,11 +215,11 @@ impl HaltonPattern {
 impl GlobalPattern for HaltonPattern {
     const NAME: &'static str = "halton";
     fn set_sample_bounds(&mut self, min: IVec2, max: IVec2) {
-        let res = (max - min).max(IVec2::ZERO);
+        let res = (max.as_i64vec2() - min.as_i64vec2()).max(glam::I64Vec2::ZERO);
         for i in 0..2 {
             let base = if i == 0 { 2 } else { 3 };
             let (mut scale, mut exp) = (1u64, 0u32);
-            while scale < res[i].min(HALTON_MAX_RESOLUTION) as u64 {
+            while scale < res[i].min(HALTON_MAX_RESOLUTION as i64) as u64 {
                 scale *= base;
                 exp += 1;
             }
@@ -348,10 +348,9 @@ impl SobolPattern {
 impl GlobalPattern for SobolPattern {
     const NAME: &'static str = "sobol";
     fn set_sample_bounds(&mut self, min: IVec2, max: IVec2) {
-        let extent = (max - min).max(IVec2::ONE);
-        let res = (extent.x.max(extent.y) as u32).next_power_of_two();
-        // Keep 2m ≤ 52 so that some index bits remain for the samples of each pixel.
-        self.log2_resolution = res.ilog2().min(20);
+        let extent = (max.as_i64vec2() - min.as_i64vec2()).max_element().clamp(1, 1 << 20) as u32;
+        // 2^m ≥ the extent, with 2m ≤ 40 so that index bits remain for each pixel's samples.
+        self.log2_resolution = extent.next_power_of_two().ilog2();
         self.bounds_min = min;
         self.build_tables();
     }
@@ -459,6 +458,22 @@ mod tests {
         let mut small = HaltonPattern::new(false, 0);
         small.set_sample_bounds(IVec2::new(-2, -2), IVec2::new(30, 8));
         assert_eq!(small.base_scales(), [32, 27]);
+    }
+
+    #[test]
+    fn extreme_bounds_do_not_panic() {
+        for (min, max) in [(IVec2::MIN, IVec2::MAX), (IVec2::MAX, IVec2::MIN), (IVec2::ZERO, IVec2::ZERO)] {
+            let mut s = SobolPattern::new(0);
+            s.set_sample_bounds(min, max);
+            let mut h = HaltonPattern::new(false, 0);
+            h.set_sample_bounds(min, max);
+            for p in [IVec2::MIN, IVec2::MAX, IVec2::ZERO] {
+                let i = s.index_for_sample(p, 3);
+                assert!((0.0..1.0).contains(&s.sample_dimension(p, i, 0)));
+                let i = h.index_for_sample(p, 3);
+                assert!((0.0..1.0).contains(&h.sample_dimension(p, i, 1)));
+            }
+        }
     }
 
     #[test]
