@@ -11,8 +11,12 @@
 //! m×m block, which is exactly the condition that every leading principal minor is
 //! non-singular) plus random lower-order output bits. The search is a plain random search,
 //! so the resulting minimum distances are good but generally below Grünschloß's optimised
-//! ones. Entry `m` is for 2^m samples per pixel (m ≤ 16); regenerate with
-//! `cargo test -p penumbra-core --release -- --ignored print_maxmin_matrices --nocapture`.
+//! ones. Entry `m` is for 2^m samples per pixel (m ≤ 16). Minimum distances reached, as a
+//! fraction of the hexagonal-lattice ideal sqrt(2 / (sqrt(3) n)), for m = 1…16:
+//! 0.93 0.94 0.92 0.87 0.82 0.79 0.64 0.67 0.59 0.52 0.59 0.45 0.35 0.39 0.46 0.31
+//! (m = 0 is a single point). Regenerated (about 25 minutes on one core) with
+//! `PENUMBRA_MAXMIN_EFFORT=10 cargo test -p penumbra-core --lib -- --ignored print_maxmin_matrices --nocapture`,
+//! whose standard output (the `[…]` rows) is `maxmin_matrices.in`.
 
 use crate::rng::Rng;
 
