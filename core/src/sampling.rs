@@ -678,7 +678,7 @@ mod tests {
             proptest::prop_assert!((0.0..1.0).contains(&x) && pdf.is_finite() && pdf >= 0.0 && off < d.count());
             let (i, p, r) = d.sample_discrete(u);
             proptest::prop_assert!(i < d.count() && (0.0..=1.0).contains(&p) && (0.0..1.0).contains(&r));
-            let nv = if nu == 0 { 1 } else { func.len() / nu };
+            let nv = func.len().checked_div(nu).unwrap_or(1);
             let d2 = Distribution2D::new(&func, nu, nv);
             let (q, pdf2) = d2.sample_continuous(Vec2::new(u, v));
             proptest::prop_assert!(q.cmpge(Vec2::ZERO).all() && q.cmplt(Vec2::ONE).all());
