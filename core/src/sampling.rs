@@ -112,7 +112,7 @@ pub fn power_heuristic(nf: u32, f_pdf: f32, ng: u32, g_pdf: f32) -> f32 {
     }
     // Scale to avoid overflow of the squares.
     let m = f.max(g);
-    if !(m > 0.0) {
+    if m.is_nan() || m <= 0.0 {
         return 0.0;
     }
     let (f, g) = (f / m, g / m);
@@ -121,7 +121,11 @@ pub fn power_heuristic(nf: u32, f_pdf: f32, ng: u32, g_pdf: f32) -> f32 {
 
 /// The direction with polar angle θ (given by its sine and cosine) and azimuth φ about +z.
 pub fn spherical_direction(sin_theta: f32, cos_theta: f32, phi: f32) -> Vec3 {
-    Vec3::new(sin_theta.clamp(-1.0, 1.0) * phi.cos(), sin_theta.clamp(-1.0, 1.0) * phi.sin(), cos_theta.clamp(-1.0, 1.0))
+    Vec3::new(
+        sin_theta.clamp(-1.0, 1.0) * phi.cos(),
+        sin_theta.clamp(-1.0, 1.0) * phi.sin(),
+        cos_theta.clamp(-1.0, 1.0),
+    )
 }
 
 /// [`spherical_direction`] expressed in the frame (`x`, `y`, `z`).
@@ -160,7 +164,10 @@ pub fn stratified_sample_2d(samples: &mut [Vec2], nx: usize, ny: usize, rng: &mu
         let (x, y) = (k % nx, k / nx);
         let jx = if jitter { rng.uniform_f32() } else { 0.5 };
         let jy = if jitter { rng.uniform_f32() } else { 0.5 };
-        *s = Vec2::new(((x as f32 + jx) * dx).min(ONE_MINUS_EPSILON_F32), ((y as f32 + jy) * dy).min(ONE_MINUS_EPSILON_F32));
+        *s = Vec2::new(
+            ((x as f32 + jx) * dx).min(ONE_MINUS_EPSILON_F32),
+            ((y as f32 + jy) * dy).min(ONE_MINUS_EPSILON_F32),
+        );
     }
 }
 
@@ -308,7 +315,8 @@ impl Distribution1D {
         let u = if u.is_nan() { 0.0 } else { u.clamp(0.0, ONE_MINUS_EPSILON_F32) };
         let offset = self.offset_of(u);
         let width = self.cdf[offset + 1] - self.cdf[offset];
-        let remapped = if width > 0.0 { ((u - self.cdf[offset]) / width).clamp(0.0, ONE_MINUS_EPSILON_F32) } else { 0.0 };
+        let remapped =
+            if width > 0.0 { ((u - self.cdf[offset]) / width).clamp(0.0, ONE_MINUS_EPSILON_F32) } else { 0.0 };
         (offset, self.discrete_pdf(offset), remapped)
     }
 
@@ -320,7 +328,7 @@ impl Distribution1D {
         if self.is_uniform_fallback() {
             1.0 / self.count() as f32
         } else {
-            self.func[index] / (self.func_int * self.count() as f32)
+            (self.func[index] as f64 / (self.func_int as f64 * self.count() as f64)).min(1.0) as f32
         }
     }
 
@@ -435,10 +443,15 @@ mod tests {
     fn concentric_and_polar_disk_chi2() {
         for (seed, f) in [(5u64, concentric_sample_disk as fn(Vec2) -> Vec2), (6, uniform_sample_disk)] {
             // (r², φ) is uniform for an area-uniform disk.
-            direction_test(seed, |u| {
-                let d = f(u);
-                Vec3::new(d.x, d.y, d.length_squared())
-            }, |z| z as f64, false);
+            direction_test(
+                seed,
+                |u| {
+                    let d = f(u);
+                    Vec3::new(d.x, d.y, d.length_squared())
+                },
+                |z| z as f64,
+                false,
+            );
         }
     }
 
@@ -570,7 +583,8 @@ mod tests {
 
     #[test]
     fn distribution1d_chi2() {
-        let f: Vec<f32> = (0..32).map(|i| ((i as f32 * 0.7).sin() + 1.1).powi(2) * if i % 7 == 3 { 0.0 } else { 1.0 }).collect();
+        let f: Vec<f32> =
+            (0..32).map(|i| ((i as f32 * 0.7).sin() + 1.1).powi(2) * if i % 7 == 3 { 0.0 } else { 1.0 }).collect();
         let d = Distribution1D::new(&f);
         let sub = 4; // check uniformity within cells, too
         let mut obs = vec![0.0; f.len() * sub];
@@ -624,7 +638,7 @@ mod tests {
         let f: Vec<f32> = (0..nu * nv)
             .map(|k| {
                 let (u, v) = ((k % nu) as f32, (k / nu) as f32);
-                if (u as usize + v as usize) % 5 == 0 {
+                if (u as usize + v as usize) % 5 < 1 {
                     0.0
                 } else {
                     1.0 + u * 0.3 + (v * 0.9).cos() * 0.8
@@ -645,9 +659,32 @@ mod tests {
         assert!(p > ALPHA, "chi2 {chi2} dof {dof} p {p}");
         // pdf integrates to 1 and equals the normalised function.
         let mean: f64 = total / (nu * nv) as f64;
-        for k in 0..nu * nv {
+        for (k, &fk) in f.iter().enumerate() {
             let c = Vec2::new(((k % nu) as f32 + 0.5) / nu as f32, ((k / nu) as f32 + 0.5) / nv as f32);
-            assert!((d.pdf(c) as f64 - f[k] as f64 / mean).abs() < 1e-4);
+            assert!((d.pdf(c) as f64 - fk as f64 / mean).abs() < 1e-4);
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn distributions_never_panic(
+            func in proptest::collection::vec(proptest::num::f32::ANY, 0..40),
+            nu in 0usize..8,
+            u in proptest::num::f32::ANY,
+            v in proptest::num::f32::ANY,
+        ) {
+            let d = Distribution1D::new(&func);
+            let (x, pdf, off) = d.sample_continuous(u);
+            proptest::prop_assert!((0.0..1.0).contains(&x) && pdf.is_finite() && pdf >= 0.0 && off < d.count());
+            let (i, p, r) = d.sample_discrete(u);
+            proptest::prop_assert!(i < d.count() && (0.0..=1.0).contains(&p) && (0.0..1.0).contains(&r));
+            let nv = func.len().checked_div(nu).unwrap_or(1);
+            let d2 = Distribution2D::new(&func, nu, nv);
+            let (q, pdf2) = d2.sample_continuous(Vec2::new(u, v));
+            proptest::prop_assert!(q.cmpge(Vec2::ZERO).all() && q.cmplt(Vec2::ONE).all());
+            proptest::prop_assert!(pdf2.is_finite() && pdf2 >= 0.0);
+            let back = d2.pdf(q);
+            proptest::prop_assert!(back.is_finite());
         }
     }
 }

@@ -1,0 +1,293 @@
+//! Low-discrepancy building blocks: radical inverses (plain and digit-permuted),
+//! Sobol' generator matrices, and pbrt-v3's scrambled, shuffled (0,2)-sequence
+//! and van der Corput pixel patterns.
+
+use crate::rng::{Rng, ONE_MINUS_EPSILON_F32};
+use crate::sampling::shuffle;
+use glam::Vec2;
+use std::sync::{Arc, OnceLock};
+
+/// Number of prime bases (and so Halton dimensions) supported, as pbrt-v3.
+pub const PRIME_TABLE_SIZE: usize = 1000;
+
+/// Sobol' dimensions available (Joe–Kuo new-joe-kuo-6.21201, via SciPy; see tools/gen_sobol_matrices.py).
+pub const NUM_SOBOL_DIMENSIONS: u32 = 1024;
+/// Generator-matrix columns per dimension: indices below 2^52 are supported.
+pub const SOBOL_MATRIX_SIZE: usize = 52;
+
+static SOBOL_BYTES: &[u8] = include_bytes!("sobol_matrices.bin");
+
+/// Column `j` (contribution of index bit `j`, most significant output bit first) of dimension `dim`'s
+/// Sobol' generator matrix; 0 out of range.
+pub fn sobol_column(dim: u32, j: usize) -> u32 {
+    if dim >= NUM_SOBOL_DIMENSIONS || j >= SOBOL_MATRIX_SIZE {
+        return 0;
+    }
+    let k = 4 * (dim as usize * SOBOL_MATRIX_SIZE + j);
+    match SOBOL_BYTES.get(k..k + 4) {
+        Some(b) => u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+        None => 0,
+    }
+}
+
+/// The 32-bit fixed-point Sobol' sample (numerator over 2^32) of `index` in `dim`.
+pub fn sobol_sample_bits(index: u64, dim: u32) -> u32 {
+    let mut v = 0u32;
+    let mut a = index;
+    let mut j = 0;
+    while a != 0 && j < SOBOL_MATRIX_SIZE {
+        if a & 1 == 1 {
+            v ^= sobol_column(dim, j);
+        }
+        a >>= 1;
+        j += 1;
+    }
+    v
+}
+
+/// 32-bit fixed point to `[0, 1)`.
+pub fn bits_to_unit(v: u32) -> f32 {
+    (v as f32 * (1.0 / 4_294_967_296.0)).min(ONE_MINUS_EPSILON_F32)
+}
+
+/// Multiplies a 32×32 generator matrix (columns `c`) by the bits of `a`.
+pub fn multiply_generator(c: &[u32; 32], a: u32) -> u32 {
+    let mut v = 0u32;
+    let mut a = a;
+    let mut i = 0;
+    while a != 0 {
+        if a & 1 == 1 {
+            v ^= c[i];
+        }
+        a >>= 1;
+        i += 1;
+    }
+    v
+}
+
+/// The first `PRIME_TABLE_SIZE` primes.
+pub fn primes() -> &'static [u32] {
+    static P: OnceLock<Vec<u32>> = OnceLock::new();
+    P.get_or_init(|| {
+        // Sieve of Eratosthenes; the 1000th prime is 7919.
+        const LIMIT: usize = 7920;
+        let mut composite = vec![false; LIMIT];
+        let mut v = Vec::with_capacity(PRIME_TABLE_SIZE);
+        for n in 2..LIMIT {
+            if !composite[n] {
+                v.push(n as u32);
+                for k in (n * n..LIMIT).step_by(n) {
+                    composite[k] = true;
+                }
+            }
+        }
+        v.truncate(PRIME_TABLE_SIZE);
+        v
+    })
+}
+
+/// `prime_sums()[i]` = sum of the first `i` primes (offsets of each base's permutation).
+pub fn prime_sums() -> &'static [usize] {
+    static S: OnceLock<Vec<usize>> = OnceLock::new();
+    S.get_or_init(|| {
+        let mut acc = 0usize;
+        primes()
+            .iter()
+            .map(|&p| {
+                let s = acc;
+                acc += p as usize;
+                s
+            })
+            .collect()
+    })
+}
+
+/// The radical inverse of `a` in the `base_index`-th prime base (0 → base 2), in `[0, 1)`.
+pub fn radical_inverse(base_index: usize, a: u64) -> f32 {
+    if base_index == 0 {
+        return ((a.reverse_bits() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)).min(ONE_MINUS_EPSILON_F32 as f64)
+            as f32;
+    }
+    let base = primes()[base_index.min(PRIME_TABLE_SIZE - 1)] as u64;
+    let inv_base = 1.0 / base as f64;
+    let (mut a, mut inv_base_n, mut result) = (a, 1.0f64, 0.0f64);
+    while a > 0 {
+        let next = a / base;
+        let digit = a - next * base;
+        inv_base_n *= inv_base;
+        result += digit as f64 * inv_base_n;
+        a = next;
+    }
+    (result as f32).min(ONE_MINUS_EPSILON_F32)
+}
+
+/// The radical inverse with each digit (including the infinitely many trailing zeros) mapped by `perm`.
+pub fn scrambled_radical_inverse(base_index: usize, a: u64, perm: &[u16]) -> f32 {
+    let base = primes()[base_index.min(PRIME_TABLE_SIZE - 1)] as u64;
+    if perm.len() < base as usize {
+        return radical_inverse(base_index, a);
+    }
+    let inv_base = 1.0 / base as f64;
+    let (mut a, mut inv_base_n, mut result) = (a, 1.0f64, 0.0f64);
+    while a > 0 {
+        let next = a / base;
+        let digit = a - next * base;
+        inv_base_n *= inv_base;
+        result += perm[digit as usize] as f64 * inv_base_n;
+        a = next;
+    }
+    result += perm[0] as f64 * inv_base_n * inv_base / (1.0 - inv_base);
+    (result as f32).min(ONE_MINUS_EPSILON_F32)
+}
+
+/// The `n_digits`-digit index whose base-`base` radical inverse digits are those of `inverse` (reversed).
+pub fn inverse_radical_inverse(base: u64, inverse: u64, n_digits: u32) -> u64 {
+    let (mut inverse, mut index) = (inverse, 0u64);
+    for _ in 0..n_digits {
+        let digit = inverse % base;
+        inverse /= base;
+        index = index.wrapping_mul(base).wrapping_add(digit);
+    }
+    index
+}
+
+/// One random digit permutation per prime base, concatenated (base i at `prime_sums()[i]`).
+pub fn radical_inverse_permutations(rng: &mut Rng) -> Arc<Vec<u16>> {
+    let sums = prime_sums();
+    let total = sums[PRIME_TABLE_SIZE - 1] + primes()[PRIME_TABLE_SIZE - 1] as usize;
+    let mut perms = Vec::with_capacity(total);
+    for &p in primes() {
+        let start = perms.len();
+        perms.extend(0..p as u16);
+        shuffle(&mut perms[start..], 1, rng);
+    }
+    Arc::new(perms)
+}
+
+/// pbrt-v3's generator matrix of the van der Corput sequence (identity, bit-reversed).
+pub const C_VAN_DER_CORPUT: [u32; 32] = {
+    let mut c = [0u32; 32];
+    let mut i = 0;
+    while i < 32 {
+        c[i] = 1 << (31 - i);
+        i += 1;
+    }
+    c
+};
+
+/// The second dimension of the Sobol' (0,2)-sequence (Pascal's matrix mod 2).
+pub const C_SOBOL_1: [u32; 32] = {
+    let mut c = [0u32; 32];
+    c[0] = 1 << 31;
+    let mut i = 1;
+    while i < 32 {
+        c[i] = c[i - 1] ^ (c[i - 1] >> 1);
+        i += 1;
+    }
+    c
+};
+
+/// `count = n_per_sample * n_pixel_samples` van der Corput points in Gray-code order, XOR-scrambled,
+/// shuffled within each pixel sample's block and then block-wise (pbrt-v3's `VanDerCorput`).
+pub fn van_der_corput(n_per_sample: usize, n_pixel_samples: usize, samples: &mut [f32], rng: &mut Rng) {
+    let scramble = rng.uniform_u32();
+    let total = (n_per_sample * n_pixel_samples).min(samples.len());
+    let mut v = scramble;
+    for (i, s) in samples.iter_mut().take(total).enumerate() {
+        *s = bits_to_unit(v);
+        v ^= C_VAN_DER_CORPUT[((i + 1).trailing_zeros() as usize).min(31)];
+    }
+    shuffle_blocks(&mut samples[..total], n_per_sample, n_pixel_samples, rng);
+}
+
+/// The 2D analogue with the first two Sobol' dimensions (pbrt-v3's `Sobol2D`).
+pub fn sobol_2d(n_per_sample: usize, n_pixel_samples: usize, samples: &mut [Vec2], rng: &mut Rng) {
+    let scramble = [rng.uniform_u32(), rng.uniform_u32()];
+    let total = (n_per_sample * n_pixel_samples).min(samples.len());
+    let mut v = scramble;
+    for (i, s) in samples.iter_mut().take(total).enumerate() {
+        *s = Vec2::new(bits_to_unit(v[0]), bits_to_unit(v[1]));
+        let c = ((i + 1).trailing_zeros() as usize).min(31);
+        v[0] ^= C_VAN_DER_CORPUT[c];
+        v[1] ^= C_SOBOL_1[c];
+    }
+    shuffle_blocks(&mut samples[..total], n_per_sample, n_pixel_samples, rng);
+}
+
+fn shuffle_blocks<T>(samples: &mut [T], n_per_sample: usize, n_pixel_samples: usize, rng: &mut Rng) {
+    if n_per_sample == 0 {
+        return;
+    }
+    for block in samples.chunks_mut(n_per_sample).take(n_pixel_samples) {
+        shuffle(block, 1, rng);
+    }
+    shuffle(samples, n_per_sample, rng);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn primes_and_sums() {
+        assert_eq!(&primes()[..6], &[2, 3, 5, 7, 11, 13]);
+        assert_eq!(primes()[999], 7919);
+        assert_eq!(prime_sums()[3], 10);
+    }
+
+    #[test]
+    fn radical_inverse_values() {
+        let cases: [(usize, u64, f64); 8] = [
+            (0, 1, 0.5),
+            (0, 2, 0.25),
+            (0, 3, 0.75),
+            (0, 6, 0.375),
+            (1, 1, 1.0 / 3.0),
+            (1, 5, 2.0 / 3.0 + 1.0 / 9.0),
+            (2, 7, 2.0 / 5.0 + 1.0 / 25.0),
+            (3, 50, 1.0 / 7.0 + 1.0 / 343.0),
+        ];
+        for (b, a, e) in cases {
+            assert!((radical_inverse(b, a) as f64 - e).abs() < 1e-7, "base {b} a {a}");
+        }
+        assert!(radical_inverse(0, u64::MAX) < 1.0);
+        // Identity permutation = plain radical inverse (the zero tail adds nothing).
+        let id: Vec<u16> = (0..5).collect();
+        assert_eq!(scrambled_radical_inverse(2, 123, &id), radical_inverse(2, 123));
+        // A permutation sending 0 to 1 adds the tail Σ b^-k beyond the last digit.
+        let p: Vec<u16> = vec![1, 0, 2];
+        let e = 0.0 / 3.0 + 1.0 / 9.0 * 0.0 + (1.0 / 9.0) * (1.0 / 3.0) / (1.0 - 1.0 / 3.0);
+        // 3 = 10_3: digits (low first) 0, 1 → permuted 1, 0.
+        let e = e + 1.0 / 3.0;
+        assert!((scrambled_radical_inverse(1, 3, &p) as f64 - e).abs() < 1e-7);
+        assert_eq!(inverse_radical_inverse(2, 0b0011, 4), 0b1100);
+        assert_eq!(inverse_radical_inverse(3, 5, 3), 21);
+    }
+
+    #[test]
+    fn sobol_first_dimensions() {
+        for j in 0..32 {
+            assert_eq!(sobol_column(0, j), C_VAN_DER_CORPUT[j]);
+            assert_eq!(sobol_column(1, j), C_SOBOL_1[j], "column {j}");
+        }
+        assert_eq!(sobol_column(5000, 0), 0);
+        // Direction numbers m_j are odd and below 2^(j+1): column j's lowest bit sits on the
+        // diagonal and nothing is below it (upper-triangular matrices).
+        for d in [2, 17, 500, 1023] {
+            for j in 0..32 {
+                assert_eq!(sobol_column(d, j).trailing_zeros() as usize, 31 - j, "dim {d} col {j}");
+            }
+        }
+    }
+
+    #[test]
+    fn permutations_are_permutations() {
+        let perms = radical_inverse_permutations(&mut Rng::default());
+        for i in [0usize, 1, 10, 999] {
+            let p = primes()[i] as usize;
+            let mut s: Vec<u16> = perms[prime_sums()[i]..prime_sums()[i] + p].to_vec();
+            s.sort();
+            assert_eq!(s, (0..p as u16).collect::<Vec<_>>());
+        }
+    }
+}
