@@ -116,6 +116,14 @@ pub fn render_pixels(
 ) -> Result<RenderStats, RenderError> {
     let start = Instant::now();
     let mut proto = scene.sampler.clone_box();
+    // Global samplers (halton, sobol) map pixels to sequence indices over the *full* image's
+    // sample bounds, so that a crop renders exactly the samples of the full image.
+    let full = crate::film::FilmSpec {
+        pixel_bounds: Bounds2i::new(IVec2::ZERO, IVec2::new(film.spec.full_resolution.0 as i32, film.spec.full_resolution.1 as i32)),
+        ..film.spec.clone()
+    }
+    .sample_bounds(scene.filter.radius());
+    proto.set_sample_bounds(full.min, full.max);
     est.request_samples(proto.as_mut());
     let spp = proto.samples_per_pixel();
     let sample_bounds = film.spec.sample_bounds(scene.filter.radius());
