@@ -119,7 +119,10 @@ pub fn render_pixels(
     // Global samplers (halton, sobol) map pixels to sequence indices over the *full* image's
     // sample bounds, so that a crop renders exactly the samples of the full image.
     let full = crate::film::FilmSpec {
-        pixel_bounds: Bounds2i::new(IVec2::ZERO, IVec2::new(film.spec.full_resolution.0 as i32, film.spec.full_resolution.1 as i32)),
+        pixel_bounds: Bounds2i::new(
+            IVec2::ZERO,
+            IVec2::new(film.spec.full_resolution.0 as i32, film.spec.full_resolution.1 as i32),
+        ),
         ..film.spec.clone()
     }
     .sample_bounds(scene.filter.radius());

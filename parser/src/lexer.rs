@@ -150,7 +150,9 @@ pub(crate) fn decode_string(tok: &[u8], escaped: bool) -> Result<String, &'stati
             Some(b'\\') => b'\\',
             Some(b'\'') => b'\'',
             Some(b'"') => b'"',
-            _ => return Err("unexpected escaped character in string (pbrt-v3 allows \\b \\f \\n \\r \\t \\\\ \\' \\\")"),
+            _ => {
+                return Err("unexpected escaped character in string (pbrt-v3 allows \\b \\f \\n \\r \\t \\\\ \\' \\\")")
+            }
         };
         out.push(c);
     }
@@ -418,7 +420,11 @@ mod tests {
             if k == Kind::Eof {
                 return Ok(out);
             }
-            let t = if k == Kind::Str { l.string().map_err(|e| e.to_string())? } else { String::from_utf8_lossy(l.text()).into() };
+            let t = if k == Kind::Str {
+                l.string().map_err(|e| e.to_string())?
+            } else {
+                String::from_utf8_lossy(l.text()).into()
+            };
             out.push((k, t));
             l.consume();
         }

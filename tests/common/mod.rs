@@ -35,11 +35,22 @@ pub struct Opts<'a> {
     pub threads: usize,
     pub seed: u64,
     pub crop: Option<Crop>,
+    /// Replace the scene's sampler type (e.g. "random" for honest per-pixel variance estimates).
+    pub sampler: Option<&'a str>,
 }
 
 impl Default for Opts<'_> {
     fn default() -> Self {
-        Opts { integrator: None, params: &[], spp: None, resolution: Some((64, 64)), threads: 0, seed: 0, crop: None }
+        Opts {
+            integrator: None,
+            params: &[],
+            spp: None,
+            resolution: Some((64, 64)),
+            threads: 0,
+            seed: 0,
+            crop: None,
+            sampler: None,
+        }
     }
 }
 
@@ -54,6 +65,11 @@ pub fn render_text(text: &str, o: &Opts) -> Render {
 }
 
 pub fn render_desc(desc: &penumbra_parser::SceneDescription, o: &Opts) -> Render {
+    let mut desc = desc.clone();
+    if let Some(s) = o.sampler {
+        desc.sampler = penumbra_parser::Entity::default_of(s);
+    }
+    let desc = &desc;
     let warnings = DiagSink::new();
     let params: Vec<_> = o.params.iter().map(|p| parse_param(p).unwrap()).collect();
     let cancel = AtomicBool::new(false);
@@ -125,7 +141,13 @@ pub fn agreement(ours: &Render, reference: &Image, ref_var_ratio: f64, floor: f6
 }
 
 /// The `k` values with the largest |z| (index, ours, reference, our variance), for diagnostics.
-pub fn worst(ours: &Render, reference: &Image, ref_var_ratio: f64, floor: f64, k: usize) -> Vec<(usize, f32, f32, f32)> {
+pub fn worst(
+    ours: &Render,
+    reference: &Image,
+    ref_var_ratio: f64,
+    floor: f64,
+    k: usize,
+) -> Vec<(usize, f32, f32, f32)> {
     let mut v: Vec<(f64, usize)> = (0..ours.image.data.len())
         .map(|i| {
             let d = ours.image.data[i] as f64 - reference.data[i] as f64;
