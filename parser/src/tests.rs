@@ -147,13 +147,13 @@ fn parameter_type_errors_are_located() {
     assert_err(&world("Shape \"s\" \"bool b\" \"yes\""), 2, 20, "\"true\" or \"false\"");
     assert_err(&world("Shape \"s\" \"floot x\" [1]"), 2, 11, "unknown parameter type \"floot\"");
     assert_err(&world("Shape \"s\" \"float\" [1]"), 2, 11, "type name");
-    assert_err(&world("Shape \"s\" \"string s\" [1]"), 2, 22, "quoted string");
-    assert_err(&world("Shape \"s\" \"float x\" [1 \"a\"]"), 2, 23, "mixed");
+    assert_err(&world("Shape \"s\" \"string s\" [1]"), 2, 23, "quoted string");
+    assert_err(&world("Shape \"s\" \"float x\" [1 \"a\"]"), 2, 24, "mixed");
     assert_err(&world("Shape \"s\" \"spectrum s\" [400 1 500]"), 2, 11, "pairs");
     assert_err(&world("Shape \"s\" \"blackbody s\" [1 2 3]"), 2, 11, "pairs");
     assert_err(&world("Shape \"s\" \"texture t\" [\"a\" \"b\"]"), 2, 11, "exactly one");
-    assert_err(&world("Shape \"s\" \"float x\""), 3, 1, "has no value");
-    assert_err(&world("Shape \"s\" \"float x\" [1 [2]]"), 2, 23, "unexpected '['");
+    assert_err(&world("Shape \"s\" \"float x\""), 3, 1, "expected a number");
+    assert_err(&world("Shape \"s\" \"float x\" [1 [2]]"), 2, 24, "unexpected '['");
 }
 
 #[test]
