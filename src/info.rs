@@ -74,7 +74,8 @@ fn counts<'a>(it: impl Iterator<Item = &'a str>) -> String {
 /// The text `penumbra info` prints for a parsed scene.
 pub fn summary(scene: &SceneDescription) -> String {
     let mut o = String::new();
-    let _ = writeln!(o, "shapes: {} ({})", scene.shapes.len(), counts(scene.shapes.iter().map(|s| s.entity.kind.as_str())));
+    let _ =
+        writeln!(o, "shapes: {} ({})", scene.shapes.len(), counts(scene.shapes.iter().map(|s| s.entity.kind.as_str())));
     let inst_shapes: Vec<&ShapeDesc> = scene.instance_definitions.iter().flat_map(|d| d.shapes.iter()).collect();
     let _ = writeln!(
         o,
@@ -87,7 +88,8 @@ pub fn summary(scene: &SceneDescription) -> String {
     let tri_top: u64 = scene.shapes.iter().filter_map(triangles).sum();
     let tri_inst: u64 = inst_shapes.iter().filter_map(|s| triangles(s)).sum();
     let _ = writeln!(o, "triangles (from the text): {tri_top} (+{tri_inst} in instance definitions)");
-    let _ = writeln!(o, "lights: {} ({})", scene.lights.len(), counts(scene.lights.iter().map(|l| l.entity.kind.as_str())));
+    let _ =
+        writeln!(o, "lights: {} ({})", scene.lights.len(), counts(scene.lights.iter().map(|l| l.entity.kind.as_str())));
     let emitters = scene.shapes.iter().filter(|s| s.area_light.is_some()).count();
     let _ = writeln!(
         o,
@@ -101,8 +103,11 @@ pub fn summary(scene: &SceneDescription) -> String {
         scene.materials.len(),
         counts(scene.materials.iter().map(|m| m.entity.kind.as_str()))
     );
-    let named: Vec<String> =
-        scene.materials.iter().filter_map(|m| m.name.as_ref().map(|n| format!("\"{n}\" ({})", m.entity.kind))).collect();
+    let named: Vec<String> = scene
+        .materials
+        .iter()
+        .filter_map(|m| m.name.as_ref().map(|n| format!("\"{n}\" ({})", m.entity.kind)))
+        .collect();
     if !named.is_empty() {
         let _ = writeln!(o, "named materials: {}", named.join(", "));
     }
@@ -113,7 +118,12 @@ pub fn summary(scene: &SceneDescription) -> String {
         counts(scene.textures.iter().map(|t| t.entity.kind.as_str()))
     );
     if !scene.media.is_empty() {
-        let _ = writeln!(o, "media: {} ({})", scene.media.len(), counts(scene.media.iter().map(|m| m.entity.kind.as_str())));
+        let _ = writeln!(
+            o,
+            "media: {} ({})",
+            scene.media.len(),
+            counts(scene.media.iter().map(|m| m.entity.kind.as_str()))
+        );
     }
     let cam = &scene.camera.entity;
     match one_float(cam, "fov") {
@@ -128,14 +138,10 @@ pub fn summary(scene: &SceneDescription) -> String {
         }
     }
     let film = &scene.film;
-    let _ = writeln!(
-        o,
-        "film: {} {}x{}",
-        film.kind,
-        one_int(film, "xresolution", 640),
-        one_int(film, "yresolution", 480)
-    );
-    let _ = writeln!(o, "sampler: {} ({} pixelsamples)", scene.sampler.kind, one_int(&scene.sampler, "pixelsamples", 16));
+    let _ =
+        writeln!(o, "film: {} {}x{}", film.kind, one_int(film, "xresolution", 640), one_int(film, "yresolution", 480));
+    let _ =
+        writeln!(o, "sampler: {} ({} pixelsamples)", scene.sampler.kind, one_int(&scene.sampler, "pixelsamples", 16));
     let _ = writeln!(o, "filter: {}", scene.filter.kind);
     let _ = writeln!(o, "integrator: {}", scene.integrator.kind);
     o

@@ -7,7 +7,11 @@ mod diff;
 mod info;
 
 #[derive(Parser)]
-#[command(name = "penumbra", version, about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes")]
+#[command(
+    name = "penumbra",
+    version,
+    about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,

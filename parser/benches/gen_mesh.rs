@@ -7,7 +7,7 @@ use std::path::Path;
 /// (4 bytes per parsed f32 or i32).
 pub fn write_big_mesh(path: &Path, target_bytes: u64) -> std::io::Result<u64> {
     // Roughly 30 bytes of point text + 48 bytes of index text per vertex.
-    let nv = (target_bytes / 78).max(3);
+    let nv = (target_bytes / 68).max(3);
     let nt = 2 * (nv - 2);
     let mut w = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(path)?);
     writeln!(w, "LookAt 0 0 -5 0 0 0 0 1 0\nCamera \"perspective\" \"float fov\" [45]\nWorldBegin")?;

@@ -373,12 +373,16 @@ impl Interp {
             let l = self.here();
             return Err(self.err(
                 l,
-                format!("parameter \"{decl}\": expected numeric values for type \"{}\", found a string", type_label(ty)),
+                format!(
+                    "parameter \"{decl}\": expected numeric values for type \"{}\", found a string",
+                    type_label(ty)
+                ),
             ));
         }
         if !strings && !numeric_ty {
             let l = self.here();
-            let extra = if ty == Ty::Bool { " (bool values are the quoted strings \"true\" and \"false\")" } else { "" };
+            let extra =
+                if ty == Ty::Bool { " (bool values are the quoted strings \"true\" and \"false\")" } else { "" };
             return Err(self.err(
                 l,
                 format!(
@@ -413,7 +417,7 @@ impl Interp {
             );
             v.push(1.0);
         }
-        if v.len() % arity != 0 {
+        if v.len() / arity * arity != v.len() {
             let what = if matches!(ty, Ty::Spectrum | Ty::Blackbody) { "pairs of" } else { "a multiple of" };
             let n = if matches!(ty, Ty::Spectrum | Ty::Blackbody) { String::new() } else { format!("{arity} ") };
             return Err(self.err(
@@ -446,7 +450,9 @@ impl Interp {
         match k {
             Kind::RBracket if bracket => Ok(None),
             Kind::Bare | Kind::Str => Ok(Some(k)),
-            Kind::Eof if bracket => Err(self.err(open.clone(), format!("unclosed '[' in the value of parameter \"{decl}\""))),
+            Kind::Eof if bracket => {
+                Err(self.err(open.clone(), format!("unclosed '[' in the value of parameter \"{decl}\"")))
+            }
             _ => {
                 let l = self.here();
                 let found = self.describe(k);
@@ -487,7 +493,9 @@ impl Interp {
                 }
                 Ok(Kind::Str) => {
                     let l = lex.here();
-                    return Err(self.err(l, format!("parameter \"{decl}\": mixed strings and numbers in one value list")));
+                    return Err(
+                        self.err(l, format!("parameter \"{decl}\": mixed strings and numbers in one value list"))
+                    );
                 }
                 Ok(Kind::Eof) if bracket => {
                     return Err(self.err(open.clone(), format!("unclosed '[' in the value of parameter \"{decl}\"")));
@@ -521,7 +529,9 @@ impl Interp {
                 }
                 Some(_) => {
                     let l = self.here();
-                    return Err(self.err(l, format!("parameter \"{decl}\": mixed strings and numbers in one value list")));
+                    return Err(
+                        self.err(l, format!("parameter \"{decl}\": mixed strings and numbers in one value list"))
+                    );
                 }
             }
         }
@@ -546,7 +556,9 @@ impl Interp {
                         _ => {
                             return Err(self.err(
                                 l,
-                                format!("parameter \"{decl}\": bool value must be \"true\" or \"false\", found \"{s}\""),
+                                format!(
+                                    "parameter \"{decl}\": bool value must be \"true\" or \"false\", found \"{s}\""
+                                ),
                             ))
                         }
                     }
@@ -557,7 +569,10 @@ impl Interp {
                 if vals.len() != 1 {
                     return Err(self.err(
                         loc.clone(),
-                        format!("parameter \"{decl}\": a texture parameter takes exactly one name, found {}", vals.len()),
+                        format!(
+                            "parameter \"{decl}\": a texture parameter takes exactly one name, found {}",
+                            vals.len()
+                        ),
                     ));
                 }
                 let tex = vals.into_iter().next().map(|v| v.0).unwrap_or_default();
@@ -644,16 +659,17 @@ impl Interp {
             // A file of world-block directives only (an `Include` fragment) parses standalone.
             self.warn(
                 loc.clone(),
-                format!("\"{what}\" before any WorldBegin: reading this file as a world-block fragment (as if Included)"),
+                format!(
+                    "\"{what}\" before any WorldBegin: reading this file as a world-block fragment (as if Included)"
+                ),
             );
             self.in_world = true;
             return Ok(());
         }
         if !self.in_world {
-            return Err(self.err(
-                loc.clone(),
-                format!("\"{what}\" is only allowed inside the world block (after WorldBegin)"),
-            ));
+            return Err(
+                self.err(loc.clone(), format!("\"{what}\" is only allowed inside the world block (after WorldBegin)"))
+            );
         }
         Ok(())
     }
@@ -740,10 +756,8 @@ impl Interp {
 
     fn directive(&mut self, word: &str, loc: FileLoc) -> R<()> {
         if self.world_ended && !matches!(word, "ColorSpace" | "Option" | "Attribute" | "Import") {
-            return Err(self.err(
-                loc,
-                format!("\"{word}\" after WorldEnd: penumbra renders a single WorldBegin/WorldEnd block"),
-            ));
+            return Err(self
+                .err(loc, format!("\"{word}\" after WorldEnd: penumbra renders a single WorldBegin/WorldEnd block")));
         }
         match word {
             // -- transforms (allowed anywhere) --
@@ -754,7 +768,8 @@ impl Interp {
             }
             "Scale" => {
                 let v = self.expect_f64s::<3>("Scale")?;
-                let t = Transform::scale(v).ok_or_else(|| self.err(loc, "Scale: a zero or non-finite factor makes the transform singular"))?;
+                let t = Transform::scale(v)
+                    .ok_or_else(|| self.err(loc, "Scale: a zero or non-finite factor makes the transform singular"))?;
                 self.concat(t);
             }
             "Rotate" => {
@@ -765,9 +780,14 @@ impl Interp {
             }
             "LookAt" => {
                 let v = self.expect_f64s::<9>("LookAt")?;
-                let t = Transform::look_at([v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]).ok_or_else(|| {
-                    self.err(loc, "LookAt: the eye equals the look-at point, or \"up\" is parallel to the viewing direction")
-                })?;
+                let t = Transform::look_at([v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]).ok_or_else(
+                    || {
+                        self.err(
+                            loc,
+                            "LookAt: the eye equals the look-at point, or \"up\" is parallel to the viewing direction",
+                        )
+                    },
+                )?;
                 self.concat(t);
             }
             "Transform" | "ConcatTransform" => {
@@ -794,14 +814,20 @@ impl Interp {
             "ActiveTransform" => {
                 let k = self.peek()?;
                 let aloc = self.here();
-                let arg = if k == Kind::Bare { String::from_utf8_lossy(self.lex().text()).into_owned() } else { String::new() };
+                let arg = if k == Kind::Bare {
+                    String::from_utf8_lossy(self.lex().text()).into_owned()
+                } else {
+                    String::new()
+                };
                 self.active = match arg.as_str() {
                     "StartTime" => 1,
                     "EndTime" => 2,
                     "All" => 3,
                     _ => {
                         let found = self.describe(k);
-                        return Err(self.err(aloc, format!("ActiveTransform expects StartTime, EndTime or All, found {found}")));
+                        return Err(
+                            self.err(aloc, format!("ActiveTransform expects StartTime, EndTime or All, found {found}"))
+                        );
                     }
                 };
                 self.lex().consume();
@@ -919,7 +945,8 @@ impl Interp {
                 if kind == "none" {
                     self.named_mat.define(&name, None);
                 } else {
-                    self.materials.push(MaterialDesc { entity: Entity::new(kind, params, loc), name: Some(name.clone()) });
+                    self.materials
+                        .push(MaterialDesc { entity: Entity::new(kind, params, loc), name: Some(name.clone()) });
                     self.named_mat.define(&name, Some(self.materials.len() - 1));
                 }
             }
@@ -929,7 +956,12 @@ impl Interp {
                 match self.named_mat.get(&name) {
                     Some(Some(i)) => self.gs.mat = CurMat::Index(i),
                     Some(None) => self.gs.mat = CurMat::Interface,
-                    None => return Err(self.err(nloc, format!("NamedMaterial: no material named \"{name}\" is defined in this scope"))),
+                    None => {
+                        return Err(self.err(
+                            nloc,
+                            format!("NamedMaterial: no material named \"{name}\" is defined in this scope"),
+                        ))
+                    }
                 }
             }
             "Texture" => {
@@ -1025,7 +1057,10 @@ impl Interp {
                 }
                 let open_tf = self.tf_stack.len().saturating_sub(self.attr_stack.len());
                 if open_tf > 0 {
-                    self.warn(loc.clone(), format!("missing TransformEnd: {open_tf} TransformBegin block(s) still open at WorldEnd"));
+                    self.warn(
+                        loc.clone(),
+                        format!("missing TransformEnd: {open_tf} TransformBegin block(s) still open at WorldEnd"),
+                    );
                 }
                 self.attr_stack.clear();
                 self.tf_stack.clear();
@@ -1194,7 +1229,7 @@ fn read_spd(path: &Path) -> Result<Vec<f32>, String> {
             v.push(parse_f32(tok).map_err(|m| format!("line {}: {m}", ln + 1))?);
         }
     }
-    if v.len() % 2 != 0 {
+    if v.len() / 2 * 2 != v.len() {
         return Err(format!("expected (wavelength, value) pairs, found {} numbers", v.len()));
     }
     Ok(v)

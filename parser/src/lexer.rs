@@ -69,6 +69,7 @@ fn is_delim(b: u8) -> bool {
 }
 
 /// A bare token: one or more non-delimiter bytes.
+#[inline]
 fn bare<const STREAMING: bool>(i: &[u8]) -> IResult<&[u8], &[u8], LexFail> {
     if STREAMING {
         nom::bytes::streaming::take_till1(is_delim).parse(i)
@@ -117,6 +118,7 @@ fn quoted<const STREAMING: bool>(i: &[u8]) -> IResult<&[u8], (&[u8], bool), LexF
     }
 }
 
+#[inline]
 /// One token at the start of `i` (no leading whitespace): its kind, length and escape flag.
 fn token<const STREAMING: bool>(i: &[u8]) -> IResult<&[u8], (Kind, usize, bool), LexFail> {
     match i.first() {
@@ -150,7 +152,9 @@ pub(crate) fn decode_string(tok: &[u8], escaped: bool) -> Result<String, &'stati
             Some(b'\\') => b'\\',
             Some(b'\'') => b'\'',
             Some(b'"') => b'"',
-            _ => return Err("unexpected escaped character in string (pbrt-v3 allows \\b \\f \\n \\r \\t \\\\ \\' \\\")"),
+            _ => {
+                return Err("unexpected escaped character in string (pbrt-v3 allows \\b \\f \\n \\r \\t \\\\ \\' \\\")")
+            }
         };
         out.push(c);
     }
@@ -418,7 +422,11 @@ mod tests {
             if k == Kind::Eof {
                 return Ok(out);
             }
-            let t = if k == Kind::Str { l.string().map_err(|e| e.to_string())? } else { String::from_utf8_lossy(l.text()).into() };
+            let t = if k == Kind::Str {
+                l.string().map_err(|e| e.to_string())?
+            } else {
+                String::from_utf8_lossy(l.text()).into()
+            };
             out.push((k, t));
             l.consume();
         }

@@ -46,7 +46,8 @@ pub fn parse_file(path: &Path) -> Result<ParseOutput, Diagnostic> {
 /// [`parse_file`] with a chosen read-window size in bytes (tests exercise refills with tiny windows).
 #[doc(hidden)]
 pub fn parse_file_with_window(path: &Path, window: usize) -> Result<ParseOutput, Diagnostic> {
-    let open_err = |e: std::io::Error| Diagnostic::error(None, format!("cannot open scene file \"{}\": {e}", path.display()));
+    let open_err =
+        |e: std::io::Error| Diagnostic::error(None, format!("cannot open scene file \"{}\": {e}", path.display()));
     let file = std::fs::File::open(path).map_err(open_err)?;
     if file.metadata().map(|m| m.is_dir()).unwrap_or(false) {
         return Err(Diagnostic::error(None, format!("cannot parse \"{}\": it is a directory", path.display())));
@@ -99,7 +100,8 @@ pub fn source_line(loc: &FileLoc) -> Option<String> {
         }
         s
     };
-    let registered = SOURCES.lock().unwrap_or_else(|e| e.into_inner()).as_ref().and_then(|m| m.get(&*loc.file).cloned());
+    let registered =
+        SOURCES.lock().unwrap_or_else(|e| e.into_inner()).as_ref().and_then(|m| m.get(&*loc.file).cloned());
     if let Some(text) = registered {
         return text.split('\n').nth(loc.line as usize - 1).map(keep);
     }

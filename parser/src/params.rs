@@ -154,7 +154,11 @@ impl ParamSet {
         self.find(name).map(|p| &p.loc)
     }
     /// Finds the parameter `name` for which `get` returns `Some`, and marks it used.
-    pub fn find_used<'a, T: ?Sized>(&'a self, name: &str, get: impl Fn(&'a ParamValue) -> Option<&'a T>) -> Option<&'a T> {
+    pub fn find_used<'a, T: ?Sized>(
+        &'a self,
+        name: &str,
+        get: impl Fn(&'a ParamValue) -> Option<&'a T>,
+    ) -> Option<&'a T> {
         for p in &self.params {
             if p.name == name {
                 if let Some(v) = get(&p.value) {

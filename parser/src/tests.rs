@@ -419,7 +419,8 @@ fn media_are_recorded() {
 
 #[test]
 fn world_fragment_parses_standalone() {
-    let out = parse("Translate 1 0 0\nShape \"trianglemesh\" \"integer indices\" [0 1 2] \"point P\" [0 0 0 1 0 0 0 1 0]");
+    let out =
+        parse("Translate 1 0 0\nShape \"trianglemesh\" \"integer indices\" [0 1 2] \"point P\" [0 0 0 1 0 0 0 1 0]");
     assert_eq!(out.scene.shapes.len(), 1);
     assert!(close(out.scene.shapes[0].render_from_object.start.apply_point([0.0; 3]), [1.0, 0.0, 0.0]));
     assert!(out.warnings.iter().any(|w| w.message.contains("fragment")));
@@ -537,10 +538,24 @@ fn source_line_reads_files() {
 #[test]
 fn bad_inputs_never_panic() {
     for text in [
-        "", "[", "]", "\"", "\"\\", "#", "WorldBegin [", "Shape", "WorldBegin Shape \"s\" \"float",
-        "WorldBegin Shape \"s\" \"float x\" [", "LookAt 1", "Texture \"a\"", "MediumInterface",
-        "WorldBegin AttributeEnd AttributeEnd TransformEnd ObjectEnd WorldEnd", "\u{feff}WorldBegin", "\0",
-        "WorldBegin Shape \"s\" \"texture t\" []", "WorldBegin Shape \"s\" \"spectrum t\" []",
+        "",
+        "[",
+        "]",
+        "\"",
+        "\"\\",
+        "#",
+        "WorldBegin [",
+        "Shape",
+        "WorldBegin Shape \"s\" \"float",
+        "WorldBegin Shape \"s\" \"float x\" [",
+        "LookAt 1",
+        "Texture \"a\"",
+        "MediumInterface",
+        "WorldBegin AttributeEnd AttributeEnd TransformEnd ObjectEnd WorldEnd",
+        "\u{feff}WorldBegin",
+        "\0",
+        "WorldBegin Shape \"s\" \"texture t\" []",
+        "WorldBegin Shape \"s\" \"spectrum t\" []",
     ] {
         let _ = parse_str(text, "x.pbrt", None);
     }

@@ -135,7 +135,9 @@ impl Transform {
     /// `None` if `up` is parallel to the view direction or `eye == look`.
     pub fn look_at(eye: [f64; 3], look: [f64; 3], up: [f64; 3]) -> Option<Transform> {
         let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-        let cross = |a: [f64; 3], b: [f64; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+        let cross = |a: [f64; 3], b: [f64; 3]| {
+            [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+        };
         let norm = |a: [f64; 3]| {
             let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
             if l == 0.0 || !l.is_finite() {
