@@ -1,5 +1,8 @@
 //! `penumbra info SCENE`.
 
+use penumbra_parser::{Entity, ParamValue, SceneDescription, ShapeDesc};
+use std::collections::BTreeMap;
+use std::fmt::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -15,12 +18,178 @@ pub fn run(args: InfoArgs) -> ExitCode {
             for w in &out.warnings {
                 eprint!("{w}");
             }
-            println!("shapes: {}", out.scene.shapes.len());
+            print!("{}", summary(&out.scene));
             ExitCode::SUCCESS
         }
         Err(e) => {
             eprint!("{e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Reads a parameter without marking it used (the summary must not hide unused-parameter warnings).
+fn ints<'a>(e: &'a Entity, name: &str) -> Option<&'a [i32]> {
+    match &e.params.find(name)?.value {
+        ParamValue::Int(v) => Some(v),
+        _ => None,
+    }
+}
+
+fn one_int(e: &Entity, name: &str, default: i32) -> i32 {
+    ints(e, name).and_then(|v| v.first().copied()).unwrap_or(default)
+}
+
+fn one_float(e: &Entity, name: &str) -> Option<f32> {
+    match &e.params.find(name)?.value {
+        ParamValue::Float(v) => v.first().copied(),
+        _ => None,
+    }
+}
+
+/// Triangles a shape stands for, where the scene text says (`None` for other shapes).
+pub fn triangles(s: &ShapeDesc) -> Option<u64> {
+    let e = &s.entity;
+    match e.kind.as_str() {
+        "trianglemesh" | "loopsubdiv" => ints(e, "indices").map(|v| v.len() as u64 / 3),
+        "heightfield" => {
+            let (nu, nv) = (one_int(e, "nu", 0) as i64, one_int(e, "nv", 0) as i64);
+            Some(((nu - 1).max(0) * (nv - 1).max(0) * 2) as u64)
+        }
+        _ => None,
+    }
+}
+
+fn counts<'a>(it: impl Iterator<Item = &'a str>) -> String {
+    let mut m: BTreeMap<&str, usize> = BTreeMap::new();
+    for k in it {
+        *m.entry(k).or_default() += 1;
+    }
+    if m.is_empty() {
+        return "none".into();
+    }
+    m.iter().map(|(k, n)| format!("{k} x{n}")).collect::<Vec<_>>().join(", ")
+}
+
+/// The text `penumbra info` prints for a parsed scene.
+pub fn summary(scene: &SceneDescription) -> String {
+    let mut o = String::new();
+    let _ =
+        writeln!(o, "shapes: {} ({})", scene.shapes.len(), counts(scene.shapes.iter().map(|s| s.entity.kind.as_str())));
+    let inst_shapes: Vec<&ShapeDesc> = scene.instance_definitions.iter().flat_map(|d| d.shapes.iter()).collect();
+    let _ = writeln!(
+        o,
+        "instance definitions: {} with {} shape(s) ({}); instance uses: {}",
+        scene.instance_definitions.len(),
+        inst_shapes.len(),
+        counts(inst_shapes.iter().map(|s| s.entity.kind.as_str())),
+        scene.instances.len()
+    );
+    let tri_top: u64 = scene.shapes.iter().filter_map(triangles).sum();
+    let tri_inst: u64 = inst_shapes.iter().filter_map(|s| triangles(s)).sum();
+    let _ = writeln!(o, "triangles (from the text): {tri_top} (+{tri_inst} in instance definitions)");
+    let _ =
+        writeln!(o, "lights: {} ({})", scene.lights.len(), counts(scene.lights.iter().map(|l| l.entity.kind.as_str())));
+    let emitters = scene.shapes.iter().filter(|s| s.area_light.is_some()).count();
+    let _ = writeln!(
+        o,
+        "area lights: {} ({}), on {emitters} shape(s)",
+        scene.area_lights.len(),
+        counts(scene.area_lights.iter().map(|e| e.kind.as_str()))
+    );
+    let _ = writeln!(
+        o,
+        "materials: {} ({})",
+        scene.materials.len(),
+        counts(scene.materials.iter().map(|m| m.entity.kind.as_str()))
+    );
+    let named: Vec<String> = scene
+        .materials
+        .iter()
+        .filter_map(|m| m.name.as_ref().map(|n| format!("\"{n}\" ({})", m.entity.kind)))
+        .collect();
+    if !named.is_empty() {
+        let _ = writeln!(o, "named materials: {}", named.join(", "));
+    }
+    let _ = writeln!(
+        o,
+        "textures: {} ({})",
+        scene.textures.len(),
+        counts(scene.textures.iter().map(|t| t.entity.kind.as_str()))
+    );
+    if !scene.media.is_empty() {
+        let _ = writeln!(
+            o,
+            "media: {} ({})",
+            scene.media.len(),
+            counts(scene.media.iter().map(|m| m.entity.kind.as_str()))
+        );
+    }
+    let cam = &scene.camera.entity;
+    match one_float(cam, "fov") {
+        Some(f) => {
+            let _ = writeln!(o, "camera: {} (fov {f})", cam.kind);
+        }
+        None if cam.kind == "perspective" => {
+            let _ = writeln!(o, "camera: perspective (fov 90, default)");
+        }
+        None => {
+            let _ = writeln!(o, "camera: {}", cam.kind);
+        }
+    }
+    let film = &scene.film;
+    let _ =
+        writeln!(o, "film: {} {}x{}", film.kind, one_int(film, "xresolution", 640), one_int(film, "yresolution", 480));
+    let _ =
+        writeln!(o, "sampler: {} ({} pixelsamples)", scene.sampler.kind, one_int(&scene.sampler, "pixelsamples", 16));
+    let _ = writeln!(o, "filter: {}", scene.filter.kind);
+    let _ = writeln!(o, "integrator: {}", scene.integrator.kind);
+    o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summary_counts_shapes_triangles_lights_and_defaults() {
+        let text = r#"
+            LookAt 0 0 -5 0 0 0 0 1 0
+            Camera "perspective" "float fov" [ 35 ]
+            WorldBegin
+            LightSource "point" "rgb I" [1 1 1]
+            AttributeBegin
+              AreaLightSource "diffuse" "rgb L" [1 1 1]
+              Shape "trianglemesh" "integer indices" [0 1 2 0 2 3] "point P" [0 0 0 1 0 0 1 1 0 0 1 0]
+            AttributeEnd
+            MakeNamedMaterial "gold" "string type" "metal"
+            NamedMaterial "gold"
+            Shape "heightfield" "integer nu" 3 "integer nv" 4 "float Pz" [0 0 0 0 0 0 0 0 0 0 0 0]
+            Shape "sphere"
+            Texture "c" "spectrum" "checkerboard"
+            ObjectBegin "o"
+              Shape "loopsubdiv" "integer indices" [0 1 2] "point P" [0 0 0 1 0 0 0 1 0]
+            ObjectEnd
+            ObjectInstance "o"
+            ObjectInstance "o"
+            WorldEnd
+        "#;
+        let out = penumbra_parser::parse_str(text, "info-test.pbrt", None).unwrap();
+        let s = summary(&out.scene);
+        assert!(s.contains("shapes: 3 (heightfield x1, sphere x1, trianglemesh x1)"), "{s}");
+        assert!(s.contains("instance definitions: 1 with 1 shape(s) (loopsubdiv x1); instance uses: 2"), "{s}");
+        // 2 mesh triangles + (3-1)*(4-1)*2 = 12 heightfield triangles; 1 loopsubdiv control triangle.
+        assert!(s.contains("triangles (from the text): 14 (+1 in instance definitions)"), "{s}");
+        assert!(s.contains("lights: 1 (point x1)"), "{s}");
+        assert!(s.contains("area lights: 1 (diffuse x1), on 1 shape(s)"), "{s}");
+        assert!(s.contains("named materials: \"gold\" (metal)"), "{s}");
+        assert!(s.contains("textures: 1 (checkerboard x1)"), "{s}");
+        assert!(s.contains("camera: perspective (fov 35)"), "{s}");
+        assert!(s.contains("film: image 640x480"), "{s}");
+        assert!(s.contains("sampler: halton (16 pixelsamples)"), "{s}");
+        assert!(s.contains("filter: box"), "{s}");
+        assert!(s.contains("integrator: path"), "{s}");
+        // The summary reads parameters without marking them used.
+        assert_eq!(out.scene.camera.entity.params.report_unused("camera").len(), 1);
     }
 }

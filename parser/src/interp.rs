@@ -417,7 +417,7 @@ impl Interp {
             );
             v.push(1.0);
         }
-        if v.len() % arity != 0 {
+        if v.len() / arity * arity != v.len() {
             let what = if matches!(ty, Ty::Spectrum | Ty::Blackbody) { "pairs of" } else { "a multiple of" };
             let n = if matches!(ty, Ty::Spectrum | Ty::Blackbody) { String::new() } else { format!("{arity} ") };
             return Err(self.err(
@@ -1229,7 +1229,7 @@ fn read_spd(path: &Path) -> Result<Vec<f32>, String> {
             v.push(parse_f32(tok).map_err(|m| format!("line {}: {m}", ln + 1))?);
         }
     }
-    if v.len() % 2 != 0 {
+    if v.len() / 2 * 2 != v.len() {
         return Err(format!("expected (wavelength, value) pairs, found {} numbers", v.len()));
     }
     Ok(v)

@@ -69,6 +69,7 @@ fn is_delim(b: u8) -> bool {
 }
 
 /// A bare token: one or more non-delimiter bytes.
+#[inline]
 fn bare<const STREAMING: bool>(i: &[u8]) -> IResult<&[u8], &[u8], LexFail> {
     if STREAMING {
         nom::bytes::streaming::take_till1(is_delim).parse(i)
@@ -117,6 +118,7 @@ fn quoted<const STREAMING: bool>(i: &[u8]) -> IResult<&[u8], (&[u8], bool), LexF
     }
 }
 
+#[inline]
 /// One token at the start of `i` (no leading whitespace): its kind, length and escape flag.
 fn token<const STREAMING: bool>(i: &[u8]) -> IResult<&[u8], (Kind, usize, bool), LexFail> {
     match i.first() {

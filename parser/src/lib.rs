@@ -123,3 +123,6 @@ pub fn source_line(loc: &FileLoc) -> Option<String> {
     }
     Some(keep(&String::from_utf8_lossy(&buf)))
 }
+
+#[cfg(test)]
+mod tests;

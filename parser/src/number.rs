@@ -28,6 +28,19 @@ pub(crate) fn parse_i32(tok: &[u8]) -> Result<i32, String> {
         Some(b'+') => (false, &tok[1..]),
         _ => (false, tok),
     };
+    // Up to 9 digits cannot overflow: one pass, no checks.
+    if !digits.is_empty() && digits.len() <= 9 {
+        let mut v: i32 = 0;
+        let mut ok = true;
+        for &c in digits {
+            let d = c.wrapping_sub(b'0');
+            ok &= d <= 9;
+            v = v.wrapping_mul(10).wrapping_add(d as i32);
+        }
+        if ok {
+            return Ok(if neg { -v } else { v });
+        }
+    }
     if !digits.is_empty() && digits.iter().all(u8::is_ascii_digit) {
         let mut v: i64 = 0;
         for &d in digits {
