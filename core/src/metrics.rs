@@ -351,7 +351,7 @@ impl ZScores {
         if self.z.is_empty() {
             return 0.0;
         }
-        self.z.iter().filter(|z| !(z.abs() <= t)).count() as f64 / self.z.len() as f64
+        self.z.iter().filter(|z| z.is_nan() || z.abs() > t).count() as f64 / self.z.len() as f64
     }
 
     /// Fraction of pixels with some channel's `|z| > t` (NaN counts as over).
@@ -361,7 +361,7 @@ impl ZScores {
         if np == 0 {
             return 0.0;
         }
-        self.z.chunks_exact(n).filter(|p| p.iter().any(|z| !(z.abs() <= t))).count() as f64 / np as f64
+        self.z.chunks_exact(n).filter(|p| p.iter().any(|z| z.is_nan() || z.abs() > t)).count() as f64 / np as f64
     }
 
     /// Mean of z over finite values (≈ 0 for an unbiased estimate).
