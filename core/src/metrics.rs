@@ -191,6 +191,9 @@ impl CompareResults {
 }
 
 fn check_consistent(img: &Image, which: &str) -> Result<(), MetricsError> {
+    if img.npixels() == 0 {
+        return Err(MetricsError::Invalid(format!("image {which} is empty")));
+    }
     if img.channels.is_empty() || img.data.len() != img.npixels() * img.nchannels() {
         return Err(MetricsError::Invalid(format!("image {which} has {} values for its size", img.data.len())));
     }
@@ -575,6 +578,8 @@ mod tests {
         assert!(matches!(compare(&a, &c, 0.0, 0.0), Err(MetricsError::ChannelMismatch { .. })));
         let d = a.crop(0, 1, 0, 2).unwrap();
         assert!(matches!(compare(&a, &d, 0.0, 0.0), Err(MetricsError::SizeMismatch { .. })));
+        let empty = Image::from_data(0, 0, channel_names(&["R", "G", "B"]), vec![]).unwrap();
+        assert!(matches!(compare(&empty, &empty, 0.0, 0.0), Err(MetricsError::Invalid(_))));
     }
 
     #[cfg(feature = "flip")]
