@@ -32,7 +32,8 @@ SMAPE = mean 2|A-B|/(|A|+|B|), and LDR-FLIP of the sRGB-clamped images when buil
 Exit codes (as idiff): 0 pass, 1 warning, 2 failure, 3 different sizes or channel sets,
 4 unreadable file or bad option value. Unlike idiff, which pads the smaller image with black,
 images of different sizes (or with different channel names) are refused with code 3.
-PNGs are compared on their raw code values v/255 (not linearised), as idiff reads them.")]
+PNGs are compared on their raw code values v/255 (not linearised; colour premultiplied by alpha),
+as idiff reads them.")]
 pub struct DiffArgs {
     /// Test image (EXR, PNG or PFM).
     pub a: PathBuf,
@@ -413,6 +414,7 @@ fn glyph(c: char) -> Option<[u8; 5]> {
         'n' => [0b000, 0b110, 0b101, 0b101, 0b101],
         'f' => [0b011, 0b100, 0b110, 0b100, 0b100],
         'a' => [0b000, 0b111, 0b011, 0b101, 0b111],
+        'm' => [0b000, 0b110, 0b111, 0b101, 0b101],
         ' ' => [0; 5],
         _ => return None,
     })
@@ -547,7 +549,7 @@ mod tests {
 
     #[test]
     fn crop_parsing() {
-        assert_eq!(parse_crop("1,5, 2,9").ok().map(|c| c), Some([1, 5, 2, 9]));
+        assert_eq!(parse_crop("1,5, 2,9").ok(), Some([1, 5, 2, 9]));
         assert!(parse_crop("1,2,3").is_err());
         assert!(parse_crop("a,b,c,d").is_err());
         assert!(parse_crop("-1,2,3,4").is_err());

@@ -182,6 +182,9 @@ fn idiff_crosscheck() {
     add("extra", &map(&extra, |i, v| if i % 6 >= 3 { v * 1.5 } else { v }), &extra, "exr", true);
     // PNG vs PNG (8-bit sRGB written by us, compared on raw code values).
     add("png", &map(&base, |_, v| v * 0.8), &base, "png", true);
+    // RGBA PNG with alpha < 1: OIIO premultiplies on read, and so do we.
+    let rgba = noise_image(w, h, &["R", "G", "B", "A"], 4, 1.0);
+    add("png-alpha", &map(&rgba, |i, v| if i % 4 == 3 { v } else { v * 0.7 }), &rgba, "png", true);
     // PFM vs PFM.
     add("pfm", &map(&base, |i, v| v + noise.data[i] * 0.1), &base, "pfm", true);
     // PFM vs EXR.

@@ -20,9 +20,10 @@
 //!   16-bit), **not** linearised: OpenImageIO does not apply the sRGB transfer
 //!   curve when reading PNG, and neither do we. Gray, gray+alpha, RGB, RGBA,
 //!   palette (expanded) and low bit depths (expanded to 8 bits) are accepted.
-//!   Channel names are `Y`, `Y A`, `R G B`, `R G B A`. Colour values are not
-//!   premultiplied by alpha (OpenImageIO does premultiply on read; this matters
-//!   only for PNGs with alpha < 1).
+//!   Channel names are `Y`, `Y A`, `R G B`, `R G B A`. Like OpenImageIO, colour
+//!   is premultiplied by alpha on read, on the integer code values with
+//!   truncation (`v · a / 255`; with a gAMA chunk and no sRGB chunk, in that
+//!   gamma's space); [`decode_png_with`] can keep it unassociated.
 //! - **PFM**: `PF` (RGB) and `Pf` (gray, channel `Y`); the sign of the scale
 //!   gives the byte order (negative: little-endian), its magnitude is ignored
 //!   (as pbrt-v3 and OpenImageIO do).
@@ -265,7 +266,7 @@ impl Image {
     /// of a `k × k` block. Refuses (error) sizes not divisible by `k` and
     /// `k == 0`; it never crops silently. `k == 1` returns a copy.
     pub fn box_downsample(&self, k: u32) -> Result<Image, ImageError> {
-        if k == 0 || self.width % k != 0 || self.height % k != 0 {
+        if k == 0 || (self.width / k) * k != self.width || (self.height / k) * k != self.height {
             return Err(ImageError::Invalid(format!(
                 "box_downsample: {}×{} is not divisible by {k}",
                 self.width, self.height
@@ -465,15 +466,40 @@ pub fn decode_exr(bytes: &[u8], path: &Path) -> Result<Image, ImageError> {
 }
 
 /// Decodes a PNG file held in memory into raw normalised values (no sRGB
-/// decoding; see the module documentation).
+/// decoding), with colour premultiplied by alpha as OpenImageIO does (see the
+/// module documentation).
 pub fn decode_png(bytes: &[u8], path: &Path) -> Result<Image, ImageError> {
+    decode_png_with(bytes, path, true)
+}
+
+/// OpenImageIO's alpha association on read, on integer code values: colour
+/// `v` becomes `v · a / max` truncated (or, for a gamma `g != 1` declared by a
+/// gAMA chunk, `v · (a / max)^g` truncated).
+fn associate_png_alpha(raw: &mut [u32], n: usize, max: u32, gamma: f32) {
+    for p in raw.chunks_exact_mut(n) {
+        let a = p[n - 1];
+        for v in &mut p[..n - 1] {
+            *v = if gamma == 1.0 { *v * a / max } else { (*v as f32 * (a as f32 / max as f32).powf(gamma)) as u32 };
+        }
+    }
+}
+
+/// Like [`decode_png`]; with `associate_alpha == false` the colour channels
+/// of images with alpha are returned as stored (unassociated).
+pub fn decode_png_with(bytes: &[u8], path: &Path, associate_alpha: bool) -> Result<Image, ImageError> {
     let err = |m: String| decode_err(path, "PNG", m);
     let mut decoder = png::Decoder::new_with_limits(Cursor::new(bytes), png::Limits { bytes: 1 << 30 });
     decoder.set_transformations(png::Transformations::EXPAND);
     let mut reader = decoder.read_info().map_err(|e| err(e.to_string()))?;
-    let (width, height) = {
+    let (width, height, gamma) = {
         let info = reader.info();
-        (info.width, info.height)
+        // OpenImageIO associates alpha in a gamma space only for files with a
+        // gAMA chunk and no sRGB chunk (its "oiio:Gamma" attribute).
+        let gamma = match (info.srgb, info.gama_chunk) {
+            (None, Some(g)) if g.into_value() > 0.0 => 1.0 / g.into_value(),
+            _ => 1.0,
+        };
+        (info.width, info.height, gamma)
     };
     let (color, depth) = reader.output_color_type();
     let names: &[&str] = match color {
@@ -500,15 +526,20 @@ pub fn decode_png(bytes: &[u8], path: &Path) -> Result<Image, ImageError> {
     let mut buf = vec![0u8; size];
     let info = reader.next_frame(&mut buf).map_err(|e| err(e.to_string()))?;
     let line = info.line_size;
-    let mut data = Vec::with_capacity(nvals);
+    let mut raw: Vec<u32> = Vec::with_capacity(nvals);
     for y in 0..height as usize {
         let row = buf.get(y * line..y * line + width as usize * n * bps).ok_or_else(|| err("short frame".into()))?;
         if bps == 1 {
-            data.extend(row.iter().map(|&v| v as f32 / 255.0));
+            raw.extend(row.iter().map(|&v| v as u32));
         } else {
-            data.extend(row.chunks_exact(2).map(|c| u16::from_be_bytes([c[0], c[1]]) as f32 / 65535.0));
+            raw.extend(row.chunks_exact(2).map(|c| u16::from_be_bytes([c[0], c[1]]) as u32));
         }
     }
+    let max = if bps == 1 { 255u32 } else { 65535 };
+    if associate_alpha && (n == 2 || n == 4) {
+        associate_png_alpha(&mut raw, n, max, gamma);
+    }
+    let data = raw.iter().map(|&v| v as f32 / max as f32).collect();
     // Read up to IEND, so that a file cut after its pixel data is still an error.
     reader.finish().map_err(|e| err(e.to_string()))?;
     Image::from_data(width, height, channel_names(names), data).map_err(|e| err(e.to_string()))
@@ -935,7 +966,13 @@ mod tests {
         assert_eq!(img.channels, channel_names(&["Y", "A"]));
         assert_eq!(img.data, vec![0x1234 as f32 / 65535.0, 1.0]);
         let rgba = encode_raw_png(1, 1, png::ColorType::Rgba, png::BitDepth::Eight, &[1, 2, 3, 4]);
-        assert_eq!(decode_png(&rgba, p).unwrap().data, vec![1. / 255., 2. / 255., 3. / 255., 4. / 255.]);
+        assert_eq!(decode_png_with(&rgba, p, false).unwrap().data, vec![1. / 255., 2. / 255., 3. / 255., 4. / 255.]);
+        // Associated as OpenImageIO does (values checked against oiiotool --dumpdata):
+        // 255·128/255 = 128, 127·128/255 = 63.75 -> 63, 200·128/255 -> 100; 100·64/255 -> 25, 50 -> 12, 10 -> 2.
+        let rgba =
+            encode_raw_png(2, 1, png::ColorType::Rgba, png::BitDepth::Eight, &[255, 127, 200, 128, 100, 50, 10, 64]);
+        let got: Vec<f32> = decode_png(&rgba, p).unwrap().data.iter().map(|v| v * 255.0).collect();
+        assert_eq!(got, vec![128., 63., 100., 128., 25., 12., 2., 64.]);
         let g1 = encode_raw_png(8, 1, png::ColorType::Grayscale, png::BitDepth::One, &[0b1010_0000]);
         assert_eq!(decode_png(&g1, p).unwrap().data, vec![1., 0., 1., 0., 0., 0., 0., 0.]);
     }

@@ -191,6 +191,9 @@ impl CompareResults {
 }
 
 fn check_consistent(img: &Image, which: &str) -> Result<(), MetricsError> {
+    if img.npixels() == 0 {
+        return Err(MetricsError::Invalid(format!("image {which} is empty")));
+    }
     if img.channels.is_empty() || img.data.len() != img.npixels() * img.nchannels() {
         return Err(MetricsError::Invalid(format!("image {which} has {} values for its size", img.data.len())));
     }
@@ -351,7 +354,7 @@ impl ZScores {
         if self.z.is_empty() {
             return 0.0;
         }
-        self.z.iter().filter(|z| !(z.abs() <= t)).count() as f64 / self.z.len() as f64
+        self.z.iter().filter(|z| z.is_nan() || z.abs() > t).count() as f64 / self.z.len() as f64
     }
 
     /// Fraction of pixels with some channel's `|z| > t` (NaN counts as over).
@@ -361,7 +364,7 @@ impl ZScores {
         if np == 0 {
             return 0.0;
         }
-        self.z.chunks_exact(n).filter(|p| p.iter().any(|z| !(z.abs() <= t))).count() as f64 / np as f64
+        self.z.chunks_exact(n).filter(|p| p.iter().any(|z| z.is_nan() || z.abs() > t)).count() as f64 / np as f64
     }
 
     /// Mean of z over finite values (≈ 0 for an unbiased estimate).
@@ -575,6 +578,8 @@ mod tests {
         assert!(matches!(compare(&a, &c, 0.0, 0.0), Err(MetricsError::ChannelMismatch { .. })));
         let d = a.crop(0, 1, 0, 2).unwrap();
         assert!(matches!(compare(&a, &d, 0.0, 0.0), Err(MetricsError::SizeMismatch { .. })));
+        let empty = Image::from_data(0, 0, channel_names(&["R", "G", "B"]), vec![]).unwrap();
+        assert!(matches!(compare(&empty, &empty, 0.0, 0.0), Err(MetricsError::Invalid(_))));
     }
 
     #[cfg(feature = "flip")]
