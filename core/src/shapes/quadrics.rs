@@ -324,7 +324,9 @@ mod tests {
 
     fn build(kind: &str, params: Vec<(&str, ParamValue)>) -> TriangleMesh {
         let sink = DiagSink::new();
-        let ctx = ShapeContext::new(Path::new("."), &sink);
+        // The tests check the bound at 1e-4, tighter than the 1e-3 default.
+        let mut ctx = ShapeContext::new(Path::new("."), &sink);
+        ctx.tessellation.max_rel_error = EPS;
         let d = shape(kind, params);
         let m = build_shape(&d, &ctx).unwrap().unwrap();
         assert!(sink.is_empty(), "{:?}", sink.take());
