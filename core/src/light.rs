@@ -182,13 +182,22 @@ pub struct InfiniteLight {
 }
 
 impl InfiniteLight {
-    fn lookup_dir(&self, d: Vec3) -> Rgb {
+    /// Light-space (θ, sin θ, φ) of the world direction `d`; θ by `atan2`, which
+    /// (unlike pbrt-v3's `acos`, equal up to rounding) stays accurate near the poles.
+    fn angles(&self, d: Vec3) -> Option<(f32, f32, f32)> {
         let w = (self.light_from_world * d).normalize_or_zero();
         if w == Vec3::ZERO || !w.is_finite() {
-            return Rgb::ZERO;
+            return None;
         }
-        let st = Vec2::new(spherical_phi(w) / (2.0 * PI), spherical_theta(w) / PI);
-        self.map.lookup(st)
+        let r = (w.x * w.x + w.y * w.y).sqrt();
+        Some((r.atan2(w.z), r, spherical_phi(w)))
+    }
+
+    fn lookup_dir(&self, d: Vec3) -> Rgb {
+        match self.angles(d) {
+            Some((theta, _, phi)) => self.map.lookup(Vec2::new(phi / (2.0 * PI), theta / PI)),
+            None => Rgb::ZERO,
+        }
     }
 }
 
@@ -400,12 +409,7 @@ impl Light {
     pub fn pdf_li(&self, ctx: &LightContext, wi: Vec3, light_hit: Option<(Vec3, Vec3)>) -> f32 {
         match self {
             Light::Infinite(l) => {
-                let w = (l.light_from_world * wi).normalize_or_zero();
-                if w == Vec3::ZERO || !w.is_finite() {
-                    return 0.0;
-                }
-                let (theta, phi) = (spherical_theta(w), spherical_phi(w));
-                let sin_t = theta.sin();
+                let Some((theta, sin_t, phi)) = l.angles(wi) else { return 0.0 };
                 if !(sin_t > 0.0) {
                     return 0.0;
                 }
@@ -866,6 +870,704 @@ fn make_light(
         return Ok(None);
     }
     Ok(Some(light))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Frame;
+    use crate::rng::Rng;
+    use crate::stats::chi2_test;
+    use penumbra_parser::{AnimatedTransform, CameraDesc, Entity, LightDesc, Param, ParamValue, SpectrumValue};
+    use std::f64::consts::PI as PI64;
+    use std::path::PathBuf;
+
+    const ALPHA: f64 = 1e-4;
+
+    fn loc() -> FileLoc {
+        FileLoc::new("test.pbrt".into(), 3, 1)
+    }
+
+    fn desc() -> SceneDescription {
+        SceneDescription {
+            camera: CameraDesc {
+                entity: Entity::default_of("perspective"),
+                camera_from_world: AnimatedTransform::default(),
+                world_from_camera: AnimatedTransform::default(),
+                medium: None,
+            },
+            film: Entity::default_of("image"),
+            sampler: Entity::default_of("halton"),
+            filter: Entity::default_of("box"),
+            integrator: Entity::default_of("directlighting"),
+            accelerator: Entity::default_of("bvh"),
+            transform_times: (0.0, 1.0),
+            shapes: vec![],
+            lights: vec![],
+            area_lights: vec![],
+            materials: vec![],
+            textures: vec![],
+            media: vec![],
+            instance_definitions: vec![],
+            instances: vec![],
+            main_file: None,
+            base_dir: PathBuf::new(),
+            files_read: vec![],
+        }
+    }
+
+    fn param(name: &str, v: ParamValue) -> Param {
+        Param::new(name, v, FileLoc::new("test.pbrt".into(), 4, 7))
+    }
+    fn rgb(name: &str, c: [f32; 3]) -> Param {
+        param(name, ParamValue::Spectrum(SpectrumValue::Rgb(c.to_vec())))
+    }
+    fn float(name: &str, v: f32) -> Param {
+        param(name, ParamValue::Float(vec![v]))
+    }
+    fn point3(name: &str, v: [f32; 3]) -> Param {
+        param(name, ParamValue::Point3(v.to_vec()))
+    }
+    fn string(name: &str, v: &str) -> Param {
+        param(name, ParamValue::String(vec![v.to_string()]))
+    }
+    fn int(name: &str, v: i32) -> Param {
+        param(name, ParamValue::Int(vec![v]))
+    }
+    fn entity(kind: &str, params: Vec<Param>) -> Entity {
+        let mut ps = ParamSet::new();
+        for p in params {
+            ps.add(p);
+        }
+        Entity::new(kind, ps, loc())
+    }
+    fn light_desc(kind: &str, params: Vec<Param>, ctm: Transform) -> LightDesc {
+        LightDesc { entity: entity(kind, params), render_from_light: AnimatedTransform::fixed(ctm), medium: None }
+    }
+    fn unit_bounds() -> Bounds3 {
+        Bounds3 { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) }
+    }
+
+    /// Builds the lights of `lights` (no geometry); returns them and the warnings.
+    fn build(lights: Vec<LightDesc>) -> (Vec<Light>, Vec<Diagnostic>) {
+        let mut d = desc();
+        d.lights = lights;
+        let sink = DiagSink::new();
+        let l = Lights::build(&d, &[], &[], unit_bounds(), &sink).expect("build");
+        (l.lights, sink.take())
+    }
+    fn build_one(kind: &str, params: Vec<Param>, ctm: Transform) -> Light {
+        let (mut l, w) = build(vec![light_desc(kind, params, ctm)]);
+        assert_eq!(l.len(), 1, "warnings: {w:?}");
+        l.remove(0)
+    }
+
+    fn object(kind: &str, area_light: Option<usize>, instance: Option<usize>) -> SceneObject {
+        SceneObject { kind: kind.into(), loc: loc(), material: None, area_light, instance }
+    }
+
+    /// Area lights of `meshes`, all emitting through AreaLightSource 0 = `area`.
+    fn build_area(meshes: &[TriangleMesh], kinds: &[&str], area: Entity) -> (Lights, Vec<Diagnostic>) {
+        let mut d = desc();
+        d.area_lights = vec![area];
+        let objects: Vec<SceneObject> = kinds.iter().map(|k| object(k, Some(0), None)).collect();
+        let sink = DiagSink::new();
+        let l = Lights::build(&d, meshes, &objects, unit_bounds(), &sink).expect("build");
+        (l, sink.take())
+    }
+
+    fn ctx(p: Vec3) -> LightContext {
+        LightContext { p, p_error: Vec3::ZERO, n: Vec3::ZERO }
+    }
+    fn rand2(rng: &mut Rng) -> Vec2 {
+        Vec2::new(rng.uniform_f32(), rng.uniform_f32())
+    }
+
+    /// Two-sided Möller–Trumbore in f64: the distance along unit `d`.
+    fn ray_tri(o: Vec3, d: Vec3, t: [Vec3; 3]) -> Option<f64> {
+        let (o, d) = (o.as_dvec3(), d.as_dvec3());
+        let [a, b, c] = t.map(|v| v.as_dvec3());
+        let (e1, e2) = (b - a, c - a);
+        let pv = d.cross(e2);
+        let det = e1.dot(pv);
+        if det.abs() < 1e-14 {
+            return None;
+        }
+        let tv = o - a;
+        let u = tv.dot(pv) / det;
+        let qv = tv.cross(e1);
+        let v = d.dot(qv) / det;
+        let t = e2.dot(qv) / det;
+        (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0).then_some(t)
+    }
+
+    /// The closest triangle of `mesh` along the ray: (distance, point, pbrt-v3 normal).
+    fn first_hit(mesh: &TriangleMesh, o: Vec3, d: Vec3) -> Option<(f64, Vec3, Vec3)> {
+        let mut best: Option<(f64, usize)> = None;
+        for t in 0..mesh.triangle_count() {
+            if let Some(h) = ray_tri(o, d, mesh.vertices(t)) {
+                if best.is_none_or(|b| h < b.0) {
+                    best = Some((h, t));
+                }
+            }
+        }
+        let (t, tri) = best?;
+        let v = mesh.vertices(tri);
+        let mut n = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
+        if mesh.flip_normals {
+            n = -n;
+        }
+        Some((t, o + d * t as f32, n))
+    }
+
+    /// Chi-square test that the directions `sample` returns (`None`: no sample) follow
+    /// the solid-angle density `pdf`, binned in θ ≤ `theta_max` × φ about `frame.z`;
+    /// expected counts integrate `pdf` with k×k midpoint sub-cells per bin.
+    #[allow(clippy::too_many_arguments)]
+    fn chi2_dirs(
+        seed: u64,
+        n: usize,
+        frame: Frame,
+        theta_max: f64,
+        (nt, np, k): (usize, usize, usize),
+        mut sample: impl FnMut(Vec2) -> Option<Vec3>,
+        pdf: impl Fn(Vec3) -> f64,
+    ) -> f64 {
+        let mut rng = Rng::new(seed);
+        let mut obs = vec![0.0f64; nt * np];
+        for _ in 0..n {
+            let Some(w) = sample(rand2(&mut rng)) else { continue };
+            let l = frame.to_local(w).as_dvec3();
+            let theta = l.z.clamp(-1.0, 1.0).acos();
+            assert!(theta <= theta_max * (1.0 + 1e-6), "sample outside the light's cone: θ = {theta}");
+            let phi = l.y.atan2(l.x).rem_euclid(2.0 * PI64);
+            let it = ((theta / theta_max * nt as f64) as usize).min(nt - 1);
+            let ip = ((phi / (2.0 * PI64) * np as f64) as usize).min(np - 1);
+            obs[it * np + ip] += 1.0;
+        }
+        let (dt, dp) = (theta_max / (nt * k) as f64, 2.0 * PI64 / (np * k) as f64);
+        let mut exp = vec![0.0f64; nt * np];
+        for it in 0..nt * k {
+            let theta = (it as f64 + 0.5) * dt;
+            for ip in 0..np * k {
+                let phi = (ip as f64 + 0.5) * dp;
+                let l = Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32);
+                exp[(it / k) * np + ip / k] += pdf(frame.from_local(l)) * theta.sin() * dt * dp;
+            }
+        }
+        let exp: Vec<f64> = exp.iter().map(|e| (e * n as f64).max(1e-9)).collect();
+        let (chi2, dof, p) = chi2_test(&obs, &exp, 5.0);
+        eprintln!("chi2 {chi2:.1} dof {dof} p {p:.3}");
+        p
+    }
+
+    /// Smallest cone about the direction from `p` to the centre of `pts` that holds them, widened by 2 %.
+    fn cone_over(p: Vec3, pts: &[Vec3]) -> (Frame, f64) {
+        let c = pts.iter().copied().sum::<Vec3>() / pts.len() as f32;
+        let z = (c - p).normalize();
+        let tmax = pts.iter().map(|q| ((*q - p).normalize().dot(z).clamp(-1.0, 1.0) as f64).acos()).fold(0.0, f64::max);
+        (Frame::from_z(z), tmax * 1.02)
+    }
+
+    /// ∫ pdf dω over the cone by a jittered grid uniform in (cos θ, φ).
+    fn integrate_cone(frame: Frame, theta_max: f64, pdf: impl Fn(Vec3) -> f64) -> f64 {
+        let (nz, np) = (512, 512);
+        let mut rng = Rng::new(99);
+        let zmin = theta_max.cos();
+        let mut s = 0.0;
+        for i in 0..nz {
+            for j in 0..np {
+                let z = 1.0 - (1.0 - zmin) * (i as f64 + rng.uniform_f64()) / nz as f64;
+                let phi = 2.0 * PI64 * (j as f64 + rng.uniform_f64()) / np as f64;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                s += pdf(frame.from_local(Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32)));
+            }
+        }
+        s / (nz * np) as f64 * 2.0 * PI64 * (1.0 - zmin)
+    }
+
+    /// A triangle facing `p` (winding normal towards it) as a one-triangle mesh.
+    fn facing_triangle(p: Vec3, mut v: [Vec3; 3]) -> TriangleMesh {
+        if (v[1] - v[0]).cross(v[2] - v[0]).dot(p - v[0]) < 0.0 {
+            v.swap(1, 2);
+        }
+        TriangleMesh { positions: v.to_vec(), indices: vec![[0, 1, 2]], ..Default::default() }
+    }
+
+    /// Lambert's closed form of the irradiance at `p` (normal `n`) from a unit-radiance polygon above its horizon.
+    fn polygon_irradiance(p: Vec3, n: Vec3, v: &[Vec3]) -> f64 {
+        let u: Vec<_> = v.iter().map(|q| (*q - p).as_dvec3().normalize()).collect();
+        let n = n.as_dvec3();
+        let mut s = 0.0;
+        for i in 0..u.len() {
+            let (a, b) = (u[i], u[(i + 1) % u.len()]);
+            s += a.dot(b).clamp(-1.0, 1.0).acos() * n.dot(a.cross(b).normalize());
+        }
+        0.5 * s.abs()
+    }
+
+    #[test]
+    fn triangle_light_samples_follow_pdf_li() {
+        let p = Vec3::new(0.1, -0.2, 0.0);
+        let v = [Vec3::new(-0.5, -0.3, 2.0), Vec3::new(0.9, -0.2, 2.6), Vec3::new(0.1, 0.8, 1.5)];
+        let mesh = facing_triangle(p, v);
+        let meshes = [mesh.clone()];
+        let (lights, w) = build_area(&meshes, &["trianglemesh"], entity("diffuse", vec![rgb("L", [1.0, 2.0, 3.0])]));
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!(lights.len(), 1);
+        let light = &lights.lights[0];
+        assert!(!light.is_delta() && !light.is_infinite());
+        let c = ctx(p);
+        let (frame, tmax) = cone_over(p, &v);
+        let sample = |u: Vec2| {
+            let s = light.sample_li(&c, u, &meshes)?;
+            // The sampled direction hits the triangle at the sampled point, and the pdfs agree.
+            let (t, hp, hn) = first_hit(&mesh, p, s.wi).expect("sampled direction misses the light");
+            assert!((t as f32 - (s.p_light - p).length()).abs() < 1e-4 * t as f32);
+            assert!(s.n_light.dot(hn) > 0.999, "normal {:?} vs {hn:?}", s.n_light);
+            let q = light.pdf_li(&c, s.wi, Some((hp, hn)));
+            assert!((q - s.pdf).abs() <= 1e-3 * s.pdf, "{q} vs {}", s.pdf);
+            assert_eq!(s.li, Rgb::new(1.0, 2.0, 3.0));
+            assert!(!s.delta);
+            Some(s.wi)
+        };
+        let pdf = |w: Vec3| first_hit(&mesh, p, w).map_or(0.0, |(_, hp, hn)| light.pdf_li(&c, w, Some((hp, hn))) as f64);
+        assert!(chi2_dirs(1, 100_000, frame, tmax, (8, 16, 16), sample, pdf) > ALPHA);
+        let total = integrate_cone(frame, tmax, pdf);
+        assert!((total - 1.0).abs() < 0.01, "∫ pdf_li dω = {total}");
+    }
+
+    #[test]
+    fn quadric_light_over_several_triangles_samples_by_area() {
+        // A stretched octahedron ("sphere" shape: one light over all triangles).
+        let centre = Vec3::new(0.3, -0.2, 3.0);
+        let axes = [Vec3::X * 1.0, Vec3::Y * 0.6, Vec3::Z * 1.4];
+        let mut positions = Vec::new();
+        for a in axes {
+            positions.push(centre + a);
+            positions.push(centre - a);
+        }
+        let mut indices = Vec::new();
+        for sx in 0..2u32 {
+            for sy in 0..2u32 {
+                for sz in 0..2u32 {
+                    let mut t = [sx, 2 + sy, 4 + sz];
+                    let [a, b, c] = t.map(|i| positions[i as usize]);
+                    if (b - a).cross(c - a).dot((a + b + c) / 3.0 - centre) < 0.0 {
+                        t.swap(1, 2);
+                    }
+                    indices.push(t);
+                }
+            }
+        }
+        let mesh = TriangleMesh { positions: positions.clone(), indices, ..Default::default() };
+        let meshes = [mesh.clone()];
+        let (lights, _) = build_area(&meshes, &["sphere"], entity("area", vec![rgb("L", [2.0, 2.0, 2.0])]));
+        assert_eq!(lights.len(), 1);
+        let light = &lights.lights[0];
+        let g = light.area().unwrap();
+        assert_eq!(g.tris.len(), 8);
+        let total_area: f32 = (0..8).map(|t| mesh.area(t)).sum();
+        assert!((g.area - total_area).abs() < 1e-5 * total_area);
+        for t in 0..8 {
+            assert_eq!(lights.light_of(0, t), Some(0));
+        }
+        let p = Vec3::new(-0.4, 0.5, 0.2);
+        let c = ctx(p);
+        let (frame, tmax) = cone_over(p, &positions);
+        let mut hidden = 0;
+        let sample = |u: Vec2| {
+            let s = light.sample_li(&c, u, &meshes)?;
+            assert!(s.n_light.dot(s.p_light - centre) > 0.0, "normal points inwards");
+            let (t, hp, hn) = first_hit(&mesh, p, s.wi).expect("sampled direction misses the light");
+            if (t as f32 - (s.p_light - p).length()).abs() > 1e-4 * t as f32 {
+                hidden += 1;
+                return None;
+            }
+            let q = light.pdf_li(&c, s.wi, Some((hp, hn)));
+            assert!((q - s.pdf).abs() <= 1e-3 * s.pdf, "{q} vs {}", s.pdf);
+            Some(s.wi)
+        };
+        let pdf = |w: Vec3| first_hit(&mesh, p, w).map_or(0.0, |(_, hp, hn)| light.pdf_li(&c, w, Some((hp, hn))) as f64);
+        assert!(chi2_dirs(2, 100_000, frame, tmax, (8, 16, 16), sample, pdf) > ALPHA);
+        assert_eq!(hidden, 0, "a convex one-sided light only returns its visible side");
+        let total = integrate_cone(frame, tmax, pdf);
+        let visible_area: f32 = (0..8)
+            .filter(|&t| {
+                let v = mesh.vertices(t);
+                (v[1] - v[0]).cross(v[2] - v[0]).dot(p - v[0]) > 0.0
+            })
+            .map(|t| mesh.area(t))
+            .sum();
+        // ∫ pdf_li dω over the visible side is the visible fraction of the area.
+        let frac = (visible_area / total_area) as f64;
+        assert!(frac > 0.2 && frac < 0.8);
+        assert!((total / frac - 1.0).abs() < 0.01, "∫ pdf_li dω = {total}, visible fraction {frac}");
+    }
+
+    #[test]
+    fn triangle_irradiance_matches_lamberts_formula() {
+        let cases = [
+            (Vec3::ZERO, Vec3::Z, [Vec3::new(-0.4, -0.3, 1.0), Vec3::new(0.8, -0.1, 1.3), Vec3::new(0.0, 0.7, 0.9)]),
+            (
+                Vec3::new(1.0, 2.0, -1.0),
+                Vec3::new(0.3, 0.2, 1.0).normalize(),
+                [Vec3::new(1.5, 2.0, 0.0), Vec3::new(0.0, 2.5, -0.5), Vec3::new(1.0, 1.0, 0.5)],
+            ),
+        ];
+        for (case, (p, n, v)) in cases.into_iter().enumerate() {
+            let exact = polygon_irradiance(p, n, &v);
+            for two_sided in [false, true] {
+                // Facing the receiver, and (two-sided only) facing away from it.
+                for facing in [true, false] {
+                    let mut mesh = facing_triangle(p, v);
+                    if !facing {
+                        mesh.flip_normals = true;
+                    }
+                    let meshes = [mesh];
+                    let area = entity("diffuse", vec![param("twosided", ParamValue::Bool(vec![two_sided]))]);
+                    let (lights, _) = build_area(&meshes, &["trianglemesh"], area);
+                    let light = &lights.lights[0];
+                    let mut rng = Rng::new(7 + case as u64);
+                    let n_samples = 200_000;
+                    let mut e = 0.0f64;
+                    for _ in 0..n_samples {
+                        if let Some(s) = light.sample_li(&ctx(p), rand2(&mut rng), &meshes) {
+                            e += (s.li.x * n.dot(s.wi).max(0.0) / s.pdf) as f64;
+                        }
+                    }
+                    e /= n_samples as f64;
+                    if facing || two_sided {
+                        assert!((e / exact - 1.0).abs() < 0.01, "case {case}: {e} vs {exact}");
+                    } else {
+                        assert_eq!(e, 0.0, "a one-sided light emits only on its normal's side");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn spot_falloff_is_pbrt_v3s() {
+        // The spot points along light-space +x; the CTM rotates that to world +y and moves it.
+        let ctm = Transform::translate([1.0, 2.0, 3.0]).compose(&Transform::rotate(90.0, [0.0, 0.0, 1.0]).unwrap());
+        let light = build_one(
+            "spot",
+            vec![rgb("I", [3.0, 3.0, 3.0]), point3("from", [0.0, 0.0, 0.0]), point3("to", [5.0, 0.0, 0.0])],
+            ctm,
+        );
+        assert!(light.is_delta());
+        let pl = Vec3::new(1.0, 2.0, 3.0);
+        let (ct, cf) = (30f64.to_radians().cos(), 25f64.to_radians().cos());
+        for deg in [0.0f64, 10.0, 24.0, 26.0, 27.5, 29.0, 29.9, 30.5, 45.0, 120.0] {
+            let a = deg.to_radians();
+            let q = pl + 2.0 * Vec3::new(0.0, a.cos() as f32, a.sin() as f32);
+            let cos = a.cos();
+            let expect = if cos < ct {
+                0.0
+            } else if cos > cf {
+                1.0
+            } else {
+                ((cos - ct) / (cf - ct)).powi(4)
+            };
+            match light.sample_li(&ctx(q), Vec2::splat(0.5), &[]) {
+                Some(s) => {
+                    let f = s.li.x as f64 * 4.0 / 3.0;
+                    assert!((f - expect).abs() < 2e-4, "{deg}°: {f} vs {expect}");
+                    assert!((s.wi - (pl - q).normalize()).length() < 1e-5 && s.p_light == pl && s.pdf == 1.0);
+                }
+                None => assert_eq!(expect, 0.0, "{deg}°"),
+            }
+        }
+    }
+
+    #[test]
+    fn point_light_is_intensity_over_distance_squared() {
+        // pbrt-v3 places the light at CTM(0) + from, not CTM(from).
+        let ctm = Transform::scale([2.0, 2.0, 2.0]).unwrap();
+        let light = build_one("point", vec![rgb("I", [1.0, 2.0, 4.0]), rgb("scale", [2.0, 2.0, 2.0]), point3("from", [0.0, 2.0, 0.0])], ctm);
+        for q in [Vec3::new(0.0, 2.0, 3.0), Vec3::new(1.0, -1.0, 0.5), Vec3::new(-7.0, 2.0, 0.0)] {
+            let s = light.sample_li(&ctx(q), Vec2::ZERO, &[]).unwrap();
+            let d2 = (Vec3::new(0.0, 2.0, 0.0) - q).length_squared();
+            assert!((s.li - Rgb::new(2.0, 4.0, 8.0) / d2).length() < 1e-5 * s.li.length());
+            assert!(s.delta && s.pdf == 1.0 && s.p_light == Vec3::new(0.0, 2.0, 0.0));
+            assert_eq!(light.pdf_li(&ctx(q), s.wi, None), 0.0);
+        }
+        assert!(light.sample_li(&ctx(Vec3::new(0.0, 2.0, 0.0)), Vec2::ZERO, &[]).is_none());
+    }
+
+    #[test]
+    fn distant_light_shadow_end_is_two_scene_radii_away() {
+        let light = build_one("distant", vec![rgb("L", [0.5, 1.0, 1.5]), point3("from", [0.0, 0.0, 0.0]), point3("to", [0.0, 0.0, 1.0])], Transform::IDENTITY);
+        let q = Vec3::new(0.2, 0.3, 0.4);
+        let s = light.sample_li(&ctx(q), Vec2::ZERO, &[]).unwrap();
+        assert_eq!(s.wi, Vec3::new(0.0, 0.0, -1.0));
+        assert_eq!(s.li, Rgb::new(0.5, 1.0, 1.5));
+        let r = 3f32.sqrt();
+        assert!((s.p_light - (q + s.wi * 2.0 * r)).length() < 1e-5);
+    }
+
+    #[test]
+    fn constant_infinite_light() {
+        let ctm = Transform::rotate(40.0, [1.0, 2.0, 0.5]).unwrap();
+        let light = build_one("infinite", vec![rgb("L", [1.0, 2.0, 3.0]), rgb("scale", [0.5, 0.5, 0.5])], ctm);
+        assert!(light.is_infinite() && !light.is_delta() && light.n_samples() == 1);
+        let c = ctx(Vec3::new(0.1, 0.2, 0.3));
+        let mut rng = Rng::new(5);
+        let lin = linear_part(&ctm.m);
+        for _ in 0..1000 {
+            let w = crate::sampling::uniform_sample_sphere(rand2(&mut rng));
+            let le = light.le(&Ray::new(Vec3::ZERO, w * 3.0, f32::INFINITY));
+            assert!((le - Rgb::new(0.5, 1.0, 1.5)).abs().max_element() < 1e-6, "{le:?}");
+            // pbrt-v3: a 1×1 map is uniform in (u, v), so pdf = 1 / (2π² sin θ) (θ in light space).
+            let sin_t = (lin.transpose() * w).z.clamp(-1.0, 1.0).acos().sin();
+            let pdf = light.pdf_li(&c, w, None);
+            assert!((pdf * sin_t * 2.0 * PI * PI - 1.0).abs() < 1e-4, "{pdf} at sin θ {sin_t}");
+        }
+        let frame = Frame { x: lin * Vec3::X, y: lin * Vec3::Y, z: lin * Vec3::Z };
+        let mut mismatched = 0;
+        let sample = |u: Vec2| {
+            let s = light.sample_li(&c, u, &[])?;
+            // f32 round trips through the rotation move θ slightly: near the poles the pdfs differ a little.
+            mismatched += ((s.pdf - light.pdf_li(&c, s.wi, None)).abs() > 1e-3 * s.pdf) as usize;
+            assert!((s.li - Rgb::new(0.5, 1.0, 1.5)).abs().max_element() < 1e-6);
+            Some(s.wi)
+        };
+        assert!(chi2_dirs(3, 100_000, frame, PI64, (16, 16, 4), sample, |w| light.pdf_li(&c, w, None) as f64) > ALPHA);
+        assert!(mismatched < 100, "sample_li and pdf_li disagree on {mismatched} samples");
+    }
+
+    /// Writes a little-endian 3-channel PFM (`rows[0]` is the top row).
+    fn write_pfm(name: &str, w: usize, h: usize, texel: impl Fn(usize, usize) -> [f32; 3]) -> PathBuf {
+        let path = std::env::temp_dir().join(format!("penumbra-light-{}-{name}.pfm", std::process::id()));
+        let mut bytes = format!("PF\n{w} {h}\n-1.0\n").into_bytes();
+        for y in (0..h).rev() {
+            for x in 0..w {
+                for c in texel(x, y) {
+                    bytes.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+        }
+        std::fs::write(&path, bytes).unwrap();
+        path
+    }
+
+    fn map_texel(x: usize, y: usize) -> [f32; 3] {
+        if (x, y) == (5, 1) {
+            return [40.0, 30.0, 20.0];
+        }
+        let v = 0.1 + ((x * 3 + y * 5) % 7) as f32;
+        [v, 0.5 * v + 0.2, 1.0 + (x % 2) as f32]
+    }
+
+    #[test]
+    fn infinite_map_light_samples_follow_pdf_li() {
+        let (w, h) = (8, 4);
+        let path = write_pfm("envmap", w, h, map_texel);
+        let ctm = Transform::rotate(30.0, [1.0, 1.0, 0.0]).unwrap();
+        let params = vec![string("mapname", path.to_str().unwrap()), rgb("scale", [2.0, 2.0, 2.0]), int("nsamples", 4)];
+        let light = build_one("infinite", params, ctm);
+        let _ = std::fs::remove_file(&path);
+        assert_eq!(light.n_samples(), 4);
+        let lin = linear_part(&ctm.m);
+        let frame = Frame { x: lin * Vec3::X, y: lin * Vec3::Y, z: lin * Vec3::Z };
+        let c = ctx(Vec3::new(-1.0, 0.0, 2.0));
+        // The lat-long mapping: texel (x, y) is seen along light-space (φ, θ) = (2π (x+½)/w, π (y+½)/h).
+        for y in 0..h {
+            for x in 0..w {
+                let (phi, theta) = (2.0 * PI * (x as f32 + 0.5) / w as f32, PI * (y as f32 + 0.5) / h as f32);
+                let d = frame.from_local(Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()));
+                let le = light.le(&Ray::new(c.p, d, f32::INFINITY));
+                let expect = Rgb::from(map_texel(x, y)) * 2.0;
+                assert!((le - expect).abs().max_element() < 1e-3 * expect.max_element(), "({x},{y}): {le:?} vs {expect:?}");
+            }
+        }
+        let mut mismatched = 0;
+        let sample = |u: Vec2| {
+            let s = light.sample_li(&c, u, &[])?;
+            // Rounding can move a direction across a cell boundary or (near the poles) change θ slightly.
+            mismatched += ((s.pdf - light.pdf_li(&c, s.wi, None)).abs() > 1e-3 * s.pdf) as usize;
+            let le = light.le(&Ray::new(c.p, s.wi, f32::INFINITY));
+            // (φ is ill-conditioned at the poles, where the lookup blends the first and last rows.)
+            mismatched += ((s.li - le).abs().max_element() > 1e-3 * le.max_element().max(1.0)) as usize;
+            assert!((s.p_light - (c.p + s.wi * 2.0 * 3f32.sqrt())).length() < 1e-4);
+            Some(s.wi)
+        };
+        // Bins aligned with the 16×8 distribution cells.
+        let p = chi2_dirs(4, 200_000, frame, PI64, (16, 32, 4), sample, |w| light.pdf_li(&c, w, None) as f64);
+        assert!(p > ALPHA);
+        assert!(mismatched < 200, "sample_li and pdf_li disagree on {mismatched} samples");
+        // ∫ pdf_li dω = 1 on a jittered (θ, φ) grid.
+        let mut rng = Rng::new(8);
+        let (nt, np) = (256, 512);
+        let mut total = 0.0f64;
+        for i in 0..nt {
+            for j in 0..np {
+                let theta = PI64 * (i as f64 + rng.uniform_f64()) / nt as f64;
+                let phi = 2.0 * PI64 * (j as f64 + rng.uniform_f64()) / np as f64;
+                let l = Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32);
+                total += light.pdf_li(&c, frame.from_local(l), None) as f64 * theta.sin();
+            }
+        }
+        total *= PI64 * 2.0 * PI64 / (nt * np) as f64;
+        assert!((total - 1.0).abs() < 0.01, "∫ pdf_li dω = {total}");
+    }
+
+    #[test]
+    fn goniometric_and_projection_maps() {
+        let (w, h) = (8, 4);
+        let path = write_pfm("gonio", w, h, map_texel);
+        let pl = Vec3::new(0.0, 1.0, 0.0);
+        let ctm = Transform::translate([0.0, 1.0, 0.0]);
+        let gonio = build_one("goniometric", vec![string("mapname", path.to_str().unwrap()), rgb("I", [2.0, 2.0, 2.0])], ctm);
+        let plain = build_one("goniometric", vec![], ctm);
+        // Texel (x, y) lies along the direction whose y/z-swapped spherical angles are its centre.
+        for (x, y) in [(5, 1), (2, 2), (7, 0)] {
+            let (phi, theta) = (2.0 * PI * (x as f32 + 0.5) / w as f32, PI * (y as f32 + 0.5) / h as f32);
+            let wp = Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+            let dir = Vec3::new(wp.x, wp.z, wp.y);
+            let q = pl + 2.0 * dir;
+            let s = gonio.sample_li(&ctx(q), Vec2::ZERO, &[]).unwrap();
+            let expect = Rgb::from(map_texel(x, y)) * 2.0 / 4.0;
+            assert!((s.li - expect).abs().max_element() < 1e-4 * expect.max_element(), "({x},{y}): {:?} vs {expect:?}", s.li);
+            assert!((plain.sample_li(&ctx(q), Vec2::ZERO, &[]).unwrap().li - Rgb::splat(0.25)).length() < 1e-6);
+        }
+
+        // Projection of a 4×2 map (aspect 2: screen [-2,2]×[-1,1]), fov 45°.
+        let ppath = write_pfm("proj", 4, 2, map_texel);
+        let proj = build_one("projection", vec![string("mapname", ppath.to_str().unwrap())], ctm);
+        let bare = build_one("projection", vec![float("fov", 45.0)], ctm);
+        let _ = std::fs::remove_file(&path);
+        let _ = std::fs::remove_file(&ppath);
+        let tan = 22.5f32.to_radians().tan();
+        for (x, y) in [(1usize, 0usize), (3, 1), (0, 1)] {
+            let (sx, sy) = (-2.0 + 4.0 * (x as f32 + 0.5) / 4.0, -1.0 + 2.0 * (y as f32 + 0.5) / 2.0);
+            let dir = Vec3::new(sx * tan, sy * tan, 1.0).normalize();
+            let s = proj.sample_li(&ctx(pl + 3.0 * dir), Vec2::ZERO, &[]).unwrap();
+            let expect = Rgb::from(map_texel(x, y)) / 9.0;
+            assert!((s.li - expect).abs().max_element() < 1e-4 * expect.max_element(), "({x},{y}): {:?} vs {expect:?}", s.li);
+        }
+        // Without a map: 1 inside the square frustum, 0 outside and behind.
+        assert!((bare.sample_li(&ctx(pl + Vec3::Z * 2.0), Vec2::ZERO, &[]).unwrap().li - Rgb::splat(0.25)).length() < 1e-6);
+        let off = Vec3::new(30f32.to_radians().sin(), 0.0, 30f32.to_radians().cos());
+        assert!(bare.sample_li(&ctx(pl + off), Vec2::ZERO, &[]).is_none());
+        assert!(bare.sample_li(&ctx(pl - Vec3::Z), Vec2::ZERO, &[]).is_none());
+    }
+
+    #[test]
+    fn build_maps_triangles_to_lights_and_warns() {
+        // Three triangles, the middle one degenerate; a one-light "disk" next to it.
+        let tri_mesh = TriangleMesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 1.0)],
+            indices: vec![[0, 1, 2], [0, 1, 3], [0, 2, 4]],
+            ..Default::default()
+        };
+        let disk = TriangleMesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(-1.0, 0.0, 0.0)],
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            ..Default::default()
+        };
+        let plain = tri_mesh.clone();
+        let mut d = desc();
+        d.area_lights = vec![
+            entity("diffuse", vec![rgb("L", [1.0, 1.0, 1.0]), int("samples", 3), int("nsamples", 8)]),
+            entity("blinking", vec![]),
+            entity("area", vec![rgb("L", [0.0, 0.0, 0.0])]),
+        ];
+        d.lights = vec![
+            light_desc("laser", vec![float("power", 1.0)], Transform::IDENTITY),
+            light_desc("point", vec![float("radius", 1.0)], Transform::IDENTITY),
+            light_desc("point", vec![rgb("I", [0.0, 0.0, 0.0])], Transform::IDENTITY),
+        ];
+        let meshes = vec![tri_mesh.clone(), disk, plain.clone(), plain.clone(), plain.clone(), plain];
+        let objects = vec![
+            object("trianglemesh", Some(0), None),
+            object("disk", Some(0), None),
+            object("trianglemesh", None, None),
+            object("trianglemesh", Some(1), None),
+            object("trianglemesh", Some(0), Some(0)),
+            object("trianglemesh", Some(2), Some(1)),
+        ];
+        let sink = DiagSink::new();
+        let lights = Lights::build(&d, &meshes, &objects, unit_bounds(), &sink).unwrap();
+        let w: Vec<String> = sink.take().into_iter().map(|d| d.message).collect();
+        // The point light with I = 0 is skipped; the unknown "laser" too.
+        assert_eq!(lights.len(), 1 + 2 + 1, "{w:?}");
+        assert!(matches!(lights.lights[0], Light::Point(_)));
+        assert_eq!(lights.light_of(0, 0), Some(1));
+        assert_eq!(lights.light_of(0, 1), None);
+        assert_eq!(lights.light_of(0, 2), Some(2));
+        assert_eq!(lights.light_of(1, 0), Some(3));
+        assert_eq!(lights.light_of(1, 1), Some(3));
+        assert_eq!(lights.light_of(2, 0), None);
+        assert_eq!(lights.light_of(3, 0), None);
+        assert_eq!(lights.light_of(4, 0), None);
+        assert_eq!(lights.light_of(99, 0), None);
+        let area = lights.lights[3].area().unwrap();
+        assert_eq!((area.mesh, area.tris.clone(), area.area), (1, vec![0, 1], 1.0));
+        assert_eq!(lights.lights[1].n_samples(), 3, "\"samples\" wins over \"nsamples\"");
+        assert_eq!(lights.infinite().count(), 0);
+        let count = |s: &str| w.iter().filter(|m| m.contains(s)).count();
+        assert_eq!(count("\"laser\" unknown"), 1, "{w:?}");
+        assert_eq!(count("\"blinking\" unknown"), 1, "{w:?}");
+        assert_eq!(count("object instancing"), 1, "{w:?}");
+        assert_eq!(count("radius"), 1, "{w:?}");
+        assert_eq!(count("power"), 0, "{w:?}");
+        assert_eq!(count("samples"), 0, "{w:?}");
+    }
+
+    #[test]
+    fn bad_spectrum_is_a_located_error() {
+        let mut d = desc();
+        d.lights = vec![light_desc(
+            "point",
+            vec![param("I", ParamValue::Spectrum(SpectrumValue::Rgb(vec![1.0, 2.0])))],
+            Transform::IDENTITY,
+        )];
+        let err = Lights::build(&d, &[], &[], unit_bounds(), &DiagSink::new()).unwrap_err();
+        assert!(err.is_error() && err.loc.as_ref().is_some_and(|l| l.line == 4), "{err:?}");
+        assert!(err.message.contains("\"I\""), "{}", err.message);
+    }
+
+    #[test]
+    fn degenerate_input_never_panics_or_gives_nan() {
+        let mesh = facing_triangle(Vec3::ZERO, [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)]);
+        let meshes = [mesh];
+        let (area, _) = build_area(&meshes, &["trianglemesh"], entity("diffuse", vec![]));
+        let path = write_pfm("nan", 2, 1, |x, _| if x == 0 { [f32::NAN, 1.0, f32::INFINITY] } else { [1.0; 3] });
+        let mut all = vec![
+            build_one("point", vec![], Transform::IDENTITY),
+            build_one("spot", vec![], Transform::IDENTITY),
+            build_one("distant", vec![], Transform::IDENTITY),
+            build_one("infinite", vec![string("mapname", path.to_str().unwrap())], Transform::IDENTITY),
+            build_one("goniometric", vec![], Transform::IDENTITY),
+            build_one("projection", vec![], Transform::IDENTITY),
+        ];
+        let _ = std::fs::remove_file(&path);
+        all.extend(area.lights);
+        let bad = [f32::NAN, f32::INFINITY, -f32::INFINITY, 0.0, 1e30];
+        for l in &all {
+            for &a in &bad {
+                for p in [Vec3::splat(a), Vec3::new(0.0, 0.0, a), Vec3::new(0.2, 0.2, 1.0)] {
+                    for u in [Vec2::splat(a), Vec2::ZERO, Vec2::ONE, Vec2::new(a, 0.5)] {
+                        if let Some(s) = l.sample_li(&ctx(p), u, &meshes) {
+                            assert!(s.li.is_finite() && s.wi.is_finite() && s.pdf.is_finite() && s.pdf > 0.0, "{l:?} {s:?}");
+                        }
+                    }
+                    for wi in [Vec3::splat(a), Vec3::Z, -Vec3::Z, Vec3::ZERO] {
+                        for hit in [None, Some((Vec3::splat(a), Vec3::Z)), Some((Vec3::Z, Vec3::ZERO))] {
+                            let pdf = l.pdf_li(&ctx(p), wi, hit);
+                            assert!(pdf.is_finite() && pdf >= 0.0, "{pdf}");
+                        }
+                        assert!(l.le(&Ray::new(p, wi, 1.0)).is_finite());
+                        assert!(l.l(wi, Vec3::Z).is_finite());
+                    }
+                }
+            }
+        }
+        // Out-of-range geometry references are no samples, not panics.
+        assert!(all.last().unwrap().sample_li(&ctx(Vec3::ZERO), Vec2::ZERO, &[]).is_none());
+    }
 }
 
 // SHIM: remove at merge — stand-ins for `crate::spectrum::spectrum_to_rgb` and
