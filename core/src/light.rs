@@ -272,7 +272,12 @@ pub enum Light {
 }
 
 /// A delta-position light sample: intensity × `modulation` / d² from `p`.
-fn point_sample(ctx: &LightContext, p: Vec3, intensity: Rgb, modulation: impl Fn(Vec3) -> Rgb) -> Option<LightLiSample> {
+fn point_sample(
+    ctx: &LightContext,
+    p: Vec3,
+    intensity: Rgb,
+    modulation: impl Fn(Vec3) -> Rgb,
+) -> Option<LightLiSample> {
     let d = p - ctx.p;
     let d2 = d.length_squared();
     if !(d2 > 0.0) || !d2.is_finite() {
@@ -283,21 +288,19 @@ fn point_sample(ctx: &LightContext, p: Vec3, intensity: Rgb, modulation: impl Fn
     if li == Rgb::ZERO || !li.is_finite() {
         return None;
     }
-    Some(LightLiSample {
-        li,
-        wi,
-        pdf: 1.0,
-        p_light: p,
-        p_light_error: Vec3::ZERO,
-        n_light: Vec3::ZERO,
-        delta: true,
-    })
+    Some(LightLiSample { li, wi, pdf: 1.0, p_light: p, p_light_error: Vec3::ZERO, n_light: Vec3::ZERO, delta: true })
 }
 
 fn tri_vertices(mesh: &TriangleMesh, tri: usize) -> Option<[Vec3; 3]> {
     let idx = mesh.indices.get(tri)?;
-    Some([mesh.positions.get(idx[0] as usize)?, mesh.positions.get(idx[1] as usize)?, mesh.positions.get(idx[2] as usize)?]
-        .map(|p| *p))
+    Some(
+        [
+            mesh.positions.get(idx[0] as usize)?,
+            mesh.positions.get(idx[1] as usize)?,
+            mesh.positions.get(idx[2] as usize)?,
+        ]
+        .map(|p| *p),
+    )
 }
 
 /// The normal pbrt-v3's `Triangle::Sample` gives the point with barycentrics `b`:
@@ -517,7 +520,10 @@ fn spectrum_param(p: &ParamSet, name: &str, default: Rgb, owner: &str, loc: &Fil
     match p.get_spectrum(name) {
         None => Ok(default),
         Some(v) => spectrum_to_rgb(v).map_err(|e| {
-            Diagnostic::error(Some(p.loc_of(name).unwrap_or(loc).clone()), format!("{owner}: parameter \"{name}\": {e}"))
+            Diagnostic::error(
+                Some(p.loc_of(name).unwrap_or(loc).clone()),
+                format!("{owner}: parameter \"{name}\": {e}"),
+            )
         }),
     }
 }
@@ -560,7 +566,8 @@ fn image_to_map(img: &Image, decode_srgb: bool) -> Option<RgbMap> {
         .take(w * h)
         .map(|px| {
             let c = Rgb::from(idx.map(|i| px[i]));
-            let c = if decode_srgb { Rgb::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z)) } else { c };
+            let c =
+                if decode_srgb { Rgb::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z)) } else { c };
             // Non-finite texels would poison every estimate: count them as black.
             if c.is_finite() {
                 c
@@ -594,7 +601,10 @@ fn load_map(desc: &SceneDescription, p: &ParamSet, owner: &str, warnings: &DiagS
             m
         }
         Err(e) => {
-            warnings.warn(loc, format!("{owner}: cannot read \"{}\": {e}; ignoring the map as pbrt-v3 does", path.display()));
+            warnings.warn(
+                loc,
+                format!("{owner}: cannot read \"{}\": {e}; ignoring the map as pbrt-v3 does", path.display()),
+            );
             None
         }
     }
@@ -679,7 +689,10 @@ impl Lights {
                         Some((l, two_sided, ns))
                     }
                 } else {
-                    warnings.warn(Some(ent.loc.clone()), format!("area light \"{}\" unknown: its shapes do not emit", ent.kind));
+                    warnings.warn(
+                        Some(ent.loc.clone()),
+                        format!("area light \"{}\" unknown: its shapes do not emit", ent.kind),
+                    );
                     ent.params.mark_all_used();
                     None
                 };
@@ -763,7 +776,10 @@ fn make_light(
     let p = &e.params;
     let ctm = ld.render_from_light.start;
     if ld.render_from_light.is_animated() {
-        warnings.warn(Some(e.loc.clone()), format!("{owner}: animated light transforms are not supported: using the start transform"));
+        warnings.warn(
+            Some(e.loc.clone()),
+            format!("{owner}: animated light transforms are not supported: using the start transform"),
+        );
     }
     let kind = e.kind.as_str();
     let known = matches!(kind, "point" | "spot" | "goniometric" | "projection" | "distant" | "infinite" | "exinfinite");
@@ -812,10 +828,14 @@ fn make_light(
             let fov = p.get_one_float("fov", 45.0);
             let map = load_map(desc, p, owner, warnings);
             let aspect = map.as_ref().map_or(1.0, |m| m.width as f32 / m.height as f32);
-            let screen = if aspect > 1.0 { [-aspect, aspect, -1.0, 1.0] } else { [-1.0, 1.0, -1.0 / aspect, 1.0 / aspect] };
+            let screen =
+                if aspect > 1.0 { [-aspect, aspect, -1.0, 1.0] } else { [-1.0, 1.0, -1.0 / aspect, 1.0 / aspect] };
             let inv_tan = 1.0 / (fov.to_radians() / 2.0).tan();
             if !inv_tan.is_finite() || !(inv_tan > 0.0) {
-                warnings.warn(p.loc_of("fov").cloned().or(Some(e.loc.clone())), format!("{owner}: invalid \"fov\": ignored"));
+                warnings.warn(
+                    p.loc_of("fov").cloned().or(Some(e.loc.clone())),
+                    format!("{owner}: invalid \"fov\": ignored"),
+                );
                 return Ok(None);
             }
             Light::Projection(ProjectionLight {
@@ -1051,7 +1071,8 @@ mod tests {
             let theta = (it as f64 + 0.5) * dt;
             for ip in 0..np * k {
                 let phi = (ip as f64 + 0.5) * dp;
-                let l = Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32);
+                let l =
+                    Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32);
                 exp[(it / k) * np + ip / k] += pdf(frame.from_local(l)) * theta.sin() * dt * dp;
             }
         }
@@ -1131,21 +1152,22 @@ mod tests {
             assert!(!s.delta);
             Some(s.wi)
         };
-        let pdf = |w: Vec3| first_hit(&mesh, p, w).map_or(0.0, |(_, hp, hn)| light.pdf_li(&c, w, Some((hp, hn))) as f64);
-        assert!(chi2_dirs(1, 100_000, frame, tmax, (8, 16, 16), sample, pdf) > ALPHA);
+        let pdf =
+            |w: Vec3| first_hit(&mesh, p, w).map_or(0.0, |(_, hp, hn)| light.pdf_li(&c, w, Some((hp, hn))) as f64);
+        assert!(chi2_dirs(1, 100_000, frame, tmax, (8, 16, 40), sample, pdf) > ALPHA);
         let total = integrate_cone(frame, tmax, pdf);
         assert!((total - 1.0).abs() < 0.01, "∫ pdf_li dω = {total}");
     }
 
     #[test]
     fn quadric_light_over_several_triangles_samples_by_area() {
-        // A stretched octahedron ("sphere" shape: one light over all triangles).
+        // A lopsided octahedron (faces of different areas; "sphere" shape: one light over all triangles).
         let centre = Vec3::new(0.3, -0.2, 3.0);
-        let axes = [Vec3::X * 1.0, Vec3::Y * 0.6, Vec3::Z * 1.4];
+        let axes = [(Vec3::X, 1.0, 0.4), (Vec3::Y, 0.6, 1.1), (Vec3::Z, 1.4, 0.7)];
         let mut positions = Vec::new();
-        for a in axes {
-            positions.push(centre + a);
-            positions.push(centre - a);
+        for (a, plus, minus) in axes {
+            positions.push(centre + a * plus);
+            positions.push(centre - a * minus);
         }
         let mut indices = Vec::new();
         for sx in 0..2u32 {
@@ -1169,6 +1191,8 @@ mod tests {
         assert_eq!(g.tris.len(), 8);
         let total_area: f32 = (0..8).map(|t| mesh.area(t)).sum();
         assert!((g.area - total_area).abs() < 1e-5 * total_area);
+        let areas: Vec<f32> = (0..8).map(|t| mesh.area(t)).collect();
+        assert!(areas.iter().cloned().fold(0.0, f32::max) > 2.0 * areas.iter().cloned().fold(f32::MAX, f32::min));
         for t in 0..8 {
             assert_eq!(lights.light_of(0, t), Some(0));
         }
@@ -1188,8 +1212,9 @@ mod tests {
             assert!((q - s.pdf).abs() <= 1e-3 * s.pdf, "{q} vs {}", s.pdf);
             Some(s.wi)
         };
-        let pdf = |w: Vec3| first_hit(&mesh, p, w).map_or(0.0, |(_, hp, hn)| light.pdf_li(&c, w, Some((hp, hn))) as f64);
-        assert!(chi2_dirs(2, 100_000, frame, tmax, (8, 16, 16), sample, pdf) > ALPHA);
+        let pdf =
+            |w: Vec3| first_hit(&mesh, p, w).map_or(0.0, |(_, hp, hn)| light.pdf_li(&c, w, Some((hp, hn))) as f64);
+        assert!(chi2_dirs(2, 100_000, frame, tmax, (8, 16, 40), sample, pdf) > ALPHA);
         assert_eq!(hidden, 0, "a convex one-sided light only returns its visible side");
         let total = integrate_cone(frame, tmax, pdf);
         let visible_area: f32 = (0..8)
@@ -1285,7 +1310,11 @@ mod tests {
     fn point_light_is_intensity_over_distance_squared() {
         // pbrt-v3 places the light at CTM(0) + from, not CTM(from).
         let ctm = Transform::scale([2.0, 2.0, 2.0]).unwrap();
-        let light = build_one("point", vec![rgb("I", [1.0, 2.0, 4.0]), rgb("scale", [2.0, 2.0, 2.0]), point3("from", [0.0, 2.0, 0.0])], ctm);
+        let light = build_one(
+            "point",
+            vec![rgb("I", [1.0, 2.0, 4.0]), rgb("scale", [2.0, 2.0, 2.0]), point3("from", [0.0, 2.0, 0.0])],
+            ctm,
+        );
         for q in [Vec3::new(0.0, 2.0, 3.0), Vec3::new(1.0, -1.0, 0.5), Vec3::new(-7.0, 2.0, 0.0)] {
             let s = light.sample_li(&ctx(q), Vec2::ZERO, &[]).unwrap();
             let d2 = (Vec3::new(0.0, 2.0, 0.0) - q).length_squared();
@@ -1298,7 +1327,11 @@ mod tests {
 
     #[test]
     fn distant_light_shadow_end_is_two_scene_radii_away() {
-        let light = build_one("distant", vec![rgb("L", [0.5, 1.0, 1.5]), point3("from", [0.0, 0.0, 0.0]), point3("to", [0.0, 0.0, 1.0])], Transform::IDENTITY);
+        let light = build_one(
+            "distant",
+            vec![rgb("L", [0.5, 1.0, 1.5]), point3("from", [0.0, 0.0, 0.0]), point3("to", [0.0, 0.0, 1.0])],
+            Transform::IDENTITY,
+        );
         let q = Vec3::new(0.2, 0.3, 0.4);
         let s = light.sample_li(&ctx(q), Vec2::ZERO, &[]).unwrap();
         assert_eq!(s.wi, Vec3::new(0.0, 0.0, -1.0));
@@ -1379,7 +1412,10 @@ mod tests {
                 let d = frame.from_local(Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()));
                 let le = light.le(&Ray::new(c.p, d, f32::INFINITY));
                 let expect = Rgb::from(map_texel(x, y)) * 2.0;
-                assert!((le - expect).abs().max_element() < 1e-3 * expect.max_element(), "({x},{y}): {le:?} vs {expect:?}");
+                assert!(
+                    (le - expect).abs().max_element() < 1e-3 * expect.max_element(),
+                    "({x},{y}): {le:?} vs {expect:?}"
+                );
             }
         }
         let mut mismatched = 0;
@@ -1405,7 +1441,8 @@ mod tests {
             for j in 0..np {
                 let theta = PI64 * (i as f64 + rng.uniform_f64()) / nt as f64;
                 let phi = 2.0 * PI64 * (j as f64 + rng.uniform_f64()) / np as f64;
-                let l = Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32);
+                let l =
+                    Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32);
                 total += light.pdf_li(&c, frame.from_local(l), None) as f64 * theta.sin();
             }
         }
@@ -1419,7 +1456,8 @@ mod tests {
         let path = write_pfm("gonio", w, h, map_texel);
         let pl = Vec3::new(0.0, 1.0, 0.0);
         let ctm = Transform::translate([0.0, 1.0, 0.0]);
-        let gonio = build_one("goniometric", vec![string("mapname", path.to_str().unwrap()), rgb("I", [2.0, 2.0, 2.0])], ctm);
+        let gonio =
+            build_one("goniometric", vec![string("mapname", path.to_str().unwrap()), rgb("I", [2.0, 2.0, 2.0])], ctm);
         let plain = build_one("goniometric", vec![], ctm);
         // Texel (x, y) lies along the direction whose y/z-swapped spherical angles are its centre.
         for (x, y) in [(5, 1), (2, 2), (7, 0)] {
@@ -1429,7 +1467,11 @@ mod tests {
             let q = pl + 2.0 * dir;
             let s = gonio.sample_li(&ctx(q), Vec2::ZERO, &[]).unwrap();
             let expect = Rgb::from(map_texel(x, y)) * 2.0 / 4.0;
-            assert!((s.li - expect).abs().max_element() < 1e-4 * expect.max_element(), "({x},{y}): {:?} vs {expect:?}", s.li);
+            assert!(
+                (s.li - expect).abs().max_element() < 1e-4 * expect.max_element(),
+                "({x},{y}): {:?} vs {expect:?}",
+                s.li
+            );
             assert!((plain.sample_li(&ctx(q), Vec2::ZERO, &[]).unwrap().li - Rgb::splat(0.25)).length() < 1e-6);
         }
 
@@ -1445,10 +1487,16 @@ mod tests {
             let dir = Vec3::new(sx * tan, sy * tan, 1.0).normalize();
             let s = proj.sample_li(&ctx(pl + 3.0 * dir), Vec2::ZERO, &[]).unwrap();
             let expect = Rgb::from(map_texel(x, y)) / 9.0;
-            assert!((s.li - expect).abs().max_element() < 1e-4 * expect.max_element(), "({x},{y}): {:?} vs {expect:?}", s.li);
+            assert!(
+                (s.li - expect).abs().max_element() < 1e-4 * expect.max_element(),
+                "({x},{y}): {:?} vs {expect:?}",
+                s.li
+            );
         }
         // Without a map: 1 inside the square frustum, 0 outside and behind.
-        assert!((bare.sample_li(&ctx(pl + Vec3::Z * 2.0), Vec2::ZERO, &[]).unwrap().li - Rgb::splat(0.25)).length() < 1e-6);
+        assert!(
+            (bare.sample_li(&ctx(pl + Vec3::Z * 2.0), Vec2::ZERO, &[]).unwrap().li - Rgb::splat(0.25)).length() < 1e-6
+        );
         let off = Vec3::new(30f32.to_radians().sin(), 0.0, 30f32.to_radians().cos());
         assert!(bare.sample_li(&ctx(pl + off), Vec2::ZERO, &[]).is_none());
         assert!(bare.sample_li(&ctx(pl - Vec3::Z), Vec2::ZERO, &[]).is_none());
@@ -1531,7 +1579,8 @@ mod tests {
 
     #[test]
     fn degenerate_input_never_panics_or_gives_nan() {
-        let mesh = facing_triangle(Vec3::ZERO, [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)]);
+        let mesh =
+            facing_triangle(Vec3::ZERO, [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)]);
         let meshes = [mesh];
         let (area, _) = build_area(&meshes, &["trianglemesh"], entity("diffuse", vec![]));
         let path = write_pfm("nan", 2, 1, |x, _| if x == 0 { [f32::NAN, 1.0, f32::INFINITY] } else { [1.0; 3] });
@@ -1551,7 +1600,10 @@ mod tests {
                 for p in [Vec3::splat(a), Vec3::new(0.0, 0.0, a), Vec3::new(0.2, 0.2, 1.0)] {
                     for u in [Vec2::splat(a), Vec2::ZERO, Vec2::ONE, Vec2::new(a, 0.5)] {
                         if let Some(s) = l.sample_li(&ctx(p), u, &meshes) {
-                            assert!(s.li.is_finite() && s.wi.is_finite() && s.pdf.is_finite() && s.pdf > 0.0, "{l:?} {s:?}");
+                            assert!(
+                                s.li.is_finite() && s.wi.is_finite() && s.pdf.is_finite() && s.pdf > 0.0,
+                                "{l:?} {s:?}"
+                            );
                         }
                     }
                     for wi in [Vec3::splat(a), Vec3::Z, -Vec3::Z, Vec3::ZERO] {
