@@ -439,6 +439,7 @@ impl Light {
     }
 
     /// Emitted radiance of an area light at a point with geometric normal `n` towards `w` (zero for other lights).
+    /// Pass `SurfaceInteraction::n` (pbrt-v3's oriented normal) and `wo` for a ray hit.
     pub fn l(&self, n: Vec3, w: Vec3) -> Rgb {
         match self {
             Light::Area(a) if a.geom.two_sided || n.dot(w) > 0.0 => a.geom.l,
