@@ -6,6 +6,7 @@ use crate::camera::Camera;
 use crate::film::{Bounds2i, FilmSpec};
 use crate::filter::{create_filter, Filter};
 use crate::geometry::{face_forward, gamma, Bounds3, Frame, Ray};
+use crate::light::Lights;
 use crate::mesh::TriangleMesh;
 use crate::sampler::{create_sampler, Sampler};
 use crate::shapes::{build_shape, ShapeContext, Tessellation};
@@ -83,6 +84,8 @@ pub struct Scene {
     pub meshes: Vec<TriangleMesh>,
     pub objects: Vec<SceneObject>,
     pub accel: Option<Accel>,
+    /// Lights (built when `Requirements::lights`).
+    pub lights: Option<Lights>,
     pub bounds: Bounds3,
     /// The scene's own `Integrator` directive.
     pub integrator: Entity,
@@ -269,6 +272,14 @@ impl Scene {
         } else {
             None
         };
+        let lights = if req.lights {
+            let t = Instant::now();
+            let l = Lights::build(desc, &meshes, &objects, bounds, warnings)?;
+            report.stages.push(("lights".into(), t.elapsed().as_secs_f64(), format!("{} lights", l.len())));
+            Some(l)
+        } else {
+            None
+        };
         Ok(Scene {
             camera,
             film,
@@ -277,6 +288,7 @@ impl Scene {
             meshes,
             objects,
             accel,
+            lights,
             bounds,
             integrator: desc.integrator.clone(),
             report,
@@ -286,6 +298,11 @@ impl Scene {
     /// Closest hit (requires `Requirements::accel`).
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         self.accel.as_ref().and_then(|a| a.intersect(ray))
+    }
+
+    /// The index (into `lights.lights`) of the area light that the hit triangle belongs to.
+    pub fn area_light_at(&self, hit: &Hit) -> Option<usize> {
+        self.lights.as_ref()?.light_of(hit.mesh, hit.tri)
     }
 
     /// Whether anything blocks `ray` before `ray.t_max`.
