@@ -32,9 +32,8 @@ use penumbra_parser::{DiagSink, Diagnostic, FileLoc, ParamSet, SceneDescription,
 use std::f32::consts::PI;
 use std::path::Path;
 
-// SHIM: remove at merge — replace with
-// `use crate::image::read as read_image; use crate::spectrum::spectrum_to_rgb;`
-use shim::{read_image, spectrum_to_rgb};
+use crate::image::read as read_image;
+use crate::spectrum::spectrum_to_rgb;
 
 /// The receiving point of a light query.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -1620,75 +1619,5 @@ mod tests {
         }
         // Out-of-range geometry references are no samples, not panics.
         assert!(all.last().unwrap().sample_li(&ctx(Vec3::ZERO), Vec2::ZERO, &[]).is_none());
-    }
-}
-
-// SHIM: remove at merge — stand-ins for `crate::spectrum::spectrum_to_rgb` and
-// `crate::image::read`, which are written on other branches.
-mod shim {
-    use crate::image::{Image, ImageError};
-    use crate::Rgb;
-    use penumbra_parser::SpectrumValue;
-    use std::path::Path;
-
-    #[derive(Debug, thiserror::Error)]
-    #[error("{0}")]
-    pub struct SpectrumError(String);
-
-    /// SHIM: RGB values only.
-    pub fn spectrum_to_rgb(v: &SpectrumValue) -> Result<Rgb, SpectrumError> {
-        match v {
-            SpectrumValue::Rgb(x) if x.len() >= 3 => Ok(Rgb::new(x[0], x[1], x[2])),
-            _ => Err(SpectrumError("only rgb spectra are supported yet".into())),
-        }
-    }
-
-    /// SHIM: PFM only (for the tests); other formats are an error.
-    pub fn read_image(path: &Path) -> Result<Image, ImageError> {
-        let bytes = std::fs::read(path).map_err(|e| ImageError(e.to_string()))?;
-        let bad = || ImageError("not a PFM file".into());
-        let mut fields = Vec::new();
-        let mut pos = 0;
-        while fields.len() < 4 {
-            while pos < bytes.len() && bytes[pos].is_ascii_whitespace() {
-                pos += 1;
-            }
-            let start = pos;
-            while pos < bytes.len() && !bytes[pos].is_ascii_whitespace() {
-                pos += 1;
-            }
-            if start == pos {
-                return Err(bad());
-            }
-            fields.push(String::from_utf8_lossy(&bytes[start..pos]).into_owned());
-        }
-        pos += 1;
-        let nc = match fields[0].as_str() {
-            "PF" => 3,
-            "Pf" => 1,
-            _ => return Err(bad()),
-        };
-        let w: usize = fields[1].parse().map_err(|_| bad())?;
-        let h: usize = fields[2].parse().map_err(|_| bad())?;
-        let scale: f32 = fields[3].parse().map_err(|_| bad())?;
-        let n = w.checked_mul(h).and_then(|v| v.checked_mul(nc)).ok_or_else(bad)?;
-        let body = bytes.get(pos..pos + n * 4).ok_or_else(bad)?;
-        let vals: Vec<f32> = body
-            .chunks_exact(4)
-            .map(|c| {
-                let b = [c[0], c[1], c[2], c[3]];
-                if scale < 0.0 {
-                    f32::from_le_bytes(b)
-                } else {
-                    f32::from_be_bytes(b)
-                }
-            })
-            .collect();
-        let mut data = Vec::with_capacity(n);
-        for y in (0..h).rev() {
-            data.extend_from_slice(&vals[y * w * nc..(y + 1) * w * nc]);
-        }
-        let channels = if nc == 3 { vec!["R".into(), "G".into(), "B".into()] } else { vec!["Y".into()] };
-        Ok(Image { width: w as u32, height: h as u32, channels, data })
     }
 }
