@@ -18,6 +18,7 @@ pub mod scene;
 pub mod shapes;
 pub mod spectrum;
 pub mod stats;
+pub mod texture;
 
 pub use glam::{IVec2, UVec2, Vec2, Vec3, Vec3A};
 pub use penumbra_parser as parser;
