@@ -3,7 +3,9 @@
 //! every integrator in `penumbra-integrators` plugs into.
 
 pub mod accel;
+pub mod bxdf;
 pub mod camera;
+pub mod cie_data;
 pub mod film;
 pub mod filter;
 pub mod geometry;
@@ -11,6 +13,8 @@ pub mod image;
 pub mod integrator;
 pub mod light;
 pub mod mesh;
+pub mod metal_data;
+pub mod microfacet;
 pub mod rng;
 pub mod sampler;
 pub mod sampling;

@@ -724,18 +724,8 @@ fn luminance(c: Rgb) -> f32 {
     crate::spectrum::luminance(c)
 }
 
-// SHIM: remove at merge (use crate::spectrum::spectrum_to_rgb from the `bsdf` branch).
 fn spectrum_value_to_rgb(v: &SpectrumValue) -> Result<Rgb, String> {
-    match v {
-        SpectrumValue::Rgb(x) if x.len() >= 3 => Ok(Vec3::new(x[0], x[1], x[2])),
-        SpectrumValue::Xyz(x) if x.len() >= 3 => Ok(Vec3::new(
-            3.240479 * x[0] - 1.537150 * x[1] - 0.498535 * x[2],
-            -0.969256 * x[0] + 1.875991 * x[1] + 0.041556 * x[2],
-            0.055648 * x[0] - 0.204043 * x[1] + 1.057311 * x[2],
-        )),
-        SpectrumValue::Rgb(_) | SpectrumValue::Xyz(_) => Err("needs 3 values".into()),
-        _ => Err("blackbody/sampled spectra are not converted yet".into()),
-    }
+    crate::spectrum::spectrum_to_rgb(v).map_err(|e| e.to_string())
 }
 
 /// Converts a spectrum-typed parameter value to RGB as pbrt-v3 does.
