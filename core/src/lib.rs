@@ -12,6 +12,7 @@ pub mod geometry;
 pub mod image;
 pub mod integrator;
 pub mod light;
+pub mod material;
 pub mod mesh;
 pub mod metal_data;
 pub mod microfacet;
