@@ -136,11 +136,8 @@ pub fn concentric_sample_disk(u: Vec2) -> Vec2 {
     if o.x == 0.0 && o.y == 0.0 {
         return Vec2::ZERO;
     }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, FRAC_PI_4 * (o.y / o.x))
-    } else {
-        (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
-    };
+    let (r, theta) =
+        if o.x.abs() > o.y.abs() { (o.x, FRAC_PI_4 * (o.y / o.x)) } else { (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y)) };
     r * Vec2::new(theta.cos(), theta.sin())
 }
 
@@ -209,8 +206,15 @@ pub fn fr_conductor(cos_i: f32, eta_i: Rgb, eta_t: Rgb, k: Rgb) -> Rgb {
 pub enum Fresnel {
     /// Always 1 (pbrt-v3's `FresnelNoOp`, used by `mirror`).
     NoOp,
-    Dielectric { eta_i: f32, eta_t: f32 },
-    Conductor { eta_i: Rgb, eta_t: Rgb, k: Rgb },
+    Dielectric {
+        eta_i: f32,
+        eta_t: f32,
+    },
+    Conductor {
+        eta_i: Rgb,
+        eta_t: Rgb,
+        k: Rgb,
+    },
 }
 
 impl Fresnel {
@@ -393,7 +397,12 @@ impl Bxdf {
                 let f = Fresnel::Dielectric { eta_i: eta_a, eta_t: eta_b }.evaluate(wo.dot(wh));
                 let sqrt_denom = wo.dot(wh) + eta * wi.dot(wh);
                 let factor = if mode == TransportMode::Radiance { 1.0 / eta } else { 1.0 };
-                let v = distribution.d(wh) * distribution.g(wo, wi) * eta * eta * wi.dot(wh).abs() * wo.dot(wh).abs()
+                let v = distribution.d(wh)
+                    * distribution.g(wo, wi)
+                    * eta
+                    * eta
+                    * wi.dot(wh).abs()
+                    * wo.dot(wh).abs()
                     * factor
                     * factor
                     / (cos_i * cos_o * sqrt_denom * sqrt_denom);
@@ -412,8 +421,7 @@ impl Bxdf {
                 }
                 let wh = wh.normalize();
                 let schlick = rs + pow5(1.0 - wi.dot(wh)) * (Rgb::ONE - rs);
-                let specular =
-                    distribution.d(wh) / (4.0 * wi.dot(wh).abs() * wi.z.abs().max(wo.z.abs())) * schlick;
+                let specular = distribution.d(wh) / (4.0 * wi.dot(wh).abs() * wi.z.abs().max(wo.z.abs())) * schlick;
                 diffuse + finite_or_zero(specular)
             }
         }
@@ -693,8 +701,7 @@ impl Bsdf {
         for b in self.bxdfs() {
             let t = b.flags();
             if b.matches(flags)
-                && ((reflect && t.contains(BxdfFlags::REFLECTION))
-                    || (!reflect && t.contains(BxdfFlags::TRANSMISSION)))
+                && ((reflect && t.contains(BxdfFlags::REFLECTION)) || (!reflect && t.contains(BxdfFlags::TRANSMISSION)))
             {
                 f += b.f(wo, wi);
             }

@@ -108,7 +108,10 @@ impl MitchellFilter {
         let (b, c) = (self.b, self.c);
         let x = (2.0 * x).abs();
         let v = if x > 1.0 {
-            (-b - 6.0 * c) * x * x * x + (6.0 * b + 30.0 * c) * x * x + (-12.0 * b - 48.0 * c) * x + (8.0 * b + 24.0 * c)
+            (-b - 6.0 * c) * x * x * x
+                + (6.0 * b + 30.0 * c) * x * x
+                + (-12.0 * b - 48.0 * c) * x
+                + (8.0 * b + 24.0 * c)
         } else {
             (12.0 - 9.0 * b - 6.0 * c) * x * x * x + (-18.0 + 12.0 * b + 6.0 * c) * x * x + (6.0 - 2.0 * b)
         };
@@ -202,7 +205,9 @@ pub fn create_filter(entity: &Entity) -> Result<Box<dyn Filter>, FilterError> {
         "box" => Box::new(BoxFilter { radius }),
         "triangle" => Box::new(TriangleFilter { radius }),
         "gaussian" => Box::new(GaussianFilter::new(radius, param("alpha", 2.0, false)?)),
-        "mitchell" => Box::new(MitchellFilter { radius, b: param("B", 1.0 / 3.0, false)?, c: param("C", 1.0 / 3.0, false)? }),
+        "mitchell" => {
+            Box::new(MitchellFilter { radius, b: param("B", 1.0 / 3.0, false)?, c: param("C", 1.0 / 3.0, false)? })
+        }
         _ => Box::new(LanczosSincFilter { radius, tau: param("tau", 3.0, true)? }),
     })
 }
@@ -220,7 +225,8 @@ mod tests {
         create_filter(&Entity::new(kind, ps, FileLoc::builtin()))
     }
 
-    const POINTS: [(f32, f32); 7] = [(0.0, 0.0), (0.3, -0.2), (-1.1, 0.7), (1.9, 1.2), (0.49, -0.5), (2.5, 0.1), (3.7, -3.9)];
+    const POINTS: [(f32, f32); 7] =
+        [(0.0, 0.0), (0.3, -0.2), (-1.1, 0.7), (1.9, 1.2), (0.49, -0.5), (2.5, 0.1), (3.7, -3.9)];
 
     fn close(a: f32, b: f64) -> bool {
         (a as f64 - b).abs() <= 1e-5 * (1.0 + b.abs())
@@ -278,7 +284,10 @@ mod tests {
             let v = if t < 1.0 {
                 (12.0 - 9.0 * b - 6.0 * c) * t.powi(3) + (-18.0 + 12.0 * b + 6.0 * c) * t * t + (6.0 - 2.0 * b)
             } else if t < 2.0 {
-                (-b - 6.0 * c) * t.powi(3) + (6.0 * b + 30.0 * c) * t * t + (-12.0 * b - 48.0 * c) * t + (8.0 * b + 24.0 * c)
+                (-b - 6.0 * c) * t.powi(3)
+                    + (6.0 * b + 30.0 * c) * t * t
+                    + (-12.0 * b - 48.0 * c) * t
+                    + (8.0 * b + 24.0 * c)
             } else {
                 0.0
             };
@@ -301,7 +310,8 @@ mod tests {
 
     #[test]
     fn sinc_filter() {
-        let s = |x: f64| if x.abs() < 1e-5 { 1.0 } else { (std::f64::consts::PI * x).sin() / (std::f64::consts::PI * x) };
+        let s =
+            |x: f64| if x.abs() < 1e-5 { 1.0 } else { (std::f64::consts::PI * x).sin() / (std::f64::consts::PI * x) };
         let w = |x: f64| if x.abs() > 4.0 { 0.0 } else { s(x) * s(x / 3.0) };
         let f = make("sinc", &[]).unwrap();
         for (x, y) in POINTS.iter().copied().chain([(4.2, 0.0), (1.5, 2.5)]) {

@@ -406,8 +406,10 @@ pub fn bump(
         dv = 0.01;
     }
     let base_n = geom.dpdu.cross(geom.dpdv).normalize_or_zero();
-    let shifted_u = TextureEvalContext { p: ctx.p + du * geom.dpdu, uv: ctx.uv + Vec2::new(du, 0.0), n: base_n, ..*ctx };
-    let shifted_v = TextureEvalContext { p: ctx.p + dv * geom.dpdv, uv: ctx.uv + Vec2::new(0.0, dv), n: base_n, ..*ctx };
+    let shifted_u =
+        TextureEvalContext { p: ctx.p + du * geom.dpdu, uv: ctx.uv + Vec2::new(du, 0.0), n: base_n, ..*ctx };
+    let shifted_v =
+        TextureEvalContext { p: ctx.p + dv * geom.dpdv, uv: ctx.uv + Vec2::new(0.0, dv), n: base_n, ..*ctx };
     let u_disp = textures.eval_float(d, &shifted_u);
     let v_disp = textures.eval_float(d, &shifted_v);
     let disp = textures.eval_float(d, ctx);
@@ -549,7 +551,11 @@ impl Material {
                 let mut b = new_bsdf(1.0);
                 let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
                 let vr = eval_f(tx, vroughness.unwrap_or(roughness), ctx);
-                let fresnel = Fresnel::Conductor { eta_i: Rgb::ONE, eta_t: tx.eval_spectrum(eta, ctx), k: tx.eval_spectrum(k, ctx) };
+                let fresnel = Fresnel::Conductor {
+                    eta_i: Rgb::ONE,
+                    eta_t: tx.eval_spectrum(eta, ctx),
+                    k: tx.eval_spectrum(k, ctx),
+                };
                 let _ = b.add(Bxdf::microfacet_reflection(Rgb::ONE, trowbridge(ur, vr, remap), fresnel));
                 b
             }
@@ -746,7 +752,10 @@ impl Material {
                 let vr = eval_f(tx, vroughness, ctx);
                 let a = iso(ur, vr, remap)?;
                 let f0 = eval_s(tx, ks, ctx);
-                (eval_s(tx, kd, ctx), Some(LtcSpecular { alpha: a, fresnel: LtcFresnel::Schlick { f0 }, scale: Rgb::ONE }))
+                (
+                    eval_s(tx, kd, ctx),
+                    Some(LtcSpecular { alpha: a, fresnel: LtcFresnel::Schlick { f0 }, scale: Rgb::ONE }),
+                )
             }
             Material::Uber { kd, ks, roughness, uroughness, vroughness, eta, opacity, remap, .. } => {
                 let op = eval_s(tx, opacity, ctx);

@@ -227,7 +227,8 @@ fn trowbridge_reitz_sample11(cos_theta: f32, u1: f32, u2: f32) -> (f32, f32) {
     // fit (CDF error up to 7.6e-4, which a chi-square test detects); we start from the
     // same fit and polish it with Newton steps, so the samples are pbrt-v3's up to that error.
     let (s, u2) = if u2 > 0.5 { (1.0, 2.0 * (u2 - 0.5)) } else { (-1.0, 2.0 * (0.5 - u2)) };
-    let mut z = (u2 * (u2 * (u2 * 0.27385 - 0.73369) + 0.46341)) / (u2 * (u2 * (u2 * 0.093073 + 0.309420) - 1.0) + 0.597999);
+    let mut z =
+        (u2 * (u2 * (u2 * 0.27385 - 0.73369) + 0.46341)) / (u2 * (u2 * (u2 * 0.093073 + 0.309420) - 1.0) + 0.597999);
     if z.is_finite() && z >= 0.0 {
         for _ in 0..3 {
             let q = 1.0 + z * z;

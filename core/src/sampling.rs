@@ -121,7 +121,11 @@ pub fn power_heuristic(nf: u32, f_pdf: f32, ng: u32, g_pdf: f32) -> f32 {
 
 /// The direction with polar angle θ (given by its sine and cosine) and azimuth φ about +z.
 pub fn spherical_direction(sin_theta: f32, cos_theta: f32, phi: f32) -> Vec3 {
-    Vec3::new(sin_theta.clamp(-1.0, 1.0) * phi.cos(), sin_theta.clamp(-1.0, 1.0) * phi.sin(), cos_theta.clamp(-1.0, 1.0))
+    Vec3::new(
+        sin_theta.clamp(-1.0, 1.0) * phi.cos(),
+        sin_theta.clamp(-1.0, 1.0) * phi.sin(),
+        cos_theta.clamp(-1.0, 1.0),
+    )
 }
 
 /// [`spherical_direction`] expressed in the frame (`x`, `y`, `z`).
@@ -160,7 +164,10 @@ pub fn stratified_sample_2d(samples: &mut [Vec2], nx: usize, ny: usize, rng: &mu
         let (x, y) = (k % nx, k / nx);
         let jx = if jitter { rng.uniform_f32() } else { 0.5 };
         let jy = if jitter { rng.uniform_f32() } else { 0.5 };
-        *s = Vec2::new(((x as f32 + jx) * dx).min(ONE_MINUS_EPSILON_F32), ((y as f32 + jy) * dy).min(ONE_MINUS_EPSILON_F32));
+        *s = Vec2::new(
+            ((x as f32 + jx) * dx).min(ONE_MINUS_EPSILON_F32),
+            ((y as f32 + jy) * dy).min(ONE_MINUS_EPSILON_F32),
+        );
     }
 }
 
@@ -308,7 +315,8 @@ impl Distribution1D {
         let u = if u.is_nan() { 0.0 } else { u.clamp(0.0, ONE_MINUS_EPSILON_F32) };
         let offset = self.offset_of(u);
         let width = self.cdf[offset + 1] - self.cdf[offset];
-        let remapped = if width > 0.0 { ((u - self.cdf[offset]) / width).clamp(0.0, ONE_MINUS_EPSILON_F32) } else { 0.0 };
+        let remapped =
+            if width > 0.0 { ((u - self.cdf[offset]) / width).clamp(0.0, ONE_MINUS_EPSILON_F32) } else { 0.0 };
         (offset, self.discrete_pdf(offset), remapped)
     }
 
@@ -435,10 +443,15 @@ mod tests {
     fn concentric_and_polar_disk_chi2() {
         for (seed, f) in [(5u64, concentric_sample_disk as fn(Vec2) -> Vec2), (6, uniform_sample_disk)] {
             // (r², φ) is uniform for an area-uniform disk.
-            direction_test(seed, |u| {
-                let d = f(u);
-                Vec3::new(d.x, d.y, d.length_squared())
-            }, |z| z as f64, false);
+            direction_test(
+                seed,
+                |u| {
+                    let d = f(u);
+                    Vec3::new(d.x, d.y, d.length_squared())
+                },
+                |z| z as f64,
+                false,
+            );
         }
     }
 
@@ -570,7 +583,8 @@ mod tests {
 
     #[test]
     fn distribution1d_chi2() {
-        let f: Vec<f32> = (0..32).map(|i| ((i as f32 * 0.7).sin() + 1.1).powi(2) * if i % 7 == 3 { 0.0 } else { 1.0 }).collect();
+        let f: Vec<f32> =
+            (0..32).map(|i| ((i as f32 * 0.7).sin() + 1.1).powi(2) * if i % 7 == 3 { 0.0 } else { 1.0 }).collect();
         let d = Distribution1D::new(&f);
         let sub = 4; // check uniformity within cells, too
         let mut obs = vec![0.0; f.len() * sub];

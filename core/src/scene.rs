@@ -2,10 +2,10 @@
 //! the chosen integrator says it needs ([`Requirements`]).
 
 use crate::accel::{interpolate, Accel, Hit, DEFAULT_UV};
+use crate::bxdf::Bsdf;
 use crate::camera::Camera;
 use crate::film::{Bounds2i, FilmSpec};
 use crate::filter::{create_filter, Filter};
-use crate::bxdf::Bsdf;
 use crate::geometry::{face_forward, gamma, Bounds3, Frame, Ray};
 use crate::material::{BsdfOptions, Materials, ShadingGeometry};
 use crate::mesh::TriangleMesh;

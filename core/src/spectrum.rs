@@ -369,10 +369,7 @@ mod tests {
         assert!(spectrum_to_rgb(&SpectrumValue::Rgb(vec![0.1, 0.2])).is_err());
         assert!(spectrum_to_rgb(&SpectrumValue::Sampled(vec![400.0])).is_err());
         assert!(spectrum_to_rgb(&SpectrumValue::Blackbody(vec![])).is_err());
-        assert_eq!(
-            spectrum_to_rgb(&SpectrumValue::Sampled(vec![f32::NAN, 1.0])),
-            Err(SpectrumError::NonFinite)
-        );
+        assert_eq!(spectrum_to_rgb(&SpectrumValue::Sampled(vec![f32::NAN, 1.0])), Err(SpectrumError::NonFinite));
     }
 
     #[test]

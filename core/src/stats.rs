@@ -130,9 +130,7 @@ pub fn chi2_test(observed: &[f64], expected: &[f64], min_expected: f64) -> (f64,
         if pool_exp >= min_expected || cells.is_empty() {
             cells.push((pool_obs, pool_exp));
         } else {
-            let smallest = cells
-                .iter_mut()
-                .min_by(|a, b| a.1.partial_cmp(&b.1).unwrap_or(std::cmp::Ordering::Equal));
+            let smallest = cells.iter_mut().min_by(|a, b| a.1.partial_cmp(&b.1).unwrap_or(std::cmp::Ordering::Equal));
             if let Some(c) = smallest {
                 c.0 += pool_obs;
                 c.1 += pool_exp;
@@ -176,7 +174,9 @@ mod tests {
     #[test]
     fn p_values_match_known_quantiles() {
         // Upper 5% points of the chi-square distribution.
-        for (dof, q) in [(1usize, 3.841458820694124), (2, 5.991464547107979), (10, 18.307038053275146), (100, 124.3421134)] {
+        for (dof, q) in
+            [(1usize, 3.841458820694124), (2, 5.991464547107979), (10, 18.307038053275146), (100, 124.3421134)]
+        {
             let p = chi2_p_value(q, dof);
             assert!((p - 0.05).abs() < 1e-6, "dof {dof}: {p}");
         }

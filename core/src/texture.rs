@@ -660,20 +660,61 @@ impl<T: Texel> ImageLookup<T> {
 #[derive(Clone, Debug)]
 pub enum TextureNode<P, V: Texel> {
     Constant(V),
-    Scale { tex1: P, tex2: P },
-    Mix { tex1: P, tex2: P, amount: FloatParam },
-    Bilerp { mapping: Mapping2D, v: [V; 4] },
+    Scale {
+        tex1: P,
+        tex2: P,
+    },
+    Mix {
+        tex1: P,
+        tex2: P,
+        amount: FloatParam,
+    },
+    Bilerp {
+        mapping: Mapping2D,
+        v: [V; 4],
+    },
     Image(ImageLookup<V>),
-    Checkerboard2D { mapping: Mapping2D, tex1: P, tex2: P, aa: CheckerAa },
-    Checkerboard3D { mapping: Mapping3D, tex1: P, tex2: P },
-    Dots { mapping: Mapping2D, inside: P, outside: P },
-    Fbm { mapping: Mapping3D, octaves: i32, omega: f32 },
-    Wrinkled { mapping: Mapping3D, octaves: i32, omega: f32 },
-    Windy { mapping: Mapping3D },
+    Checkerboard2D {
+        mapping: Mapping2D,
+        tex1: P,
+        tex2: P,
+        aa: CheckerAa,
+    },
+    Checkerboard3D {
+        mapping: Mapping3D,
+        tex1: P,
+        tex2: P,
+    },
+    Dots {
+        mapping: Mapping2D,
+        inside: P,
+        outside: P,
+    },
+    Fbm {
+        mapping: Mapping3D,
+        octaves: i32,
+        omega: f32,
+    },
+    Wrinkled {
+        mapping: Mapping3D,
+        octaves: i32,
+        omega: f32,
+    },
+    Windy {
+        mapping: Mapping3D,
+    },
     /// `uv` (spectrum only): `(s - ⌊s⌋, t - ⌊t⌋, 0)`.
-    Uv { mapping: Mapping2D },
+    Uv {
+        mapping: Mapping2D,
+    },
     /// `marble` (spectrum only).
-    Marble { mapping: Mapping3D, octaves: i32, omega: f32, scale: f32, variation: f32 },
+    Marble {
+        mapping: Mapping3D,
+        octaves: i32,
+        omega: f32,
+        scale: f32,
+        variation: f32,
+    },
 }
 
 pub type FloatTexture = TextureNode<FloatParam, f32>;
@@ -744,22 +785,24 @@ fn read_image(path: &Path) -> Result<crate::image::Image, String> {
 }
 
 // SHIM: remove at merge (part of the PFM-only image reader shim).
+fn pfm_token(bytes: &[u8], pos: &mut usize) -> Result<String, String> {
+    while *pos < bytes.len() && bytes[*pos].is_ascii_whitespace() {
+        *pos += 1;
+    }
+    let start = *pos;
+    while *pos < bytes.len() && !bytes[*pos].is_ascii_whitespace() {
+        *pos += 1;
+    }
+    if start == *pos {
+        return Err("truncated PFM header".into());
+    }
+    Ok(String::from_utf8_lossy(&bytes[start..*pos]).into_owned())
+}
+
+// SHIM: remove at merge (part of the PFM-only image reader shim).
 fn parse_pfm(bytes: &[u8]) -> Result<crate::image::Image, String> {
     let mut pos = 0usize;
-    let mut token = || -> Result<String, String> {
-        while pos < bytes.len() && bytes[pos].is_ascii_whitespace() {
-            pos += 1;
-        }
-        let start = pos;
-        while pos < bytes.len() && !bytes[pos].is_ascii_whitespace() {
-            pos += 1;
-        }
-        if start == pos {
-            return Err("truncated PFM header".into());
-        }
-        let t = String::from_utf8_lossy(&bytes[start..pos]).into_owned();
-        Ok(t)
-    };
+    let mut token = || pfm_token(bytes, &mut pos);
     let magic = token()?;
     let nc = match magic.as_str() {
         "PF" => 3,
@@ -769,7 +812,6 @@ fn parse_pfm(bytes: &[u8]) -> Result<crate::image::Image, String> {
     let w: usize = token()?.parse().map_err(|_| "bad PFM width")?;
     let h: usize = token()?.parse().map_err(|_| "bad PFM height")?;
     let scale: f32 = token()?.parse().map_err(|_| "bad PFM scale")?;
-    drop(token);
     pos += 1; // the single whitespace after the scale
     let n = w.checked_mul(h).and_then(|x| x.checked_mul(nc)).ok_or("PFM too large")?;
     if w == 0 || h == 0 || bytes.len() < pos + 4 * n {
@@ -802,7 +844,9 @@ fn image_rgb(img: &crate::image::Image) -> Result<Vec<Rgb>, String> {
         _ if nc >= 3 => [0, 1, 2],
         _ => [0, 0, 0],
     };
-    Ok((0..npix).map(|i| Vec3::new(img.data[i * nc + idx[0]], img.data[i * nc + idx[1]], img.data[i * nc + idx[2]])).collect())
+    Ok((0..npix)
+        .map(|i| Vec3::new(img.data[i * nc + idx[0]], img.data[i * nc + idx[1]], img.data[i * nc + idx[2]]))
+        .collect())
 }
 
 fn has_ext(name: &str, ext: &str) -> bool {
@@ -965,7 +1009,8 @@ impl Textures {
         if let Some(m) = self.mips.get(&key) {
             return Ok(m.clone());
         }
-        let fail = |e: String| err_at(params, "filename", loc, format!("cannot read image \"{}\": {e}", path.display()));
+        let fail =
+            |e: String| err_at(params, "filename", loc, format!("cannot read image \"{}\": {e}", path.display()));
         let img = read_image(&path).map_err(fail)?;
         let rgb = image_rgb(&img).map_err(fail)?;
         let (w, h) = (img.width as usize, img.height as usize);
@@ -987,7 +1032,13 @@ impl Textures {
                 .collect();
             CachedMip::Float(Arc::new(MipMap::new(w, h, data, wrap).ok_or_else(|| fail("empty image".into()))?))
         } else {
-            let data = rows(&|c| if gamma { Vec3::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z)) } else { c });
+            let data = rows(&|c| {
+                if gamma {
+                    Vec3::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z))
+                } else {
+                    c
+                }
+            });
             CachedMip::Rgb(Arc::new(MipMap::new(w, h, data, wrap).ok_or_else(|| fail("empty image".into()))?))
         };
         self.mips.insert(key, m.clone());
@@ -1086,7 +1137,10 @@ impl Textures {
             "uv" | "marble" => {
                 return Err(Diagnostic::error(
                     Some(loc.clone()),
-                    format!("\"{}\" is a spectrum texture only: float texture \"{}\" cannot be created", d.entity.kind, d.name),
+                    format!(
+                        "\"{}\" is a spectrum texture only: float texture \"{}\" cannot be created",
+                        d.entity.kind, d.name
+                    ),
                 ))
             }
             other => {
@@ -1189,7 +1243,11 @@ impl Textures {
                 tex2: t2,
                 aa: Self::checker_aa(p, loc, warnings),
             }),
-            3 => Ok(TextureNode::Checkerboard3D { mapping: Mapping3D::new(&d.render_from_texture.start), tex1: t1, tex2: t2 }),
+            3 => Ok(TextureNode::Checkerboard3D {
+                mapping: Mapping3D::new(&d.render_from_texture.start),
+                tex1: t1,
+                tex2: t2,
+            }),
             _ => Err(err_at(p, "dimension", loc, format!("{dim} dimensional checkerboard texture not supported"))),
         }
     }
@@ -1312,7 +1370,7 @@ fn marble_color(t: f32) -> Rgb {
     ];
     let nseg = (C.len() - 3) as f32;
     // pbrt-v3 takes min(1, ⌊t·nseg⌋) as the first control point.
-    let first = ((t * nseg).floor() as i64).min(1).max(0) as usize;
+    let first = ((t * nseg).floor() as i64).clamp(0, 1) as usize;
     let t = t * nseg - first as f32;
     let c = |i: usize| Vec3::from(C[(first + i).min(C.len() - 1)]);
     let (c0, c1, c2, c3) = (c(0), c(1), c(2), c(3));
@@ -1422,4 +1480,4 @@ impl<P: TextureParam<Value = V>, V: Texel + FromScalar> TextureNode<P, V> {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

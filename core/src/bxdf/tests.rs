@@ -312,9 +312,8 @@ fn chi2_glossy_reflection_lobes() {
 #[test]
 fn chi2_microfacet_transmission() {
     for (k, (name, b)) in transmission_lobes().iter().enumerate() {
-        for (j, wo) in [dir(0.1, 0.3), dir(0.9, 1.0), dir(1.3, 5.0), -dir(0.3, 2.0), -dir(0.6, 0.5)]
-            .into_iter()
-            .enumerate()
+        for (j, wo) in
+            [dir(0.1, 0.3), dir(0.9, 1.0), dir(1.3, 5.0), -dir(0.3, 2.0), -dir(0.6, 0.5)].into_iter().enumerate()
         {
             check_lobe(name, b, wo, 200 + (k * 10 + j) as u64);
         }
@@ -490,7 +489,12 @@ fn white_lambertian_albedo_is_exactly_one() {
             let w = s.f * s.wi.z.abs() / s.pdf;
             assert!((w - Rgb::ONE).abs().max_element() < 1e-5, "{w}");
         }
-        let v = sphere_integral(1000, 64, |wi| if same_hemisphere(wo, wi) { (b.f(wo, wi).x * wi.z.abs()) as f64 } else { 0.0 });
+        let v =
+            sphere_integral(
+                1000,
+                64,
+                |wi| if same_hemisphere(wo, wi) { (b.f(wo, wi).x * wi.z.abs()) as f64 } else { 0.0 },
+            );
         assert!((v - 1.0).abs() < 1e-3, "{v}");
     }
 }
@@ -532,7 +536,9 @@ fn energy_is_conserved_by_every_lobe() {
         lobes.push((format!("oren-nayar {s}"), Bxdf::oren_nayar(Rgb::ONE, s)));
     }
     for (name, b) in &lobes {
-        for (k, wo) in [dir(0.0, 0.0), dir(0.6, 0.3), dir(1.2, 2.0), dir(1.5, 4.0), -dir(0.8, 1.0)].into_iter().enumerate() {
+        for (k, wo) in
+            [dir(0.0, 0.0), dir(0.6, 0.3), dir(1.2, 2.0), dir(1.5, 4.0), -dir(0.8, 1.0)].into_iter().enumerate()
+        {
             let (m, se, _) = albedo(b, wo, 50_000, 40 + k as u64);
             assert!(m <= 1.0 + 4.0 * se + 1e-3, "{name} wo {wo}: albedo {m} ± {se}");
         }
@@ -732,7 +738,8 @@ fn no_nan_for_degenerate_inputs() {
     lobes.push(Bxdf::specular_reflection(Rgb::ONE, GLASS));
     lobes.push(Bxdf::specular_transmission(Rgb::ONE, 1.0, 1.5, TransportMode::Radiance));
     lobes.push(Bxdf::fresnel_specular(Rgb::ONE, Rgb::ONE, 1.0, 1.5, TransportMode::Radiance));
-    let us = [Vec2::ZERO, Vec2::splat(ONE_MINUS_EPSILON), Vec2::new(0.5, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.25, 0.75)];
+    let us =
+        [Vec2::ZERO, Vec2::splat(ONE_MINUS_EPSILON), Vec2::new(0.5, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.25, 0.75)];
     for b in &lobes {
         for &wo in &dirs {
             for &wi in &dirs {

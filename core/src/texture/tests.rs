@@ -1,7 +1,7 @@
 use super::*;
 use penumbra_parser::{
-    AnimatedTransform, CameraDesc, Entity, MaterialDesc, Param, ParamValue, SceneDescription, TextureDesc,
-    TextureKind, TextureRef,
+    AnimatedTransform, CameraDesc, Entity, MaterialDesc, Param, ParamValue, SceneDescription, TextureDesc, TextureKind,
+    TextureRef,
 };
 use std::sync::Arc as StdArc;
 
@@ -161,7 +161,12 @@ fn mappings_at_known_points() {
     // Spherical about a texture space translated to (1, 0, 0).
     let xf = Transform::translate([1.0, 0.0, 0.0]);
     let w = DiagSink::new();
-    let sph = Mapping2D::from_params(&params(vec![("mapping", ParamValue::String(vec!["spherical".into()]))]), &xf, &loc(1), &w);
+    let sph = Mapping2D::from_params(
+        &params(vec![("mapping", ParamValue::String(vec!["spherical".into()]))]),
+        &xf,
+        &loc(1),
+        &w,
+    );
     let at = |p: Vec3| sph.map(&TextureEvalContext { p, ..Default::default() }).0;
     let near = |a: Vec2, b: Vec2| (a - b).length() < 1e-5;
     assert!(near(at(Vec3::new(1.0, 0.0, 5.0)), Vec2::new(0.0, 0.0)));
@@ -263,13 +268,27 @@ fn imagemap_gamma_scale_invert_and_float_luminance() {
     let fname = ParamValue::String(vec!["g.pfm".into()]);
     let desc = scene(
         vec![
-            tex("a", TextureKind::Spectrum, "imagemap", params(vec![("filename", fname.clone()), ("gamma", ParamValue::Bool(vec![true]))])),
-            tex("b", TextureKind::Float, "imagemap", params(vec![("filename", fname.clone()), ("scale", ParamValue::Float(vec![2.0]))])),
+            tex(
+                "a",
+                TextureKind::Spectrum,
+                "imagemap",
+                params(vec![("filename", fname.clone()), ("gamma", ParamValue::Bool(vec![true]))]),
+            ),
+            tex(
+                "b",
+                TextureKind::Float,
+                "imagemap",
+                params(vec![("filename", fname.clone()), ("scale", ParamValue::Float(vec![2.0]))]),
+            ),
             tex(
                 "c",
                 TextureKind::Float,
                 "imagemap",
-                params(vec![("filename", fname.clone()), ("gamma", ParamValue::Bool(vec![true])), ("invert", ParamValue::Bool(vec![true]))]),
+                params(vec![
+                    ("filename", fname.clone()),
+                    ("gamma", ParamValue::Bool(vec![true])),
+                    ("invert", ParamValue::Bool(vec![true])),
+                ]),
             ),
         ],
         vec![],
@@ -331,17 +350,36 @@ fn scale_and_mix_compose_textures() {
         vec![
             tex("two", TextureKind::Float, "constant", params(vec![("value", ParamValue::Float(vec![2.0]))])),
             tex("three", TextureKind::Float, "constant", params(vec![("value", ParamValue::Float(vec![3.0]))])),
-            tex("prod", TextureKind::Float, "scale", params(vec![("tex1", fref("two", 0)), ("tex2", fref("three", 1))])),
+            tex(
+                "prod",
+                TextureKind::Float,
+                "scale",
+                params(vec![("tex1", fref("two", 0)), ("tex2", fref("three", 1))]),
+            ),
             tex("amt", TextureKind::Float, "constant", params(vec![("value", ParamValue::Float(vec![0.25]))])),
             tex(
                 "mixed",
                 TextureKind::Float,
                 "mix",
-                params(vec![("tex1", fref("prod", 2)), ("tex2", ParamValue::Float(vec![10.0])), ("amount", fref("amt", 3))]),
+                params(vec![
+                    ("tex1", fref("prod", 2)),
+                    ("tex2", ParamValue::Float(vec![10.0])),
+                    ("amount", fref("amt", 3)),
+                ]),
             ),
-            tex("red", TextureKind::Spectrum, "constant", params(vec![("value", ParamValue::Spectrum(SpectrumValue::Rgb(vec![1.0, 0.5, 0.25])))])),
+            tex(
+                "red",
+                TextureKind::Spectrum,
+                "constant",
+                params(vec![("value", ParamValue::Spectrum(SpectrumValue::Rgb(vec![1.0, 0.5, 0.25])))]),
+            ),
             tex("smix", TextureKind::Spectrum, "mix", params(vec![("tex2", sref("red", 5))])),
-            tex("sscale", TextureKind::Spectrum, "scale", params(vec![("tex1", sref("red", 5)), ("tex2", sref("red", 5))])),
+            tex(
+                "sscale",
+                TextureKind::Spectrum,
+                "scale",
+                params(vec![("tex1", sref("red", 5)), ("tex2", sref("red", 5))]),
+            ),
         ],
         vec![],
         PathBuf::new(),
@@ -366,7 +404,12 @@ fn scale_and_mix_compose_textures() {
 fn textures_are_built_lazily_and_unused_broken_ones_are_harmless() {
     let desc = scene(
         vec![
-            tex("broken", TextureKind::Spectrum, "imagemap", params(vec![("filename", ParamValue::String(vec!["does-not-exist.pfm".into()]))])),
+            tex(
+                "broken",
+                TextureKind::Spectrum,
+                "imagemap",
+                params(vec![("filename", ParamValue::String(vec!["does-not-exist.pfm".into()]))]),
+            ),
             tex("ok", TextureKind::Spectrum, "constant", params(vec![])),
         ],
         vec![],
