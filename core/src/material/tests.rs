@@ -431,3 +431,73 @@ fn ltc_descriptions() {
     assert_eq!(l(5), None);
     assert_eq!(l(6), Some(LtcDescription { n: Vec3::Z, diffuse: Vec3::splat(0.5), specular: None }));
 }
+
+#[test]
+fn scene_builds_only_used_materials_and_gives_bsdfs() {
+    use crate::geometry::Ray;
+    use crate::scene::{BuildOptions, Requirements, Scene};
+    use penumbra_parser::{AnimatedTransform, ShapeDesc};
+    let quad = |z: f32, material: Option<usize>| ShapeDesc {
+        entity: Entity::new(
+            "trianglemesh",
+            params(vec![
+                ("P", ParamValue::Point3(vec![0.0, 0.0, z, 1.0, 0.0, z, 1.0, 1.0, z, 0.0, 1.0, z])),
+                ("indices", ParamValue::Int(vec![0, 1, 2, 0, 2, 3])),
+                ("uv", ParamValue::Point2(vec![0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0])),
+            ]),
+            loc(60),
+        ),
+        render_from_object: AnimatedTransform::default(),
+        reverse_orientation: false,
+        material,
+        area_light: None,
+        inside_medium: None,
+        outside_medium: None,
+    };
+    let checker = params(vec![
+        ("tex1", rgb(0.1, 0.2, 0.3)),
+        ("tex2", rgb(0.9, 0.8, 0.7)),
+        ("uscale", ParamValue::Float(vec![2.0])),
+        ("vscale", ParamValue::Float(vec![2.0])),
+    ]);
+    let mut desc = scene(
+        vec![
+            tex("checks", TextureKind::Spectrum, "checkerboard", checker),
+            tex(
+                "broken",
+                TextureKind::Spectrum,
+                "imagemap",
+                params(vec![("filename", ParamValue::String(vec!["nope.exr".into()]))]),
+            ),
+        ],
+        vec![
+            mat("matte", params(vec![("Kd", sref("checks", 0))]), None),
+            mat("matte", params(vec![("Kd", sref("broken", 1))]), None),
+        ],
+        PathBuf::new(),
+    );
+    desc.shapes = vec![quad(0.0, Some(0)), quad(-1.0, None)];
+    let w = DiagSink::new();
+    let req = Requirements { accel: true, materials: true, ..Default::default() };
+    let opts = BuildOptions { resolution: Some((8, 8)), ..Default::default() };
+    let sc = Scene::build(&desc, req, &opts, &w).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(sc.materials.as_ref().unwrap().built_count(), 1);
+    assert_eq!(sc.textures.as_ref().unwrap().built_count(), 1);
+    let shoot = |x: f32, y: f32, z: f32| {
+        let ray = Ray::new(Vec3::new(x, y, z), Vec3::new(0.0, 0.0, -1.0), f32::INFINITY);
+        let hit = sc.intersect(&ray).expect("hit");
+        sc.interaction(&ray, &hit)
+    };
+    // uv (0.25, 0.25) → st (0.5, 0.5): even check → tex1; uv (0.75, 0.25) → odd → tex2.
+    for (x, y, kd) in [(0.25, 0.25, Vec3::new(0.1, 0.2, 0.3)), (0.75, 0.25, Vec3::new(0.9, 0.8, 0.7))] {
+        let si = shoot(x, y, 1.0);
+        let bsdf = sc.bsdf(&si).expect("material");
+        let f = bsdf.f(si.wo, dir(0.5, 1.0), BxdfFlags::ALL);
+        assert!(close(f, kd / PI, 1e-5), "{f} vs {kd}");
+    }
+    // The lower quad has no material; hit it from below.
+    let ray = Ray::new(Vec3::new(0.5, 0.5, -2.0), Vec3::Z, f32::INFINITY);
+    let hit = sc.intersect(&ray).expect("hit");
+    assert!(sc.bsdf(&sc.interaction(&ray, &hit)).is_none());
+    assert!(sc.report.stages.iter().any(|s| s.0 == "materials"));
+}
