@@ -363,6 +363,19 @@ pub fn read(path: impl AsRef<Path>) -> Result<Image, ImageError> {
     decode(&bytes, path)
 }
 
+/// Reads an image for use as scene input (textures, environment maps) as
+/// pbrt-v3 does: like [`read`], except that a PNG's colour channels are its raw
+/// code values / max with alpha left unassociated (pbrt-v3 decodes PNGs to
+/// 8-bit RGB and drops alpha). Any sRGB decoding is the caller's choice.
+pub fn read_scene_input(path: impl AsRef<Path>) -> Result<Image, ImageError> {
+    let path = path.as_ref();
+    let bytes = fs::read(path).map_err(|source| ImageError::Io { path: path.to_path_buf(), source })?;
+    match Format::from_magic(&bytes) {
+        Some(Format::Png) => decode_png_with(&bytes, path, false),
+        _ => decode(&bytes, path),
+    }
+}
+
 /// Decodes an image held in memory; `path` is only used in error messages.
 pub fn decode(bytes: &[u8], path: &Path) -> Result<Image, ImageError> {
     match Format::from_magic(bytes) {

@@ -14,6 +14,7 @@ pub mod geometry;
 pub mod image;
 pub mod integrator;
 pub mod light;
+pub mod material;
 pub mod mesh;
 #[rustfmt::skip]
 #[allow(clippy::excessive_precision)]
@@ -27,6 +28,7 @@ pub mod scene;
 pub mod shapes;
 pub mod spectrum;
 pub mod stats;
+pub mod texture;
 
 pub use glam::{IVec2, UVec2, Vec2, Vec3, Vec3A};
 pub use penumbra_parser as parser;

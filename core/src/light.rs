@@ -30,9 +30,8 @@ use crate::Rgb;
 use glam::{Mat3, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, FileLoc, ParamSet, SceneDescription, Transform};
 use std::f32::consts::PI;
-use std::path::Path;
 
-use crate::image::read as read_image;
+use crate::image::read_scene_input as read_image;
 use crate::spectrum::spectrum_to_rgb;
 
 /// The receiving point of a light query.
@@ -534,17 +533,8 @@ fn n_samples_param(p: &ParamSet) -> u32 {
     p.get_one_int("samples", ns).max(1) as u32
 }
 
-/// pbrt-v3's `InverseGammaCorrect` (the sRGB decoding curve).
-fn srgb_to_linear(v: f32) -> f32 {
-    if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
-}
-
 /// An image as RGB texels: the R, G, B channels by name, else the first three, else grey from the first.
-fn image_to_map(img: &Image, decode_srgb: bool) -> Option<RgbMap> {
+fn image_to_map(img: &Image) -> Option<RgbMap> {
     let (w, h) = (img.width as usize, img.height as usize);
     let nc = img.channels.len();
     if w == 0 || h == 0 || nc == 0 || img.data.len() < w * h * nc {
@@ -566,8 +556,6 @@ fn image_to_map(img: &Image, decode_srgb: bool) -> Option<RgbMap> {
         .take(w * h)
         .map(|px| {
             let c = Rgb::from(idx.map(|i| px[i]));
-            let c =
-                if decode_srgb { Rgb::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z)) } else { c };
             // Non-finite texels would poison every estimate: count them as black.
             if c.is_finite() {
                 c
@@ -579,7 +567,8 @@ fn image_to_map(img: &Image, decode_srgb: bool) -> Option<RgbMap> {
     Some(RgbMap { width: w, height: h, texels })
 }
 
-/// Reads `mapname` as pbrt-v3's `ReadImage` would (8-bit formats sRGB-decoded).
+/// Reads `mapname` as pbrt-v3's `ReadImage` does: EXR/PFM values as stored,
+/// PNG code values / 255 with no sRGB decoding and alpha ignored.
 /// A missing name gives `None`; an unreadable file a warning and `None` (pbrt-v3 then falls back too).
 fn load_map(desc: &SceneDescription, p: &ParamSet, owner: &str, warnings: &DiagSink) -> Option<RgbMap> {
     let name = p.get_one_string("mapname", "");
@@ -588,13 +577,9 @@ fn load_map(desc: &SceneDescription, p: &ParamSet, owner: &str, warnings: &DiagS
     }
     let loc = p.loc_of("mapname").cloned();
     let path = desc.resolve_path(&name);
-    let decode = Path::new(&name)
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("tga"));
     match read_image(&path) {
         Ok(img) => {
-            let m = image_to_map(&img, decode);
+            let m = image_to_map(&img);
             if m.is_none() {
                 warnings.warn(loc, format!("{owner}: \"{}\" has no pixels: ignored", path.display()));
             }

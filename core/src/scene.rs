@@ -2,14 +2,17 @@
 //! the chosen integrator says it needs ([`Requirements`]).
 
 use crate::accel::{interpolate, Accel, Hit, DEFAULT_UV};
+use crate::bxdf::Bsdf;
 use crate::camera::Camera;
 use crate::film::{Bounds2i, FilmSpec};
 use crate::filter::{create_filter, Filter};
 use crate::geometry::{face_forward, gamma, Bounds3, Frame, Ray};
 use crate::light::Lights;
+use crate::material::{BsdfOptions, Materials, ShadingGeometry};
 use crate::mesh::TriangleMesh;
 use crate::sampler::{create_sampler, Sampler};
 use crate::shapes::{build_shape, ShapeContext, Tessellation};
+use crate::texture::{TextureEvalContext, Textures};
 use glam::{IVec2, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, Entity, FileLoc, SceneDescription, ShapeDesc};
 use std::time::Instant;
@@ -86,6 +89,10 @@ pub struct Scene {
     pub accel: Option<Accel>,
     /// Lights (built when `Requirements::lights`).
     pub lights: Option<Lights>,
+    /// Built when `Requirements::materials`: only materials some object uses.
+    pub materials: Option<Materials>,
+    /// Built when `Requirements::materials`: only textures a built material references.
+    pub textures: Option<Textures>,
     pub bounds: Bounds3,
     /// The scene's own `Integrator` directive.
     pub integrator: Entity,
@@ -280,6 +287,30 @@ impl Scene {
         } else {
             None
         };
+        let (materials, textures) = if req.materials {
+            let t2 = Instant::now();
+            let mut used = vec![false; desc.materials.len()];
+            for o in &objects {
+                if let Some(m) = o.material.and_then(|m| used.get_mut(m)) {
+                    *m = true;
+                }
+            }
+            let mut textures = Textures::new(desc);
+            let materials = Materials::build(desc, &used, &mut textures, warnings)?;
+            report.stages.push((
+                "materials".into(),
+                t2.elapsed().as_secs_f64(),
+                format!(
+                    "{} materials, {} textures, {} images",
+                    materials.built_count(),
+                    textures.built_count(),
+                    textures.image_count()
+                ),
+            ));
+            (Some(materials), Some(textures))
+        } else {
+            (None, None)
+        };
         Ok(Scene {
             camera,
             film,
@@ -289,6 +320,8 @@ impl Scene {
             objects,
             accel,
             lights,
+            materials,
+            textures,
             bounds,
             integrator: desc.integrator.clone(),
             report,
@@ -308,6 +341,22 @@ impl Scene {
     /// Whether anything blocks `ray` before `ray.t_max`.
     pub fn occluded(&self, ray: &Ray) -> bool {
         self.accel.as_ref().is_some_and(|a| a.occluded(ray))
+    }
+
+    /// The BSDF at `si` (requires `Requirements::materials`); `None` when the object
+    /// has no material (pbrt-v3's `Material "none"`) or materials were not built.
+    pub fn bsdf(&self, si: &SurfaceInteraction) -> Option<Bsdf> {
+        let (materials, textures) = (self.materials.as_ref()?, self.textures.as_ref()?);
+        let mat = materials.get(self.objects.get(si.mesh as usize)?.material?)?;
+        let normals = self.meshes.get(si.mesh as usize).is_some_and(|m| m.normals.is_some());
+        Some(mat.compute_bsdf_ext(
+            si,
+            &TextureEvalContext::from_si(si),
+            &ShadingGeometry::of(si, normals),
+            BsdfOptions::default(),
+            materials,
+            textures,
+        ))
     }
 
     /// The surface geometry at a hit, as pbrt-v3's `Triangle::Intersect` computes it.

@@ -1,0 +1,788 @@
+//! pbrt-v3's materials: parameters and defaults, bump mapping, and the BSDF
+//! each one builds at a surface point (`ComputeScatteringFunctions`).
+//!
+//! Deviations from pbrt-v3:
+//! - `mix` scales each lobe's reflectance/transmittance colours by the mix weight
+//!   (pbrt-v3 wraps lobes in `ScaledBxDF`). This is exact for every lobe except
+//!   `FresnelBlend` (substrate), whose value is affine, not linear, in its colours:
+//!   a mixed substrate is approximate.
+//! - Bump mapping ignores ∂n/∂u, ∂n/∂v of the shading normal (pbrt-v3 adds
+//!   `displacement · ∂n/∂u`; penumbra's interactions do not carry normal derivatives).
+//! - Unsupported materials (hair, disney, fourier, subsurface, kdsubsurface) and
+//!   unknown types render as `matte` with their `Kd` (default 0.5), with one warning per type.
+
+use crate::bxdf::{Bsdf, Bxdf, Fresnel, TransportMode};
+use crate::geometry::face_forward;
+use crate::microfacet::{roughness_to_alpha, MicrofacetDistribution};
+use crate::scene::SurfaceInteraction;
+use crate::spectrum::{copper_eta, copper_k, Rgb};
+use crate::texture::{FloatParam, SpectrumParam, TextureEvalContext, Textures};
+use glam::{Vec2, Vec3};
+use penumbra_parser::{DiagSink, Diagnostic, SceneDescription};
+use std::collections::HashSet;
+
+/// A material as pbrt-v3 defines it; texture-valued parameters refer to [`Textures`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum Material {
+    Matte {
+        kd: SpectrumParam,
+        sigma: FloatParam,
+        bump: Option<FloatParam>,
+    },
+    Plastic {
+        kd: SpectrumParam,
+        ks: SpectrumParam,
+        roughness: FloatParam,
+        remap: bool,
+        bump: Option<FloatParam>,
+    },
+    Metal {
+        eta: SpectrumParam,
+        k: SpectrumParam,
+        roughness: FloatParam,
+        uroughness: Option<FloatParam>,
+        vroughness: Option<FloatParam>,
+        remap: bool,
+        bump: Option<FloatParam>,
+    },
+    Mirror {
+        kr: SpectrumParam,
+        bump: Option<FloatParam>,
+    },
+    Glass {
+        kr: SpectrumParam,
+        kt: SpectrumParam,
+        eta: FloatParam,
+        uroughness: FloatParam,
+        vroughness: FloatParam,
+        remap: bool,
+        bump: Option<FloatParam>,
+    },
+    Substrate {
+        kd: SpectrumParam,
+        ks: SpectrumParam,
+        uroughness: FloatParam,
+        vroughness: FloatParam,
+        remap: bool,
+        bump: Option<FloatParam>,
+    },
+    Uber {
+        kd: SpectrumParam,
+        ks: SpectrumParam,
+        kr: SpectrumParam,
+        kt: SpectrumParam,
+        roughness: FloatParam,
+        uroughness: Option<FloatParam>,
+        vroughness: Option<FloatParam>,
+        eta: FloatParam,
+        opacity: SpectrumParam,
+        remap: bool,
+        bump: Option<FloatParam>,
+    },
+    /// Lobes of `m1` scaled by `amount`, plus lobes of `m2` scaled by `1 - amount`
+    /// (pbrt-v3's weighting, in `m1`'s shading frame). Indices into `SceneDescription::materials`.
+    Mix {
+        amount: SpectrumParam,
+        m1: usize,
+        m2: usize,
+    },
+    Translucent {
+        kd: SpectrumParam,
+        ks: SpectrumParam,
+        reflect: SpectrumParam,
+        transmit: SpectrumParam,
+        roughness: FloatParam,
+        remap: bool,
+        bump: Option<FloatParam>,
+    },
+}
+
+/// The shading-geometry derivatives pbrt-v3 bump-maps with (`si.shading.{n, dpdu, dpdv}`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadingGeometry {
+    pub n: Vec3,
+    pub dpdu: Vec3,
+    pub dpdv: Vec3,
+}
+
+impl ShadingGeometry {
+    /// As pbrt-v3's triangles set it up. Without per-vertex normals the shading
+    /// derivatives are the geometric ∂p/∂u, ∂p/∂v; with them, pbrt-v3 uses unit
+    /// tangents built as `ts = normalize(ss × ns)`, `ss = ts × ns`, which are the
+    /// *negated* x and y axes of penumbra's shading frame.
+    pub fn of(si: &SurfaceInteraction, interpolated_normals: bool) -> Self {
+        if interpolated_normals {
+            ShadingGeometry { n: si.shading.z, dpdu: -si.shading.x, dpdv: -si.shading.y }
+        } else {
+            ShadingGeometry { n: si.shading.z, dpdu: si.dpdu, dpdv: si.dpdv }
+        }
+    }
+    /// Guesses whether the interaction came from a mesh with normals: the shading
+    /// normal differs from the geometric one. Prefer [`Self::of`] when the mesh is known.
+    pub fn infer(si: &SurfaceInteraction) -> Self {
+        Self::of(si, si.shading.z != si.n)
+    }
+}
+
+/// Options of [`Material::compute_bsdf_ext`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BsdfOptions {
+    pub mode: TransportMode,
+    /// pbrt-v3's `allowMultipleLobes` (false in `directlighting`, true in `path`):
+    /// smooth glass then becomes one `FresnelSpecular` lobe.
+    pub allow_multiple_lobes: bool,
+}
+
+impl Default for BsdfOptions {
+    fn default() -> Self {
+        BsdfOptions { mode: TransportMode::Radiance, allow_multiple_lobes: false }
+    }
+}
+
+/// How an LTC-based integrator can describe a material: a diffuse albedo and an
+/// optional GGX (Trowbridge–Reitz) lobe.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LtcDescription {
+    /// Shading normal (after bump mapping).
+    pub n: Vec3,
+    /// Lambertian albedo (for `substrate`, the `Kd` of its Ashikhmin–Shirley diffuse term).
+    pub diffuse: Rgb,
+    pub specular: Option<LtcSpecular>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LtcSpecular {
+    /// Isotropic GGX alpha (already remapped).
+    pub alpha: f32,
+    pub fresnel: LtcFresnel,
+    /// Multiplier of the microfacet lobe (`Ks` for plastic/uber, 1 for metal/substrate).
+    pub scale: Rgb,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LtcFresnel {
+    /// pbrt-v3's `FresnelDielectric(eta_i, eta_t)` (plastic uses 1.5, 1 — sic).
+    Dielectric { eta_i: f32, eta_t: f32 },
+    /// `FresnelConductor(1, eta, k)`.
+    Conductor { eta: Rgb, k: Rgb },
+    /// Schlick's approximation with normal-incidence reflectance `f0` (substrate's `Ks`).
+    Schlick { f0: Rgb },
+}
+
+/// The scene's materials, by index in `SceneDescription::materials`; only those some
+/// object uses (and the materials a used `mix` refers to) are built.
+#[derive(Clone, Debug, Default)]
+pub struct Materials {
+    slots: Vec<Option<Material>>,
+}
+
+fn clamp0(c: Rgb) -> Rgb {
+    c.max(Rgb::ZERO)
+}
+
+fn is_black(c: Rgb) -> bool {
+    c == Rgb::ZERO
+}
+
+const UNSUPPORTED: [&str; 5] = ["hair", "disney", "fourier", "subsurface", "kdsubsurface"];
+
+enum BuildState {
+    Unbuilt,
+    Building,
+    Built(Material),
+}
+
+struct Builder<'a> {
+    desc: &'a SceneDescription,
+    textures: &'a mut Textures,
+    warnings: &'a DiagSink,
+    states: Vec<BuildState>,
+    warned_types: HashSet<String>,
+}
+
+impl Builder<'_> {
+    fn build(&mut self, i: usize) -> Result<(), Diagnostic> {
+        match self.states.get(i) {
+            None => return Err(Diagnostic::error(None, format!("material index {i} out of range"))),
+            Some(BuildState::Built(_)) => return Ok(()),
+            Some(BuildState::Building) => {
+                let e = &self.desc.materials[i].entity;
+                return Err(Diagnostic::error(Some(e.loc.clone()), "mix material refers to itself"));
+            }
+            Some(BuildState::Unbuilt) => {}
+        }
+        self.states[i] = BuildState::Building;
+        let m = self.create(i)?;
+        let e = &self.desc.materials[i].entity;
+        self.warnings.extend(e.params.report_unused(&format!("material \"{}\"", e.kind)));
+        self.states[i] = BuildState::Built(m);
+        Ok(())
+    }
+
+    /// The named material `name` as seen from material `from`: the latest definition before it, else any.
+    fn find_named(&self, name: &str, from: usize) -> Option<usize> {
+        let mats = &self.desc.materials;
+        let is = |j: &usize| mats[*j].name.as_deref() == Some(name);
+        (0..from).rev().find(is).or_else(|| (0..mats.len()).rev().find(is))
+    }
+
+    fn create(&mut self, i: usize) -> Result<Material, Diagnostic> {
+        let e = &self.desc.materials[i].entity;
+        let p = &e.params;
+        let w = self.warnings;
+        p.get_strings("type");
+        let tx = &mut *self.textures;
+        let one = |v: f32| Rgb::splat(v);
+        let bump = |tx: &mut Textures| tx.get_float_param_opt(p, "bumpmap", w);
+        let remap = || p.get_one_bool("remaproughness", true);
+        Ok(match e.kind.as_str() {
+            "matte" => Material::Matte {
+                kd: tx.get_spectrum_param(p, "Kd", one(0.5), w)?,
+                sigma: tx.get_float_param(p, "sigma", 0.0, w)?,
+                bump: bump(tx)?,
+            },
+            "plastic" => Material::Plastic {
+                kd: tx.get_spectrum_param(p, "Kd", one(0.25), w)?,
+                ks: tx.get_spectrum_param(p, "Ks", one(0.25), w)?,
+                roughness: tx.get_float_param(p, "roughness", 0.1, w)?,
+                bump: bump(tx)?,
+                remap: remap(),
+            },
+            "metal" => Material::Metal {
+                eta: tx.get_spectrum_param(p, "eta", copper_eta(), w)?,
+                k: tx.get_spectrum_param(p, "k", copper_k(), w)?,
+                roughness: tx.get_float_param(p, "roughness", 0.01, w)?,
+                uroughness: tx.get_float_param_opt(p, "uroughness", w)?,
+                vroughness: tx.get_float_param_opt(p, "vroughness", w)?,
+                bump: bump(tx)?,
+                remap: remap(),
+            },
+            "mirror" => Material::Mirror { kr: tx.get_spectrum_param(p, "Kr", one(0.9), w)?, bump: bump(tx)? },
+            "glass" => Material::Glass {
+                kr: tx.get_spectrum_param(p, "Kr", one(1.0), w)?,
+                kt: tx.get_spectrum_param(p, "Kt", one(1.0), w)?,
+                eta: match tx.get_float_param_opt(p, "eta", w)? {
+                    Some(e) => e,
+                    None => tx.get_float_param(p, "index", 1.5, w)?,
+                },
+                uroughness: tx.get_float_param(p, "uroughness", 0.0, w)?,
+                vroughness: tx.get_float_param(p, "vroughness", 0.0, w)?,
+                bump: bump(tx)?,
+                remap: remap(),
+            },
+            "substrate" => Material::Substrate {
+                kd: tx.get_spectrum_param(p, "Kd", one(0.5), w)?,
+                ks: tx.get_spectrum_param(p, "Ks", one(0.5), w)?,
+                uroughness: tx.get_float_param(p, "uroughness", 0.1, w)?,
+                vroughness: tx.get_float_param(p, "vroughness", 0.1, w)?,
+                bump: bump(tx)?,
+                remap: remap(),
+            },
+            "uber" => Material::Uber {
+                kd: tx.get_spectrum_param(p, "Kd", one(0.25), w)?,
+                ks: tx.get_spectrum_param(p, "Ks", one(0.25), w)?,
+                kr: tx.get_spectrum_param(p, "Kr", one(0.0), w)?,
+                kt: tx.get_spectrum_param(p, "Kt", one(0.0), w)?,
+                roughness: tx.get_float_param(p, "roughness", 0.1, w)?,
+                uroughness: tx.get_float_param_opt(p, "uroughness", w)?,
+                vroughness: tx.get_float_param_opt(p, "vroughness", w)?,
+                eta: match tx.get_float_param_opt(p, "eta", w)? {
+                    Some(e) => e,
+                    None => tx.get_float_param(p, "index", 1.5, w)?,
+                },
+                opacity: tx.get_spectrum_param(p, "opacity", one(1.0), w)?,
+                bump: bump(tx)?,
+                remap: remap(),
+            },
+            "translucent" => Material::Translucent {
+                kd: tx.get_spectrum_param(p, "Kd", one(0.25), w)?,
+                ks: tx.get_spectrum_param(p, "Ks", one(0.25), w)?,
+                reflect: tx.get_spectrum_param(p, "reflect", one(0.5), w)?,
+                transmit: tx.get_spectrum_param(p, "transmit", one(0.5), w)?,
+                roughness: tx.get_float_param(p, "roughness", 0.1, w)?,
+                bump: bump(tx)?,
+                remap: remap(),
+            },
+            "mix" => {
+                let amount = tx.get_spectrum_param(p, "amount", one(0.5), w)?;
+                let mut refs = [0usize; 2];
+                for (k, key) in ["namedmaterial1", "namedmaterial2"].iter().enumerate() {
+                    let name = p.get_one_string(key, "");
+                    let loc = p.loc_of(key).cloned().unwrap_or_else(|| e.loc.clone());
+                    if name.is_empty() {
+                        return Err(Diagnostic::error(Some(loc), format!("mix material needs \"string {key}\"")));
+                    }
+                    let Some(j) = self.find_named(&name, i) else {
+                        return Err(Diagnostic::error(Some(loc), format!("named material \"{name}\" undefined")));
+                    };
+                    self.build(j)?;
+                    refs[k] = j;
+                }
+                Material::Mix { amount, m1: refs[0], m2: refs[1] }
+            }
+            other => {
+                let known = UNSUPPORTED.contains(&other);
+                if self.warned_types.insert(other.to_string()) {
+                    let msg = if known {
+                        format!("material \"{other}\" is not supported: rendering it as \"matte\" with its Kd")
+                    } else {
+                        format!("material \"{other}\" unknown: rendering it as \"matte\" with its Kd")
+                    };
+                    w.warn(Some(e.loc.clone()), msg);
+                }
+                let kd = tx.get_spectrum_param(p, "Kd", one(0.5), w).unwrap_or(SpectrumParam::Const(one(0.5)));
+                p.mark_all_used();
+                Material::Matte { kd, sigma: FloatParam::Const(0.0), bump: None }
+            }
+        })
+    }
+}
+
+impl Materials {
+    /// Builds the materials `used` marks (indices into `desc.materials`) and the
+    /// named materials used `mix`es refer to, building the textures they reference.
+    pub fn build(
+        desc: &SceneDescription,
+        used: &[bool],
+        textures: &mut Textures,
+        warnings: &DiagSink,
+    ) -> Result<Materials, Diagnostic> {
+        let n = desc.materials.len();
+        let mut b = Builder {
+            desc,
+            textures,
+            warnings,
+            states: (0..n).map(|_| BuildState::Unbuilt).collect(),
+            warned_types: HashSet::new(),
+        };
+        for (i, &u) in used.iter().enumerate().take(n) {
+            if u {
+                b.build(i)?;
+            }
+        }
+        let slots = b
+            .states
+            .into_iter()
+            .map(|s| match s {
+                BuildState::Built(m) => Some(m),
+                _ => None,
+            })
+            .collect();
+        Ok(Materials { slots })
+    }
+
+    /// Material `i`, if it was built.
+    pub fn get(&self, i: usize) -> Option<&Material> {
+        self.slots.get(i).and_then(|m| m.as_ref())
+    }
+
+    pub fn built_count(&self) -> usize {
+        self.slots.iter().filter(|m| m.is_some()).count()
+    }
+}
+
+fn eval_f(tx: &Textures, p: FloatParam, ctx: &TextureEvalContext) -> f32 {
+    tx.eval_float(p, ctx)
+}
+
+fn eval_s(tx: &Textures, p: SpectrumParam, ctx: &TextureEvalContext) -> Rgb {
+    clamp0(tx.eval_spectrum(p, ctx))
+}
+
+/// pbrt-v3's `Material::Bump`: the bumped shading normal and ∂p/∂u.
+pub fn bump(
+    d: FloatParam,
+    si: &SurfaceInteraction,
+    geom: &ShadingGeometry,
+    ctx: &TextureEvalContext,
+    textures: &Textures,
+) -> (Vec3, Vec3) {
+    let mut du = 0.5 * (ctx.dudx.abs() + ctx.dudy.abs());
+    if du == 0.0 || !du.is_finite() {
+        du = 0.01;
+    }
+    let mut dv = 0.5 * (ctx.dvdx.abs() + ctx.dvdy.abs());
+    if dv == 0.0 || !dv.is_finite() {
+        dv = 0.01;
+    }
+    let base_n = geom.dpdu.cross(geom.dpdv).normalize_or_zero();
+    let shifted_u =
+        TextureEvalContext { p: ctx.p + du * geom.dpdu, uv: ctx.uv + Vec2::new(du, 0.0), n: base_n, ..*ctx };
+    let shifted_v =
+        TextureEvalContext { p: ctx.p + dv * geom.dpdv, uv: ctx.uv + Vec2::new(0.0, dv), n: base_n, ..*ctx };
+    let u_disp = textures.eval_float(d, &shifted_u);
+    let v_disp = textures.eval_float(d, &shifted_v);
+    let disp = textures.eval_float(d, ctx);
+    let dpdu = geom.dpdu + (u_disp - disp) / du * geom.n;
+    let dpdv = geom.dpdv + (v_disp - disp) / dv * geom.n;
+    let ns = dpdu.cross(dpdv).normalize_or_zero();
+    if ns == Vec3::ZERO || !ns.is_finite() {
+        return (geom.n, geom.dpdu);
+    }
+    (face_forward(ns, si.n), dpdu)
+}
+
+fn trowbridge(urough: f32, vrough: f32, remap: bool) -> MicrofacetDistribution {
+    if remap {
+        MicrofacetDistribution::trowbridge_reitz(roughness_to_alpha(urough), roughness_to_alpha(vrough))
+    } else {
+        MicrofacetDistribution::trowbridge_reitz(urough, vrough)
+    }
+}
+
+/// Scales a lobe's colours by `s` (see the module notes on `FresnelBlend`).
+fn scale_bxdf(b: Bxdf, s: Rgb) -> Bxdf {
+    match b {
+        Bxdf::LambertianReflection { r } => Bxdf::LambertianReflection { r: r * s },
+        Bxdf::LambertianTransmission { t } => Bxdf::LambertianTransmission { t: t * s },
+        Bxdf::OrenNayar { r, a, b } => Bxdf::OrenNayar { r: r * s, a, b },
+        Bxdf::SpecularReflection { r, fresnel } => Bxdf::SpecularReflection { r: r * s, fresnel },
+        Bxdf::SpecularTransmission { t, eta_a, eta_b, mode } => {
+            Bxdf::SpecularTransmission { t: t * s, eta_a, eta_b, mode }
+        }
+        Bxdf::FresnelSpecular { r, t, eta_a, eta_b, mode } => {
+            Bxdf::FresnelSpecular { r: r * s, t: t * s, eta_a, eta_b, mode }
+        }
+        Bxdf::MicrofacetReflection { r, distribution, fresnel } => {
+            Bxdf::MicrofacetReflection { r: r * s, distribution, fresnel }
+        }
+        Bxdf::MicrofacetTransmission { t, distribution, eta_a, eta_b, mode } => {
+            Bxdf::MicrofacetTransmission { t: t * s, distribution, eta_a, eta_b, mode }
+        }
+        Bxdf::FresnelBlend { rd, rs, distribution } => Bxdf::FresnelBlend { rd: rd * s, rs: rs * s, distribution },
+    }
+}
+
+impl Material {
+    fn bump_map(&self) -> Option<FloatParam> {
+        match self {
+            Material::Matte { bump, .. }
+            | Material::Plastic { bump, .. }
+            | Material::Metal { bump, .. }
+            | Material::Mirror { bump, .. }
+            | Material::Glass { bump, .. }
+            | Material::Substrate { bump, .. }
+            | Material::Uber { bump, .. }
+            | Material::Translucent { bump, .. } => *bump,
+            Material::Mix { .. } => None,
+        }
+    }
+
+    /// The BSDF at `si` as pbrt-v3's `directlighting` builds it (radiance transport,
+    /// no multiple-lobe glass), without ray differentials; shading derivatives are
+    /// inferred from `si` (see [`ShadingGeometry::infer`]).
+    pub fn compute_bsdf(&self, si: &SurfaceInteraction, materials: &Materials, textures: &Textures) -> Bsdf {
+        self.compute_bsdf_ext(
+            si,
+            &TextureEvalContext::from_si(si),
+            &ShadingGeometry::infer(si),
+            BsdfOptions::default(),
+            materials,
+            textures,
+        )
+    }
+
+    /// The BSDF with an explicit texture context (e.g. with differentials), shading geometry and options.
+    pub fn compute_bsdf_ext(
+        &self,
+        si: &SurfaceInteraction,
+        ctx: &TextureEvalContext,
+        geom: &ShadingGeometry,
+        opts: BsdfOptions,
+        materials: &Materials,
+        textures: &Textures,
+    ) -> Bsdf {
+        self.scatter(si, ctx, geom, opts, materials, textures, 0)
+    }
+
+    fn frame(
+        &self,
+        si: &SurfaceInteraction,
+        ctx: &TextureEvalContext,
+        geom: &ShadingGeometry,
+        tx: &Textures,
+    ) -> (Vec3, Vec3) {
+        match self.bump_map() {
+            Some(d) => bump(d, si, geom, ctx, tx),
+            None => (geom.n, geom.dpdu),
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn scatter(
+        &self,
+        si: &SurfaceInteraction,
+        ctx: &TextureEvalContext,
+        geom: &ShadingGeometry,
+        opts: BsdfOptions,
+        materials: &Materials,
+        tx: &Textures,
+        depth: u32,
+    ) -> Bsdf {
+        let (ns, ss) = self.frame(si, ctx, geom, tx);
+        let new_bsdf = |eta: f32| Bsdf::new(ns, ss, si.n, eta);
+        let mode = opts.mode;
+        match *self {
+            Material::Matte { kd, sigma, .. } => {
+                let mut b = new_bsdf(1.0);
+                let r = eval_s(tx, kd, ctx);
+                let sig = eval_f(tx, sigma, ctx).clamp(0.0, 90.0);
+                if !is_black(r) {
+                    let l = if sig == 0.0 { Bxdf::lambertian_reflection(r) } else { Bxdf::oren_nayar(r, sig) };
+                    let _ = b.add(l);
+                }
+                b
+            }
+            Material::Plastic { kd, ks, roughness, remap, .. } => {
+                let mut b = new_bsdf(1.0);
+                let kd = eval_s(tx, kd, ctx);
+                if !is_black(kd) {
+                    let _ = b.add(Bxdf::lambertian_reflection(kd));
+                }
+                let ks = eval_s(tx, ks, ctx);
+                if !is_black(ks) {
+                    let r = eval_f(tx, roughness, ctx);
+                    let fresnel = Fresnel::Dielectric { eta_i: 1.5, eta_t: 1.0 };
+                    let _ = b.add(Bxdf::microfacet_reflection(ks, trowbridge(r, r, remap), fresnel));
+                }
+                b
+            }
+            Material::Metal { eta, k, roughness, uroughness, vroughness, remap, .. } => {
+                let mut b = new_bsdf(1.0);
+                let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
+                let vr = eval_f(tx, vroughness.unwrap_or(roughness), ctx);
+                let fresnel = Fresnel::Conductor {
+                    eta_i: Rgb::ONE,
+                    eta_t: tx.eval_spectrum(eta, ctx),
+                    k: tx.eval_spectrum(k, ctx),
+                };
+                let _ = b.add(Bxdf::microfacet_reflection(Rgb::ONE, trowbridge(ur, vr, remap), fresnel));
+                b
+            }
+            Material::Mirror { kr, .. } => {
+                let mut b = new_bsdf(1.0);
+                let r = eval_s(tx, kr, ctx);
+                if !is_black(r) {
+                    let _ = b.add(Bxdf::specular_reflection(r, Fresnel::NoOp));
+                }
+                b
+            }
+            Material::Glass { kr, kt, eta, uroughness, vroughness, remap, .. } => {
+                let eta = eval_f(tx, eta, ctx);
+                let ur = eval_f(tx, uroughness, ctx);
+                let vr = eval_f(tx, vroughness, ctx);
+                let r = eval_s(tx, kr, ctx);
+                let t = eval_s(tx, kt, ctx);
+                let mut b = new_bsdf(eta);
+                if is_black(r) && is_black(t) {
+                    return b;
+                }
+                let specular = ur == 0.0 && vr == 0.0;
+                if specular && opts.allow_multiple_lobes {
+                    let _ = b.add(Bxdf::fresnel_specular(r, t, 1.0, eta, mode));
+                    return b;
+                }
+                let distrib = trowbridge(ur, vr, remap);
+                if !is_black(r) {
+                    let fresnel = Fresnel::Dielectric { eta_i: 1.0, eta_t: eta };
+                    let _ = b.add(if specular {
+                        Bxdf::specular_reflection(r, fresnel)
+                    } else {
+                        Bxdf::microfacet_reflection(r, distrib, fresnel)
+                    });
+                }
+                if !is_black(t) {
+                    let _ = b.add(if specular {
+                        Bxdf::specular_transmission(t, 1.0, eta, mode)
+                    } else {
+                        Bxdf::microfacet_transmission(t, distrib, 1.0, eta, mode)
+                    });
+                }
+                b
+            }
+            Material::Substrate { kd, ks, uroughness, vroughness, remap, .. } => {
+                let mut b = new_bsdf(1.0);
+                let d = eval_s(tx, kd, ctx);
+                let s = eval_s(tx, ks, ctx);
+                let ur = eval_f(tx, uroughness, ctx);
+                let vr = eval_f(tx, vroughness, ctx);
+                if !is_black(d) || !is_black(s) {
+                    let _ = b.add(Bxdf::fresnel_blend(d, s, trowbridge(ur, vr, remap)));
+                }
+                b
+            }
+            Material::Uber { kd, ks, kr, kt, roughness, uroughness, vroughness, eta, opacity, remap, .. } => {
+                let e = eval_f(tx, eta, ctx);
+                let op = eval_s(tx, opacity, ctx);
+                let t = clamp0(Rgb::ONE - op);
+                let mut b;
+                if !is_black(t) {
+                    b = new_bsdf(1.0);
+                    let _ = b.add(Bxdf::specular_transmission(t, 1.0, 1.0, mode));
+                } else {
+                    b = new_bsdf(e);
+                }
+                let kd = op * eval_s(tx, kd, ctx);
+                if !is_black(kd) {
+                    let _ = b.add(Bxdf::lambertian_reflection(kd));
+                }
+                let ks = op * eval_s(tx, ks, ctx);
+                if !is_black(ks) {
+                    let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
+                    let vr = match vroughness {
+                        Some(v) => eval_f(tx, v, ctx),
+                        None => ur,
+                    };
+                    let fresnel = Fresnel::Dielectric { eta_i: 1.0, eta_t: e };
+                    let _ = b.add(Bxdf::microfacet_reflection(ks, trowbridge(ur, vr, remap), fresnel));
+                }
+                let kr = op * eval_s(tx, kr, ctx);
+                if !is_black(kr) {
+                    let _ = b.add(Bxdf::specular_reflection(kr, Fresnel::Dielectric { eta_i: 1.0, eta_t: e }));
+                }
+                let kt = op * eval_s(tx, kt, ctx);
+                if !is_black(kt) {
+                    let _ = b.add(Bxdf::specular_transmission(kt, 1.0, e, mode));
+                }
+                b
+            }
+            Material::Translucent { kd, ks, reflect, transmit, roughness, remap, .. } => {
+                let eta = 1.5;
+                let mut b = new_bsdf(eta);
+                let r = eval_s(tx, reflect, ctx);
+                let t = eval_s(tx, transmit, ctx);
+                if is_black(r) && is_black(t) {
+                    return b;
+                }
+                let kd = eval_s(tx, kd, ctx);
+                if !is_black(kd) {
+                    if !is_black(r) {
+                        let _ = b.add(Bxdf::lambertian_reflection(r * kd));
+                    }
+                    if !is_black(t) {
+                        let _ = b.add(Bxdf::lambertian_transmission(t * kd));
+                    }
+                }
+                let ks = eval_s(tx, ks, ctx);
+                if !is_black(ks) && (!is_black(r) || !is_black(t)) {
+                    let rough = eval_f(tx, roughness, ctx);
+                    let distrib = trowbridge(rough, rough, remap);
+                    if !is_black(r) {
+                        let fresnel = Fresnel::Dielectric { eta_i: 1.0, eta_t: eta };
+                        let _ = b.add(Bxdf::microfacet_reflection(r * ks, distrib, fresnel));
+                    }
+                    if !is_black(t) {
+                        let _ = b.add(Bxdf::microfacet_transmission(t * ks, distrib, 1.0, eta, mode));
+                    }
+                }
+                b
+            }
+            Material::Mix { amount, m1, m2 } => {
+                let s1 = eval_s(tx, amount, ctx);
+                let s2 = clamp0(Rgb::ONE - s1);
+                let sub = |m: usize| -> Bsdf {
+                    match materials.get(m) {
+                        Some(mat) if depth < 16 => mat.scatter(si, ctx, geom, opts, materials, tx, depth + 1),
+                        _ => Bsdf::new(ns, ss, si.n, 1.0),
+                    }
+                };
+                let b1 = sub(m1);
+                let b2 = sub(m2);
+                let mut b = Bsdf::new(b1.shading_normal(), b1.local_to_world(Vec3::X), b1.geometric_normal(), b1.eta);
+                for l in b1.bxdfs() {
+                    let _ = b.add(scale_bxdf(*l, s1));
+                }
+                for l in b2.bxdfs() {
+                    let _ = b.add(scale_bxdf(*l, s2));
+                }
+                b
+            }
+        }
+    }
+
+    /// The material as a diffuse albedo plus an optional isotropic GGX lobe, for
+    /// analytic (LTC) integrators; `None` when it is not of that form (Oren–Nayar
+    /// matte, anisotropic roughness, mirror, glass, mix, translucent). For `uber`
+    /// only its diffuse and glossy parts are described.
+    pub fn ltc_lobes(&self, si: &SurfaceInteraction, textures: &Textures) -> Option<LtcDescription> {
+        let ctx = TextureEvalContext::from_si(si);
+        let geom = ShadingGeometry::infer(si);
+        self.ltc_lobes_ext(si, &ctx, &geom, textures)
+    }
+
+    /// [`Self::ltc_lobes`] with an explicit texture context and shading geometry.
+    pub fn ltc_lobes_ext(
+        &self,
+        si: &SurfaceInteraction,
+        ctx: &TextureEvalContext,
+        geom: &ShadingGeometry,
+        tx: &Textures,
+    ) -> Option<LtcDescription> {
+        let alpha = |r: f32, remap: bool| if remap { roughness_to_alpha(r) } else { r };
+        let iso = |ur: f32, vr: f32, remap: bool| {
+            let (a, b) = (alpha(ur, remap), alpha(vr, remap));
+            (a == b).then(|| MicrofacetDistribution::trowbridge_reitz(a, a).alphas().0)
+        };
+        let (diffuse, specular) = match *self {
+            Material::Matte { kd, sigma, .. } => {
+                if eval_f(tx, sigma, ctx).clamp(0.0, 90.0) != 0.0 {
+                    return None;
+                }
+                (eval_s(tx, kd, ctx), None)
+            }
+            Material::Plastic { kd, ks, roughness, remap, .. } => {
+                let ks = eval_s(tx, ks, ctx);
+                let r = eval_f(tx, roughness, ctx);
+                let spec = (!is_black(ks)).then(|| LtcSpecular {
+                    alpha: iso(r, r, remap).unwrap_or(1.0),
+                    fresnel: LtcFresnel::Dielectric { eta_i: 1.5, eta_t: 1.0 },
+                    scale: ks,
+                });
+                (eval_s(tx, kd, ctx), spec)
+            }
+            Material::Metal { eta, k, roughness, uroughness, vroughness, remap, .. } => {
+                let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
+                let vr = eval_f(tx, vroughness.unwrap_or(roughness), ctx);
+                let a = iso(ur, vr, remap)?;
+                let fresnel = LtcFresnel::Conductor { eta: tx.eval_spectrum(eta, ctx), k: tx.eval_spectrum(k, ctx) };
+                (Rgb::ZERO, Some(LtcSpecular { alpha: a, fresnel, scale: Rgb::ONE }))
+            }
+            Material::Substrate { kd, ks, uroughness, vroughness, remap, .. } => {
+                let ur = eval_f(tx, uroughness, ctx);
+                let vr = eval_f(tx, vroughness, ctx);
+                let a = iso(ur, vr, remap)?;
+                let f0 = eval_s(tx, ks, ctx);
+                (
+                    eval_s(tx, kd, ctx),
+                    Some(LtcSpecular { alpha: a, fresnel: LtcFresnel::Schlick { f0 }, scale: Rgb::ONE }),
+                )
+            }
+            Material::Uber { kd, ks, roughness, uroughness, vroughness, eta, opacity, remap, .. } => {
+                let op = eval_s(tx, opacity, ctx);
+                let ks = op * eval_s(tx, ks, ctx);
+                let spec = if is_black(ks) {
+                    None
+                } else {
+                    let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
+                    let vr = match vroughness {
+                        Some(v) => eval_f(tx, v, ctx),
+                        None => ur,
+                    };
+                    let e = eval_f(tx, eta, ctx);
+                    Some(LtcSpecular {
+                        alpha: iso(ur, vr, remap)?,
+                        fresnel: LtcFresnel::Dielectric { eta_i: 1.0, eta_t: e },
+                        scale: ks,
+                    })
+                };
+                (op * eval_s(tx, kd, ctx), spec)
+            }
+            _ => return None,
+        };
+        let (n, _) = self.frame(si, ctx, geom, tx);
+        Some(LtcDescription { n, diffuse, specular })
+    }
+}
+
+#[cfg(test)]
+mod tests;
