@@ -14,7 +14,7 @@ pub const DEFAULT_SCENE: &str = include_str!("../scenes/default.pbrt");
 pub const DEFAULT_SCENE_NAME: &str = "<embedded default scene>";
 
 /// The integrator used for scenes that name one penumbra does not implement.
-pub const FALLBACK_INTEGRATOR: &str = "ambientocclusion";
+pub const FALLBACK_INTEGRATOR: &str = "directlighting";
 
 /// Parses `path`, or the embedded default scene when `None`.
 pub fn load_scene(path: Option<&Path>) -> Result<ParseOutput, Diagnostic> {

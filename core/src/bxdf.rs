@@ -30,6 +30,8 @@ impl BxdfFlags {
     pub const GLOSSY: BxdfFlags = BxdfFlags(8);
     pub const SPECULAR: BxdfFlags = BxdfFlags(16);
     pub const ALL: BxdfFlags = BxdfFlags(31);
+    /// pbrt-v3's `BSDF_ALL & ~BSDF_SPECULAR`.
+    pub const NON_SPECULAR: BxdfFlags = BxdfFlags(15);
 
     /// All bits of `other` are set in `self`.
     pub const fn contains(self, other: BxdfFlags) -> bool {

@@ -13,7 +13,9 @@
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::Ray;
-use penumbra_core::integrator::{render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats};
+use penumbra_core::integrator::{
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+};
 use penumbra_core::light::{Light, LightContext};
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::power_heuristic;
@@ -36,14 +38,20 @@ impl DirectLighting {
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
         let max_depth = params.get_one_int("maxdepth", 5);
         if !(0..=1024).contains(&max_depth) {
-            return Err(Diagnostic::error(params.loc_of("maxdepth").cloned(), format!("\"maxdepth\" must be in 0..=1024, got {max_depth}")));
+            return Err(Diagnostic::error(
+                params.loc_of("maxdepth").cloned(),
+                format!("\"maxdepth\" must be in 0..=1024, got {max_depth}"),
+            ));
         }
         let st = params.get_one_string("strategy", "all");
         let strategy = match st.as_str() {
             "all" => Strategy::All,
             "one" => Strategy::One,
             other => {
-                warnings.warn(params.loc_of("strategy").cloned(), format!("strategy \"{other}\" for direct lighting unknown: using \"all\""));
+                warnings.warn(
+                    params.loc_of("strategy").cloned(),
+                    format!("strategy \"{other}\" for direct lighting unknown: using \"all\""),
+                );
                 Strategy::All
             }
         };
@@ -125,52 +133,73 @@ impl Estimator<'_> {
         s.f * self.li(&r, scene, sampler, stats, depth + 1) * (cos / s.pdf)
     }
 
-    fn sample_all_lights(&self, si: &SurfaceInteraction, bsdf: &Bsdf, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats) -> Rgb {
+    fn sample_all_lights(
+        &self,
+        si: &SurfaceInteraction,
+        bsdf: &Bsdf,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+    ) -> Rgb {
         let mut l = Rgb::ZERO;
+        let mut ul = Vec::new();
         for (i, light) in self.lights(scene).iter().enumerate() {
             let n = self.n_light_samples[i];
-            // pbrt-v3 draws the light array first, then the scattering array.
-            let u_light: Option<Vec<Vec2>> = sampler.get_2d_array(n).map(|a| a.to_vec());
-            let u_scatter: Option<Vec<Vec2>> = sampler.get_2d_array(n).map(|a| a.to_vec());
-            match (u_light, u_scatter) {
-                (Some(ul), Some(us)) => {
+            // pbrt-v3 takes the light array first, then the scattering array;
+            // when either is exhausted, one sample from the plain 2D dimensions.
+            ul.clear();
+            if let Some(a) = sampler.get_2d_array(n) {
+                ul.extend_from_slice(a);
+            }
+            match sampler.get_2d_array(n) {
+                Some(us) if ul.len() == n as usize => {
                     let mut ld = Rgb::ZERO;
-                    for j in 0..n as usize {
-                        ld += estimate_direct(si, bsdf, us[j], light, ul[j], scene, stats);
+                    for (u_scatter, u_light) in us.iter().zip(&ul) {
+                        ld += estimate_direct(si, bsdf, *u_scatter, i, light, *u_light, scene, stats);
                     }
                     l += ld / n as f32;
                 }
                 _ => {
-                    let us = sampler.get_2d();
-                    let ul = sampler.get_2d();
-                    l += estimate_direct(si, bsdf, us, light, ul, scene, stats);
+                    let u_light = sampler.get_2d();
+                    let u_scatter = sampler.get_2d();
+                    l += estimate_direct(si, bsdf, u_scatter, i, light, u_light, scene, stats);
                 }
             }
         }
         l
     }
 
-    fn sample_one_light(&self, si: &SurfaceInteraction, bsdf: &Bsdf, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats) -> Rgb {
+    fn sample_one_light(
+        &self,
+        si: &SurfaceInteraction,
+        bsdf: &Bsdf,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+    ) -> Rgb {
         let lights = self.lights(scene);
         let n = lights.len();
         let k = ((sampler.get_1d() * n as f32) as usize).min(n - 1);
         let ul = sampler.get_2d();
         let us = sampler.get_2d();
-        estimate_direct(si, bsdf, us, &lights[k], ul, scene, stats) * n as f32
+        estimate_direct(si, bsdf, us, k, &lights[k], ul, scene, stats) * n as f32
     }
 }
 
 /// pbrt-v3's `EstimateDirect`: one light sample and one BSDF sample, MIS-weighted.
+/// `light_index` is `light`'s index in `scene.lights` (to recognise its surface).
+#[allow(clippy::too_many_arguments)]
 pub fn estimate_direct(
     si: &SurfaceInteraction,
     bsdf: &Bsdf,
     u_scatter: Vec2,
+    light_index: usize,
     light: &Light,
     u_light: Vec2,
     scene: &Scene,
     stats: &mut ThreadStats,
 ) -> Rgb {
-    let flags = BxdfFlags::ALL & !BxdfFlags::SPECULAR;
+    let flags = BxdfFlags::NON_SPECULAR;
     let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
     let mut ld = Rgb::ZERO;
     if let Some(ls) = light.sample_li(&ctx, u_light, &scene.meshes) {
@@ -207,7 +236,7 @@ pub fn estimate_direct(
                 let li = match &hit {
                     Some(h) => {
                         let lsi = scene.interaction(&ray, h);
-                        let same = scene.area_light_at(h).is_some_and(|k| std::ptr::eq(&scene.lights.as_ref().unwrap().lights[k], light));
+                        let same = scene.area_light_at(h) == Some(light_index);
                         if same {
                             light_hit = Some((lsi.p, lsi.n));
                             light.l(lsi.n, -bs.wi)
@@ -246,7 +275,14 @@ impl PixelEstimator for Estimator<'_> {
             }
         }
     }
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, _aov: &mut [f32]) -> Rgb {
+    fn li(
+        &self,
+        ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        _aov: &mut [f32],
+    ) -> Rgb {
         self.li(ray, scene, sampler, stats, 0)
     }
 }
@@ -259,8 +295,11 @@ impl Integrator for DirectLighting {
         Requirements { accel: true, lights: true, materials: true, ..Default::default() }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
-        let n_light_samples =
-            scene.lights.as_ref().map(|l| l.lights.iter().map(|x| scene.sampler.round_count(x.n_samples().max(1))).collect()).unwrap_or_default();
+        let n_light_samples = scene
+            .lights
+            .as_ref()
+            .map(|l| l.lights.iter().map(|x| scene.sampler.round_count(x.n_samples().max(1))).collect())
+            .unwrap_or_default();
         render_pixels(&Estimator { dl: self, n_light_samples }, scene, ctx, film)
     }
 }

@@ -1,6 +1,7 @@
 //! One module per integrator, plus the registry.
 
 pub mod ao;
+pub mod directlighting;
 
 use penumbra_core::integrator::Integrator;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
@@ -14,11 +15,18 @@ pub struct Entry {
     pub create: Constructor,
 }
 
-pub const REGISTRY: &[Entry] = &[Entry {
-    name: "ambientocclusion",
-    method: "ray-traced ambient occlusion (pbrt-v3 semantics: nsamples, cossample; pbrt-v4's maxdistance)",
-    create: ao::AmbientOcclusion::create,
-}];
+pub const REGISTRY: &[Entry] = &[
+    Entry {
+        name: "directlighting",
+        method: "pbrt-v3 direct lighting: light + BSDF sampling with MIS, strategy all/one, specular recursion",
+        create: directlighting::DirectLighting::create,
+    },
+    Entry {
+        name: "ambientocclusion",
+        method: "ray-traced ambient occlusion (pbrt-v3 semantics: nsamples, cossample; pbrt-v4's maxdistance)",
+        create: ao::AmbientOcclusion::create,
+    },
+];
 
 /// pbrt-v3 integrators penumbra does not implement; scenes naming them render with the fallback.
 pub const PBRT_UNIMPLEMENTED: &[&str] = &["path", "whitted", "volpath", "bdpt", "mlt", "sppm"];
