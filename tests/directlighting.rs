@@ -302,6 +302,7 @@ fn public_scenes_render() {
     let allowed = [
         "unused by",
         "is not supported",
+        "are not supported",
         "not supported; skipped",
         "animated transform",
         "reading this file as a world-block fragment",

@@ -235,6 +235,15 @@ impl Scene {
         let mut add =
             |s: &ShapeDesc, instance: Option<usize>, meshes: &mut Vec<TriangleMesh>| -> Result<(), Diagnostic> {
                 if let Some(mesh) = build_shape(s, &ctx)? {
+                    if mesh.alpha.is_some() || mesh.shadow_alpha.is_some() {
+                        ctx.warnings.warn(
+                            Some(s.entity.loc.clone()),
+                            format!(
+                                "\"alpha\"/\"shadowalpha\" cut-outs are not supported yet: shape \"{}\" renders opaque",
+                                s.entity.kind
+                            ),
+                        );
+                    }
                     meshes.push(mesh);
                     objects.push(SceneObject {
                         kind: s.entity.kind.clone(),
