@@ -256,6 +256,32 @@ fn white_furnace_renders_kd() {
     }
 }
 
+/// Same seed → bit-identical images with 1 or 2 threads and from crops, with the Halton sampler's
+/// per-light sample arrays (strategy "all") and with strategy "one" on the Sobol sampler.
+#[test]
+fn deterministic_across_threads_and_crops() {
+    let path = scene("suite/ltc/two-lights-metal.pbrt");
+    for (strategy, sampler) in [("all", None), ("one", Some("sobol"))] {
+        let param = format!("strategy={strategy}");
+        let params = [param.as_str()];
+        assert_deterministic(40, 36, |threads, crop| {
+            render_path(
+                &path,
+                &Opts {
+                    integrator: Some("directlighting"),
+                    params: &params,
+                    spp: Some(4),
+                    resolution: Some((40, 36)),
+                    threads,
+                    seed: 3,
+                    crop,
+                    sampler,
+                },
+            )
+        });
+    }
+}
+
 /// A scene naming an integrator penumbra does not implement renders with `directlighting`,
 /// keeping its `maxdepth`, and says so once; `-i` overrides the scene's choice.
 #[test]

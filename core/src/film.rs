@@ -117,7 +117,12 @@ impl FilmTile {
     pub fn add_sample(&mut self, filter: &dyn Filter, p_film: Vec2, l: Rgb, extra: &[f32]) {
         let r = filter.radius();
         let pd = p_film - Vec2::splat(0.5);
-        let lo = (pd - r).ceil().as_ivec2().max(self.bounds.min);
+        // Pixels whose centre lies in (pd − r, pd + r]: half-open, so that a sample exactly on a
+        // pixel border (QMC samplers produce them) reaches the same pixels as `sample_bounds`
+        // assumes, and crops reproduce the full image bit for bit. (pbrt-v3's closed interval
+        // gives such a sample to both neighbours under the box filter; the other filters are 0
+        // at their radius.)
+        let lo = ((pd - r).floor().as_ivec2() + IVec2::ONE).max(self.bounds.min);
         let hi = ((pd + r).floor().as_ivec2() + IVec2::ONE).min(self.bounds.max);
         let w = self.bounds.width();
         for y in lo.y..hi.y {
@@ -244,5 +249,41 @@ impl Film {
             }
         }
         Image { width: pb.width() as u32, height: pb.height() as u32, channels, data }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::filter::{BoxFilter, Filter};
+
+    fn tile_weights(filter: &dyn Filter, p: Vec2) -> Vec<f64> {
+        let mut t = FilmTile {
+            bounds: Bounds2i::new(IVec2::ZERO, IVec2::new(4, 4)),
+            pixels: vec![PixelSums::default(); 16],
+            extra: Vec::new(),
+            extra_channels: 0,
+        };
+        t.add_sample(filter, p, Rgb::ONE, &[]);
+        t.pixels.iter().map(|px| px.weight).collect()
+    }
+
+    /// A sample exactly on a pixel border reaches one pixel under the box filter (the one it
+    /// was taken in), so that crops, whose sample bounds assume this, reproduce the full image.
+    #[test]
+    fn border_samples_reach_one_pixel() {
+        let b = BoxFilter { radius: Vec2::splat(0.5) };
+        for p in [Vec2::new(1.0, 2.0), Vec2::new(2.0, 1.5), Vec2::new(1.5, 3.0), Vec2::new(1.25, 0.75)] {
+            let w = tile_weights(&b, p);
+            let own = (p.y.floor() as usize) * 4 + p.x.floor() as usize;
+            for (i, wi) in w.iter().enumerate() {
+                assert_eq!(*wi, if i == own { 1.0 } else { 0.0 }, "sample {p}: pixel {i}");
+            }
+        }
+        // A wider box reaches the pixels whose centres are within (p − r, p + r].
+        let b = BoxFilter { radius: Vec2::splat(1.0) };
+        let w = tile_weights(&b, Vec2::new(2.0, 2.0));
+        let hit: Vec<usize> = (0..16).filter(|&i| w[i] > 0.0).collect();
+        assert_eq!(hit, vec![5, 6, 9, 10]);
     }
 }

@@ -158,3 +158,41 @@ pub fn worst(
     v.sort_by(|a, b| b.0.total_cmp(&a.0));
     v.iter().take(k).map(|&(_, i)| (i, ours.image.data[i], reference.data[i], ours.variance.data[i])).collect()
 }
+
+/// Checks that `render(threads, crop)` gives a bit-identical image with 1 and 2 threads, and
+/// when assembled from four uneven crops not aligned to the 16-pixel tile grid (`w`×`h` image).
+pub fn assert_deterministic(w: i32, h: i32, render: impl Fn(usize, Option<Crop>) -> Render) {
+    let one = render(1, None);
+    let two = render(2, None);
+    assert_same(&one.image.data, &two.image.data, "1 vs 2 threads");
+    let (sx, sy, sx2) = (w * 7 / 16, h / 3, w * 3 / 4);
+    let mut assembled = vec![f32::NAN; one.image.data.len()];
+    for (x0, x1, y0, y1) in [(0, sx, 0, sy), (sx, w, 0, sy), (0, sx2, sy, h), (sx2, w, sy, h)] {
+        let piece = render(2, Some(Crop::Pixels([x0, x1, y0, y1])));
+        assert_eq!((piece.image.width, piece.image.height), ((x1 - x0) as u32, (y1 - y0) as u32));
+        for y in y0..y1 {
+            for x in x0..x1 {
+                for c in 0..3 {
+                    assembled[((y * w + x) * 3 + c) as usize] =
+                        piece.image.data[(((y - y0) * (x1 - x0) + (x - x0)) * 3 + c) as usize];
+                }
+            }
+        }
+    }
+    assert_same(&assembled, &one.image.data, "crops assembled from pieces");
+}
+
+/// Bit-identical value arrays; on failure, how many differ and where (not the whole arrays).
+pub fn assert_same(a: &[f32], b: &[f32], what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: lengths");
+    let diff: Vec<usize> = (0..a.len()).filter(|&i| a[i].to_bits() != b[i].to_bits()).collect();
+    assert!(
+        diff.is_empty(),
+        "{what}: {} of {} values differ; first at {} ({} vs {})",
+        diff.len(),
+        a.len(),
+        diff[0],
+        a[diff[0]],
+        b[diff[0]]
+    );
+}
