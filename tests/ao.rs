@@ -4,7 +4,6 @@
 
 mod common;
 use common::*;
-use penumbra_core::scene::Crop;
 
 const SPP: u32 = 256;
 
