@@ -152,6 +152,12 @@ impl<P: GlobalPattern> Sampler for GlobalSampler<P> {
             self.pattern.sample_dimension(self.pixel, self.index, d + 1),
         )
     }
+    fn skip_1d(&mut self) {
+        self.next_dimensions(1);
+    }
+    fn skip_2d(&mut self) {
+        self.next_dimensions(2);
+    }
     fn get_1d_array(&mut self, n: u32) -> Option<&[f32]> {
         if self.sizes_1d.get(self.array_1d) != Some(&n) {
             return None;
