@@ -66,7 +66,7 @@ pub fn multiply_generator(c: &[u32; 32], a: u32) -> u32 {
 }
 
 /// The first `PRIME_TABLE_SIZE` primes, by a sieve of Eratosthenes at compile time (the 1000th is 7919).
-const PRIMES: [u32; PRIME_TABLE_SIZE] = {
+static PRIMES: [u32; PRIME_TABLE_SIZE] = {
     const LIMIT: usize = 7920;
     let mut composite = [false; LIMIT];
     let mut out = [0u32; PRIME_TABLE_SIZE];
@@ -88,7 +88,7 @@ const PRIMES: [u32; PRIME_TABLE_SIZE] = {
 };
 
 /// `PRIME_SUMS[i]` = sum of the first `i` primes.
-const PRIME_SUMS: [usize; PRIME_TABLE_SIZE] = {
+static PRIME_SUMS: [usize; PRIME_TABLE_SIZE] = {
     let mut out = [0usize; PRIME_TABLE_SIZE];
     let mut i = 1;
     while i < PRIME_TABLE_SIZE {
@@ -137,7 +137,7 @@ pub struct PrimeBase {
     pub inv_base: f64,
 }
 
-const PRIME_BASES: [PrimeBase; PRIME_TABLE_SIZE] = {
+static PRIME_BASES: [PrimeBase; PRIME_TABLE_SIZE] = {
     let mut out = [PrimeBase { div: FastDiv::new(2), inv_base: 0.5 }; PRIME_TABLE_SIZE];
     let mut i = 0;
     while i < PRIME_TABLE_SIZE {
@@ -390,7 +390,7 @@ mod tests {
         let mut rng = Rng::default();
         for &d in primes().iter().chain(&[2u32, 3, 128, 243, u32::MAX]) {
             let f = FastDiv::new(d);
-            let mut check = |a: u64| assert_eq!(f.div_rem(a), (a / d as u64, a % d as u64), "{a} / {d}");
+            let check = |a: u64| assert_eq!(f.div_rem(a), (a / d as u64, a % d as u64), "{a} / {d}");
             for a in [0, 1, d as u64 - 1, d as u64, d as u64 + 1, u32::MAX as u64, u32::MAX as u64 + 1, u64::MAX] {
                 check(a);
             }
