@@ -429,6 +429,51 @@ impl Bxdf {
         }
     }
 
+    /// `(self.f(wo, wi), self.pdf(wo, wi))`, bit for bit, sharing the work the two have in
+    /// common (half vector, distribution and masking terms).
+    pub fn f_pdf(&self, wo: Vec3, wi: Vec3) -> (Rgb, f32) {
+        match *self {
+            Bxdf::MicrofacetReflection { r, distribution, fresnel } => {
+                let (cos_o, cos_i) = (wo.z.abs(), wi.z.abs());
+                let sum = wi + wo;
+                let has_f = !(cos_i == 0.0 || cos_o == 0.0 || sum == Vec3::ZERO);
+                let has_pdf = same_hemisphere(wo, wi);
+                if !has_f && !has_pdf {
+                    return (Rgb::ZERO, 0.0);
+                }
+                // `(wo + wi).normalize()` in `pdf` is the same vector (addition commutes exactly).
+                let wh = sum.normalize();
+                let d = distribution.d(wh);
+                let lambda_o = distribution.lambda(wo);
+                let f = if has_f {
+                    let g = 1.0 / (1.0 + lambda_o + distribution.lambda(wi));
+                    let fr = fresnel.evaluate(wi.dot(wh));
+                    finite_or_zero(r * d * g * fr / (4.0 * cos_i * cos_o))
+                } else {
+                    Rgb::ZERO
+                };
+                let pdf = if has_pdf {
+                    let pdf_wh = if wo.z == 0.0 {
+                        0.0
+                    } else {
+                        let g1 = 1.0 / (1.0 + lambda_o);
+                        let p = d * g1 * wo.dot(wh).abs() / wo.z.abs();
+                        if p.is_finite() {
+                            p
+                        } else {
+                            0.0
+                        }
+                    };
+                    finite_pdf(pdf_wh / (4.0 * wo.dot(wh)))
+                } else {
+                    0.0
+                };
+                (f, pdf)
+            }
+            _ => (self.f(wo, wi), self.pdf(wo, wi)),
+        }
+    }
+
     /// Density with which [`sample_f`](Self::sample_f) returns `wi` (0 for specular lobes).
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         finite_pdf(self.pdf_raw(wo, wi))
@@ -501,9 +546,9 @@ impl Bxdf {
         let u = Vec2::new(clamp_u(u.x), clamp_u(u.y));
         let flags = self.flags();
         let lobe = |wi: Vec3| -> Option<BsdfSample> {
-            let pdf = self.pdf(wo, wi);
+            let (f, pdf) = self.f_pdf(wo, wi);
             if pdf > 0.0 && wi.is_finite() {
-                Some(BsdfSample { wi, f: self.f(wo, wi), pdf, flags })
+                Some(BsdfSample { wi, f, pdf, flags })
             } else {
                 None
             }
@@ -635,6 +680,13 @@ pub struct Bsdf {
     bxdfs: [Bxdf; MAX_BXDFS],
 }
 
+/// Whether a lobe of type `t` contributes to `f` for a pair of directions on the same side
+/// (`reflect`) or on opposite sides of the geometric normal.
+#[inline]
+fn lobe_counts(t: BxdfFlags, reflect: bool) -> bool {
+    (reflect && t.contains(BxdfFlags::REFLECTION)) || (!reflect && t.contains(BxdfFlags::TRANSMISSION))
+}
+
 fn any_perpendicular(n: Vec3) -> Vec3 {
     // Duff et al.'s branchless orthonormal basis.
     let sign = 1.0f32.copysign(n.z);
@@ -701,10 +753,7 @@ impl Bsdf {
         let reflect = self.reflects(wo_w, wi_w);
         let mut f = Rgb::ZERO;
         for b in self.bxdfs() {
-            let t = b.flags();
-            if b.matches(flags)
-                && ((reflect && t.contains(BxdfFlags::REFLECTION)) || (!reflect && t.contains(BxdfFlags::TRANSMISSION)))
-            {
+            if b.matches(flags) && lobe_counts(b.flags(), reflect) {
                 f += b.f(wo, wi);
             }
         }
@@ -720,6 +769,29 @@ impl Bsdf {
             return Rgb::ZERO;
         }
         self.f_local(wo_w, wi_w, wo, wi, flags)
+    }
+
+    /// `(self.f(wo_w, wi_w, flags), self.pdf(wo_w, wi_w, flags))`, bit for bit, in one pass.
+    pub fn f_pdf(&self, wo_w: Vec3, wi_w: Vec3, flags: BxdfFlags) -> (Rgb, f32) {
+        let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
+        if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
+            return (Rgb::ZERO, 0.0);
+        }
+        let reflect = self.reflects(wo_w, wi_w);
+        let mut f = Rgb::ZERO;
+        let mut pdf = 0.0;
+        let mut matching = 0;
+        for b in self.bxdfs().iter().filter(|b| b.matches(flags)) {
+            matching += 1;
+            if lobe_counts(b.flags(), reflect) {
+                let (fb, pb) = b.f_pdf(wo, wi);
+                f += fb;
+                pdf += pb;
+            } else {
+                pdf += b.pdf(wo, wi);
+            }
+        }
+        (f, if matching > 0 { pdf / matching as f32 } else { 0.0 })
     }
 
     /// Average of the matching lobes' densities (pbrt-v3's `BSDF::Pdf`).
@@ -756,7 +828,7 @@ impl Bsdf {
         }
         let ux = clamp_u(u.x);
         let comp = ((ux * matching as f32).floor() as usize).min(matching - 1);
-        let bxdf = *self.bxdfs().iter().filter(|b| b.matches(flags)).nth(comp)?;
+        let bxdf = self.bxdfs().iter().filter(|b| b.matches(flags)).nth(comp)?;
         let u_remapped = Vec2::new((ux * matching as f32 - comp as f32).min(ONE_MINUS_EPSILON), u.y);
 
         let wo = self.world_to_local(wo_w);
@@ -772,21 +844,27 @@ impl Bsdf {
         let mut f = s.f;
         let specular = bxdf.flags().is_specular();
         if !specular && matching > 1 {
-            let mut skipped = false;
-            for b in self.bxdfs().iter().filter(|b| b.matches(flags)) {
-                // Skip the sampled lobe once (equal lobes are distinct entries).
-                if !skipped && *b == bxdf {
-                    skipped = true;
-                    continue;
+            // pdf: the sampled lobe's, then the others' in order; f: every matching lobe that
+            // the geometric normal selects, in order (the sampled lobe's value is `s.f`).
+            let reflect = self.reflects(wo_w, wi_w);
+            f = Rgb::ZERO;
+            for (i, b) in self.bxdfs().iter().filter(|b| b.matches(flags)).enumerate() {
+                let counts = lobe_counts(b.flags(), reflect);
+                if i == comp {
+                    if counts {
+                        f += s.f;
+                    }
+                } else if counts {
+                    let (fb, pb) = b.f_pdf(wo, s.wi);
+                    f += fb;
+                    pdf += pb;
+                } else {
+                    pdf += b.pdf(wo, s.wi);
                 }
-                pdf += b.pdf(wo, s.wi);
             }
         }
         if matching > 1 {
             pdf /= matching as f32;
-        }
-        if !specular && matching > 1 {
-            f = self.f_local(wo_w, wi_w, wo, s.wi, flags);
         }
         Some(BsdfSample { wi: wi_w, f, pdf, flags: s.flags })
     }

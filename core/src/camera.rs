@@ -133,6 +133,17 @@ impl Camera {
     }
 
     /// The camera ray for a film sample, in world space, with a unit direction.
+    /// Whether [`Camera::generate_ray`] reads `CameraSample::p_lens` (a thin lens).
+    pub fn uses_lens(&self) -> bool {
+        self.lens_radius > 0.0
+    }
+
+    /// Whether [`Camera::generate_ray`] reads `CameraSample::time` (it does not: camera
+    /// transforms are static).
+    pub fn uses_time(&self) -> bool {
+        false
+    }
+
     pub fn generate_ray(&self, s: &CameraSample) -> Ray {
         let (w, h) = (self.resolution.0 as f32, self.resolution.1 as f32);
         let (o, d) = match self.projection {

@@ -6,7 +6,7 @@ use crate::geometry::Ray;
 use crate::sampler::Sampler;
 use crate::scene::{Requirements, Scene};
 use crate::Rgb;
-use glam::IVec2;
+use glam::{IVec2, Vec2};
 use penumbra_parser::DiagSink;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -136,6 +136,7 @@ pub fn render_pixels(
     let naov = film.extra_channel_names.len();
     let max_lum = film.spec.max_sample_luminance;
     let film_ref = &*film;
+    let (uses_time, uses_lens) = (scene.camera.uses_time(), scene.camera.uses_lens());
     let results: Vec<Option<(crate::film::FilmTile, ThreadStats)>> = with_threads(ctx.threads, || {
         tile_list
             .par_iter()
@@ -150,11 +151,22 @@ pub fn render_pixels(
                 for p in tb.iter() {
                     for s in 0..spp {
                         sampler.start_pixel_sample(p, s);
-                        let cs = CameraSample {
-                            p_film: p.as_vec2() + sampler.get_2d(),
-                            time: sampler.get_1d(),
-                            p_lens: sampler.get_2d(),
+                        // The film, time and lens dimensions are drawn in pbrt-v3's order; the
+                        // ones the camera ignores are skipped without being computed.
+                        let p_film = p.as_vec2() + sampler.get_2d();
+                        let time = if uses_time {
+                            sampler.get_1d()
+                        } else {
+                            sampler.skip_1d();
+                            0.0
                         };
+                        let p_lens = if uses_lens {
+                            sampler.get_2d()
+                        } else {
+                            sampler.skip_2d();
+                            Vec2::splat(0.5)
+                        };
+                        let cs = CameraSample { p_film, time, p_lens };
                         let ray = scene.camera.generate_ray(&cs);
                         aov.iter_mut().for_each(|v| *v = 0.0);
                         let mut l = est.li(&ray, scene, sampler.as_mut(), &mut stats, &mut aov);

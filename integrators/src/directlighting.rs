@@ -204,7 +204,8 @@ pub fn estimate_direct(
     let mut ld = Rgb::ZERO;
     if let Some(ls) = light.sample_li(&ctx, u_light, &scene.meshes) {
         if ls.pdf > 0.0 && ls.li != Rgb::ZERO {
-            let f = bsdf.f(si.wo, ls.wi, flags) * ls.wi.dot(si.shading.z).abs();
+            let (f, scatter_pdf) = bsdf.f_pdf(si.wo, ls.wi, flags);
+            let f = f * ls.wi.dot(si.shading.z).abs();
             if f != Rgb::ZERO {
                 let shadow = if ls.n_light == penumbra_core::Vec3::ZERO {
                     si.spawn_ray_to(ls.p_light)
@@ -216,7 +217,6 @@ pub fn estimate_direct(
                     if ls.delta {
                         ld += f * ls.li / ls.pdf;
                     } else {
-                        let scatter_pdf = bsdf.pdf(si.wo, ls.wi, flags);
                         let w = power_heuristic(1, ls.pdf, 1, scatter_pdf);
                         ld += f * ls.li * (w / ls.pdf);
                     }
@@ -235,9 +235,8 @@ pub fn estimate_direct(
                 let mut light_hit = None;
                 let li = match &hit {
                     Some(h) => {
-                        let lsi = scene.interaction(&ray, h);
-                        let same = scene.area_light_at(h) == Some(light_index);
-                        if same {
+                        if scene.area_light_at(h) == Some(light_index) {
+                            let lsi = scene.interaction(&ray, h);
                             light_hit = Some((lsi.p, lsi.n));
                             light.l(lsi.n, -bs.wi)
                         } else {

@@ -795,3 +795,60 @@ fn chi2_visible_normal_sampling() {
         }
     }
 }
+
+#[test]
+fn combined_evaluation_matches_separate_calls_bit_for_bit() {
+    // `f_pdf` and the single-pass `sample_f` are restructurings: they must give exactly what
+    // `f` and `pdf` give, including at grazing and below-horizon directions.
+    let mut rng = Pcg::new(11);
+    let mut checked = 0;
+    for (name, bsdf) in materials() {
+        for _ in 0..4000 {
+            let wo = dir((rng.f() * 1.02).acos() * 2.0 - 0.2, rng.f() * 6.3);
+            let wi = dir(rng.f() * PI, rng.f() * 6.3);
+            let wo = bsdf.local_to_world(wo);
+            let wi = bsdf.local_to_world(wi);
+            for flags in [BxdfFlags::ALL, BxdfFlags::NON_SPECULAR, BxdfFlags::REFLECTION | BxdfFlags::GLOSSY] {
+                let (f, pdf) = bsdf.f_pdf(wo, wi, flags);
+                assert_eq!(
+                    f.to_array().map(f32::to_bits),
+                    bsdf.f(wo, wi, flags).to_array().map(f32::to_bits),
+                    "{name}"
+                );
+                assert_eq!(pdf.to_bits(), bsdf.pdf(wo, wi, flags).to_bits(), "{name}");
+                let u = rng.v2();
+                if let Some(s) = bsdf.sample_f(wo, u, flags) {
+                    // The two-pass definition: sample the chosen lobe, add the other lobes'
+                    // densities to its own, then evaluate f over all lobes afresh.
+                    let lobes: Vec<&Bxdf> = bsdf.bxdfs().iter().filter(|b| b.matches(flags)).collect();
+                    let m = lobes.len();
+                    let comp = ((u.x * m as f32).floor() as usize).min(m - 1);
+                    let ur = Vec2::new((u.x * m as f32 - comp as f32).min(ONE_MINUS_EPSILON), u.y);
+                    let wo_l = bsdf.world_to_local(wo);
+                    let sl = lobes[comp].sample_f(wo_l, ur).unwrap();
+                    if !sl.flags.is_specular() && m > 1 {
+                        checked += 1;
+                        let mut pdf = sl.pdf;
+                        for (j, b) in lobes.iter().enumerate() {
+                            if j != comp {
+                                pdf += b.pdf(wo_l, sl.wi);
+                            }
+                        }
+                        let f = bsdf.f_local(wo, bsdf.local_to_world(sl.wi), wo_l, sl.wi, flags);
+                        assert_eq!(s.f, f, "{name}: sampled f");
+                        assert_eq!(s.pdf.to_bits(), (pdf / m as f32).to_bits(), "{name}: sampled pdf");
+                    }
+                }
+            }
+        }
+        for lobe in bsdf.bxdfs() {
+            for _ in 0..2000 {
+                let (wo, wi) = (dir(rng.f() * PI, rng.f() * 6.3), dir(rng.f() * PI, rng.f() * 6.3));
+                let (f, pdf) = lobe.f_pdf(wo, wi);
+                assert_eq!(f, lobe.f(wo, wi), "{name}");
+                assert_eq!(pdf.to_bits(), lobe.pdf(wo, wi).to_bits(), "{name}");
+            }
+        }
+    }
+    assert!(checked > 5_000, "{checked}");
+}

@@ -6,13 +6,12 @@
 //! being global sample `s * n + k` of the pixel (as pbrt-v3).
 
 use super::lowdiscrepancy::{
-    inverse_radical_inverse, prime_sums, primes, radical_inverse, radical_inverse_permutations,
-    scrambled_radical_inverse, sobol_column, sobol_sample_bits, NUM_SOBOL_DIMENSIONS, PRIME_TABLE_SIZE,
+    inverse_radical_inverse, radical_inverse, sobol_column, sobol_sample_bits, ScrambledRadicalInverses,
+    NUM_SOBOL_DIMENSIONS, PRIME_TABLE_SIZE,
 };
 use super::Sampler;
 use crate::rng::{hash_words, mix_bits, Rng, ONE_MINUS_EPSILON_F32};
 use glam::{IVec2, Vec2};
-use std::sync::Arc;
 
 /// Dimensions 0..ARRAY_START_DIM are reserved for the camera sample (pbrt-v3's `arrayStartDim`).
 pub const ARRAY_START_DIM: u32 = 5;
@@ -23,6 +22,14 @@ pub trait GlobalPattern: Clone + Send + Sync + 'static {
     fn set_sample_bounds(&mut self, min: IVec2, max: IVec2);
     /// The global index of the `sample`-th sample of `pixel`.
     fn index_for_sample(&self, pixel: IVec2, sample: u64) -> u64;
+    /// The part of `index_for_sample` that depends only on the pixel, computed once per pixel.
+    fn pixel_offset(&self, _pixel: IVec2) -> u64 {
+        0
+    }
+    /// `index_for_sample(pixel, sample)`, given `offset = pixel_offset(pixel)`.
+    fn index_with_offset(&self, pixel: IVec2, _offset: u64, sample: u64) -> u64 {
+        self.index_for_sample(pixel, sample)
+    }
     /// Dimension `dim` of global sample `index`, in `[0, 1)`; for dimensions 0 and 1, the
     /// offset within `pixel`.
     fn sample_dimension(&self, pixel: IVec2, index: u64, dim: u32) -> f32;
@@ -43,6 +50,9 @@ pub struct GlobalSampler<P: GlobalPattern> {
     arrays_1d: Vec<Vec<f32>>,
     arrays_2d: Vec<Vec<Vec2>>,
     pixel: IVec2,
+    /// `pattern.pixel_offset(pixel)` for `offset_pixel`.
+    offset_pixel: Option<IVec2>,
+    offset: u64,
     sample: u32,
     index: u64,
     dimension: u32,
@@ -61,6 +71,8 @@ impl<P: GlobalPattern> GlobalSampler<P> {
             arrays_1d: vec![],
             arrays_2d: vec![],
             pixel: IVec2::ZERO,
+            offset_pixel: None,
+            offset: 0,
             sample: 0,
             index: 0,
             dimension: 0,
@@ -100,7 +112,12 @@ impl<P: GlobalPattern> Sampler for GlobalSampler<P> {
     fn start_pixel_sample(&mut self, pixel: IVec2, index: u32) {
         self.pixel = pixel;
         self.sample = index;
-        self.index = self.pattern.index_for_sample(pixel, index as u64);
+        if self.offset_pixel != Some(pixel) {
+            self.offset = self.pattern.pixel_offset(pixel);
+            self.offset_pixel = Some(pixel);
+        }
+        let offset = self.offset;
+        self.index = self.pattern.index_with_offset(pixel, offset, index as u64);
         self.dimension = 0;
         self.array_1d = 0;
         self.array_2d = 0;
@@ -108,14 +125,14 @@ impl<P: GlobalPattern> Sampler for GlobalSampler<P> {
         let mut dim = ARRAY_START_DIM;
         for (i, &n) in self.sizes_1d.iter().enumerate() {
             for k in 0..n as u64 {
-                let gi = self.pattern.index_for_sample(pixel, index as u64 * n as u64 + k);
+                let gi = self.pattern.index_with_offset(pixel, offset, index as u64 * n as u64 + k);
                 self.arrays_1d[i][k as usize] = self.pattern.sample_dimension(pixel, gi, dim);
             }
             dim += 1;
         }
         for (i, &n) in self.sizes_2d.iter().enumerate() {
             for k in 0..n as u64 {
-                let gi = self.pattern.index_for_sample(pixel, index as u64 * n as u64 + k);
+                let gi = self.pattern.index_with_offset(pixel, offset, index as u64 * n as u64 + k);
                 self.arrays_2d[i][k as usize] = Vec2::new(
                     self.pattern.sample_dimension(pixel, gi, dim),
                     self.pattern.sample_dimension(pixel, gi, dim + 1),
@@ -134,6 +151,12 @@ impl<P: GlobalPattern> Sampler for GlobalSampler<P> {
             self.pattern.sample_dimension(self.pixel, self.index, d),
             self.pattern.sample_dimension(self.pixel, self.index, d + 1),
         )
+    }
+    fn skip_1d(&mut self) {
+        self.next_dimensions(1);
+    }
+    fn skip_2d(&mut self) {
+        self.next_dimensions(2);
     }
     fn get_1d_array(&mut self, n: u32) -> Option<&[f32]> {
         if self.sizes_1d.get(self.array_1d) != Some(&n) {
@@ -154,6 +177,7 @@ impl<P: GlobalPattern> Sampler for GlobalSampler<P> {
     }
     fn set_sample_bounds(&mut self, min: IVec2, max: IVec2) {
         self.pattern.set_sample_bounds(min, max);
+        self.offset_pixel = None;
     }
     fn name(&self) -> &'static str {
         P::NAME
@@ -170,7 +194,7 @@ const HALTON_MAX_RESOLUTION: i32 = 128;
 /// the 1000th prime base get independent hashed uniform values (pbrt-v3 aborts there).
 #[derive(Clone, Debug)]
 pub struct HaltonPattern {
-    permutations: Arc<Vec<u16>>,
+    radical_inverses: ScrambledRadicalInverses,
     base_scales: [u64; 2],
     base_exponents: [u32; 2],
     sample_stride: u64,
@@ -195,7 +219,7 @@ impl HaltonPattern {
     pub fn new(sample_at_pixel_center: bool, seed: u64) -> Self {
         let mut rng = if seed == 0 { Rng::default() } else { Rng::new(mix_bits(seed)) };
         let mut p = HaltonPattern {
-            permutations: radical_inverse_permutations(&mut rng),
+            radical_inverses: ScrambledRadicalInverses::new(&mut rng),
             base_scales: [1, 1],
             base_exponents: [0, 0],
             sample_stride: 1,
@@ -233,6 +257,12 @@ impl GlobalPattern for HaltonPattern {
         ];
     }
     fn index_for_sample(&self, pixel: IVec2, sample: u64) -> u64 {
+        self.index_with_offset(pixel, self.pixel_offset(pixel), sample)
+    }
+    fn index_with_offset(&self, _pixel: IVec2, offset: u64, sample: u64) -> u64 {
+        offset.wrapping_add(sample.wrapping_mul(self.sample_stride))
+    }
+    fn pixel_offset(&self, pixel: IVec2) -> u64 {
         let mut offset = 0u64;
         if self.sample_stride > 1 {
             let pm = [pixel.x.rem_euclid(HALTON_MAX_RESOLUTION), pixel.y.rem_euclid(HALTON_MAX_RESOLUTION)];
@@ -242,7 +272,7 @@ impl GlobalPattern for HaltonPattern {
             }
             offset %= self.sample_stride;
         }
-        offset.wrapping_add(sample.wrapping_mul(self.sample_stride))
+        offset
     }
     fn sample_dimension(&self, _pixel: IVec2, index: u64, dim: u32) -> f32 {
         if self.sample_at_pixel_center && dim < 2 {
@@ -251,11 +281,7 @@ impl GlobalPattern for HaltonPattern {
         match dim {
             0 => radical_inverse(0, index >> self.base_exponents[0]),
             1 => radical_inverse(1, index / self.base_scales[1]),
-            d if (d as usize) < PRIME_TABLE_SIZE => {
-                let start = prime_sums()[d as usize];
-                let len = primes()[d as usize] as usize;
-                scrambled_radical_inverse(d as usize, index, &self.permutations[start..start + len])
-            }
+            d if (d as usize) < PRIME_TABLE_SIZE => self.radical_inverses.eval(d as usize, index),
             d => hashed_uniform(self.seed ^ 0x4841_4c54, index, d),
         }
     }

@@ -65,42 +65,87 @@ pub fn multiply_generator(c: &[u32; 32], a: u32) -> u32 {
     v
 }
 
-/// The first `PRIME_TABLE_SIZE` primes.
-pub fn primes() -> &'static [u32] {
-    static P: OnceLock<Vec<u32>> = OnceLock::new();
-    P.get_or_init(|| {
-        // Sieve of Eratosthenes; the 1000th prime is 7919.
-        const LIMIT: usize = 7920;
-        let mut composite = vec![false; LIMIT];
-        let mut v = Vec::with_capacity(PRIME_TABLE_SIZE);
-        for n in 2..LIMIT {
-            if !composite[n] {
-                v.push(n as u32);
-                for k in (n * n..LIMIT).step_by(n) {
-                    composite[k] = true;
-                }
+/// The first `PRIME_TABLE_SIZE` primes, by a sieve of Eratosthenes at compile time (the 1000th is 7919).
+static PRIMES: [u32; PRIME_TABLE_SIZE] = {
+    const LIMIT: usize = 7920;
+    let mut composite = [false; LIMIT];
+    let mut out = [0u32; PRIME_TABLE_SIZE];
+    let mut count = 0;
+    let mut n = 2;
+    while n < LIMIT && count < PRIME_TABLE_SIZE {
+        if !composite[n] {
+            out[count] = n as u32;
+            count += 1;
+            let mut k = n * n;
+            while k < LIMIT {
+                composite[k] = true;
+                k += n;
             }
         }
-        v.truncate(PRIME_TABLE_SIZE);
-        v
-    })
+        n += 1;
+    }
+    out
+};
+
+/// `PRIME_SUMS[i]` = sum of the first `i` primes.
+static PRIME_SUMS: [usize; PRIME_TABLE_SIZE] = {
+    let mut out = [0usize; PRIME_TABLE_SIZE];
+    let mut i = 1;
+    while i < PRIME_TABLE_SIZE {
+        out[i] = out[i - 1] + PRIMES[i - 1] as usize;
+        i += 1;
+    }
+    out
+};
+
+/// The first `PRIME_TABLE_SIZE` primes.
+pub fn primes() -> &'static [u32] {
+    &PRIMES
 }
 
 /// `prime_sums()[i]` = sum of the first `i` primes (offsets of each base's permutation).
 pub fn prime_sums() -> &'static [usize] {
-    static S: OnceLock<Vec<usize>> = OnceLock::new();
-    S.get_or_init(|| {
-        let mut acc = 0usize;
-        primes()
-            .iter()
-            .map(|&p| {
-                let s = acc;
-                acc += p as usize;
-                s
-            })
-            .collect()
-    })
+    &PRIME_SUMS
 }
+
+/// Division of 32-bit numerators by a fixed divisor without a divide instruction
+/// (Lemire, Kaser & Kurz 2019: with `m = ⌊(2⁶⁴ − 1) / d⌋ + 1`, `⌊a / d⌋ = ⌊a m / 2⁶⁴⌋` for every
+/// 32-bit `a` and divisor `d` ≥ 2). Larger numerators fall back to plain division.
+#[derive(Clone, Copy, Debug)]
+pub struct FastDiv {
+    d: u64,
+    m: u64,
+}
+
+impl FastDiv {
+    pub const fn new(d: u32) -> Self {
+        let d = if d < 2 { 2 } else { d as u64 };
+        FastDiv { d, m: u64::MAX / d + 1 }
+    }
+    /// `(a / d, a % d)`.
+    #[inline(always)]
+    pub fn div_rem(self, a: u64) -> (u64, u64) {
+        let q = if a <= u32::MAX as u64 { ((a as u128 * self.m as u128) >> 64) as u64 } else { a / self.d };
+        (q, a - q * self.d)
+    }
+}
+
+/// Per prime base: the divisor and `1 / base` (the same f64 `radical_inverse` computes).
+#[derive(Clone, Copy, Debug)]
+pub struct PrimeBase {
+    pub div: FastDiv,
+    pub inv_base: f64,
+}
+
+static PRIME_BASES: [PrimeBase; PRIME_TABLE_SIZE] = {
+    let mut out = [PrimeBase { div: FastDiv::new(2), inv_base: 0.5 }; PRIME_TABLE_SIZE];
+    let mut i = 0;
+    while i < PRIME_TABLE_SIZE {
+        out[i] = PrimeBase { div: FastDiv::new(PRIMES[i]), inv_base: 1.0 / PRIMES[i] as f64 };
+        i += 1;
+    }
+    out
+};
 
 /// The radical inverse of `a` in the `base_index`-th prime base (0 → base 2), in `[0, 1)`.
 pub fn radical_inverse(base_index: usize, a: u64) -> f32 {
@@ -108,13 +153,11 @@ pub fn radical_inverse(base_index: usize, a: u64) -> f32 {
         return ((a.reverse_bits() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)).min(ONE_MINUS_EPSILON_F32 as f64)
             as f32;
     }
-    let base = primes()[base_index.min(PRIME_TABLE_SIZE - 1)] as u64;
-    let inv_base = 1.0 / base as f64;
+    let pb = PRIME_BASES[base_index.min(PRIME_TABLE_SIZE - 1)];
     let (mut a, mut inv_base_n, mut result) = (a, 1.0f64, 0.0f64);
     while a > 0 {
-        let next = a / base;
-        let digit = a - next * base;
-        inv_base_n *= inv_base;
+        let (next, digit) = pb.div.div_rem(a);
+        inv_base_n *= pb.inv_base;
         result += digit as f64 * inv_base_n;
         a = next;
     }
@@ -123,21 +166,85 @@ pub fn radical_inverse(base_index: usize, a: u64) -> f32 {
 
 /// The radical inverse with each digit (including the infinitely many trailing zeros) mapped by `perm`.
 pub fn scrambled_radical_inverse(base_index: usize, a: u64, perm: &[u16]) -> f32 {
-    let base = primes()[base_index.min(PRIME_TABLE_SIZE - 1)] as u64;
-    if perm.len() < base as usize {
+    let base_index = base_index.min(PRIME_TABLE_SIZE - 1);
+    if perm.len() < PRIMES[base_index] as usize {
         return radical_inverse(base_index, a);
     }
-    let inv_base = 1.0 / base as f64;
+    scrambled_radical_inverse_in(&PRIME_BASES[base_index], a, perm)
+}
+
+/// [`scrambled_radical_inverse`] for a base given by its table entry; `perm` must hold at least
+/// `base` entries (digits index it; a shorter table panics).
+#[inline]
+fn scrambled_radical_inverse_in(pb: &PrimeBase, a: u64, perm: &[u16]) -> f32 {
+    let inv_base = pb.inv_base;
     let (mut a, mut inv_base_n, mut result) = (a, 1.0f64, 0.0f64);
     while a > 0 {
-        let next = a / base;
-        let digit = a - next * base;
+        let (next, digit) = pb.div.div_rem(a);
         inv_base_n *= inv_base;
         result += perm[digit as usize] as f64 * inv_base_n;
         a = next;
     }
     result += perm[0] as f64 * inv_base_n * inv_base / (1.0 - inv_base);
     (result as f32).min(ONE_MINUS_EPSILON_F32)
+}
+
+/// Bases whose permutations are drawn when a [`ScrambledRadicalInverses`] is made; the
+/// others (a table of 3.7 M digits) only when a dimension past them is first used.
+const EAGER_BASES: usize = 128;
+
+/// Digit-permuted radical inverses in every prime base, with the permutations that
+/// [`radical_inverse_permutations`] draws from the same generator (bit-identical values).
+#[derive(Clone, Debug)]
+pub struct ScrambledRadicalInverses {
+    /// Permutations of the first `EAGER_BASES` bases, concatenated.
+    head: Arc<Vec<u16>>,
+    /// The generator after `head`, and the remaining permutations drawn from it on demand.
+    tail: Arc<(Rng, OnceLock<Vec<u16>>)>,
+}
+
+fn append_permutations(perms: &mut Vec<u16>, bases: &[u32], rng: &mut Rng) {
+    for &p in bases {
+        let start = perms.len();
+        perms.extend(0..p as u16);
+        shuffle(&mut perms[start..], 1, rng);
+    }
+}
+
+impl ScrambledRadicalInverses {
+    pub fn new(rng: &mut Rng) -> Self {
+        let mut head = Vec::with_capacity(PRIME_SUMS[EAGER_BASES]);
+        append_permutations(&mut head, &PRIMES[..EAGER_BASES], rng);
+        let tail = Arc::new((rng.clone(), OnceLock::new()));
+        ScrambledRadicalInverses { head: Arc::new(head), tail }
+    }
+
+    /// The permuted radical inverse of `a` in base `primes()[base_index]` (`base_index` < `PRIME_TABLE_SIZE`).
+    #[inline]
+    pub fn eval(&self, base_index: usize, a: u64) -> f32 {
+        let i = base_index.min(PRIME_TABLE_SIZE - 1);
+        let len = PRIMES[i] as usize;
+        let perm = if i < EAGER_BASES {
+            &self.head[PRIME_SUMS[i]..PRIME_SUMS[i] + len]
+        } else {
+            let tail = self.tail.1.get_or_init(|| {
+                let mut rng = self.tail.0.clone();
+                let mut t = Vec::new();
+                append_permutations(&mut t, &PRIMES[EAGER_BASES..], &mut rng);
+                t
+            });
+            let start = PRIME_SUMS[i] - PRIME_SUMS[EAGER_BASES];
+            &tail[start..start + len]
+        };
+        scrambled_radical_inverse_in(&PRIME_BASES[i], a, perm)
+    }
+}
+
+/// One random digit permutation per prime base, concatenated (base i at `prime_sums()[i]`).
+pub fn radical_inverse_permutations(rng: &mut Rng) -> Arc<Vec<u16>> {
+    let mut perms = Vec::with_capacity(PRIME_SUMS[PRIME_TABLE_SIZE - 1] + PRIMES[PRIME_TABLE_SIZE - 1] as usize);
+    append_permutations(&mut perms, &PRIMES, rng);
+    Arc::new(perms)
 }
 
 /// The `n_digits`-digit index whose base-`base` radical inverse digits are those of `inverse` (reversed).
@@ -149,19 +256,6 @@ pub fn inverse_radical_inverse(base: u64, inverse: u64, n_digits: u32) -> u64 {
         index = index.wrapping_mul(base).wrapping_add(digit);
     }
     index
-}
-
-/// One random digit permutation per prime base, concatenated (base i at `prime_sums()[i]`).
-pub fn radical_inverse_permutations(rng: &mut Rng) -> Arc<Vec<u16>> {
-    let sums = prime_sums();
-    let total = sums[PRIME_TABLE_SIZE - 1] + primes()[PRIME_TABLE_SIZE - 1] as usize;
-    let mut perms = Vec::with_capacity(total);
-    for &p in primes() {
-        let start = perms.len();
-        perms.extend(0..p as u16);
-        shuffle(&mut perms[start..], 1, rng);
-    }
-    Arc::new(perms)
 }
 
 /// pbrt-v3's generator matrix of the van der Corput sequence (identity, bit-reversed).
@@ -288,6 +382,34 @@ mod tests {
             let mut s: Vec<u16> = perms[prime_sums()[i]..prime_sums()[i] + p].to_vec();
             s.sort();
             assert_eq!(s, (0..p as u16).collect::<Vec<_>>());
+        }
+    }
+
+    #[test]
+    fn fast_division_is_exact() {
+        let mut rng = Rng::default();
+        for &d in primes().iter().chain(&[2u32, 3, 128, 243, u32::MAX]) {
+            let f = FastDiv::new(d);
+            let check = |a: u64| assert_eq!(f.div_rem(a), (a / d as u64, a % d as u64), "{a} / {d}");
+            for a in [0, 1, d as u64 - 1, d as u64, d as u64 + 1, u32::MAX as u64, u32::MAX as u64 + 1, u64::MAX] {
+                check(a);
+            }
+            for _ in 0..200 {
+                check(rng.uniform_u32() as u64);
+                check((rng.uniform_u32() as u64 * d as u64).saturating_sub(1));
+            }
+        }
+    }
+
+    #[test]
+    fn lazy_permutations_match_the_full_table() {
+        let perms = radical_inverse_permutations(&mut Rng::new(7));
+        let lazy = ScrambledRadicalInverses::new(&mut Rng::new(7));
+        for i in [0usize, 1, 5, EAGER_BASES - 1, EAGER_BASES, 500, 999] {
+            let p = &perms[prime_sums()[i]..prime_sums()[i] + primes()[i] as usize];
+            for a in [0u64, 1, 12345, 987_654_321, 1 << 40] {
+                assert_eq!(lazy.eval(i, a), scrambled_radical_inverse(i, a, p), "base {i} a {a}");
+            }
         }
     }
 }

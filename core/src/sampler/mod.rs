@@ -39,6 +39,15 @@ pub trait Sampler: Send + Sync {
     fn start_pixel_sample(&mut self, pixel: IVec2, index: u32);
     fn get_1d(&mut self) -> f32;
     fn get_2d(&mut self) -> Vec2;
+    /// Consume the next 1D dimension without using it: afterwards the sampler is where
+    /// `get_1d` would have left it (samplers that can skip the computation do).
+    fn skip_1d(&mut self) {
+        self.get_1d();
+    }
+    /// Consume the next 2D dimension without using it (see [`Sampler::skip_1d`]).
+    fn skip_2d(&mut self) {
+        self.get_2d();
+    }
     /// The next requested 1D array, in request order; `None` if none (or not of size `n`) was requested.
     fn get_1d_array(&mut self, n: u32) -> Option<&[f32]>;
     fn get_2d_array(&mut self, n: u32) -> Option<&[Vec2]>;

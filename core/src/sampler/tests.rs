@@ -365,3 +365,32 @@ fn factory_parameters_and_errors() {
     assert_eq!(unused.len(), 1);
     assert!(unused[0].message.contains("pixelsampels"));
 }
+
+#[test]
+fn skipping_dimensions_leaves_the_same_sequence() {
+    for kind in ALL {
+        let mut a = make(kind, &[], Some(4), 3);
+        a.request_2d_array(2);
+        let mut b = a.clone_box();
+        for index in 0..4 {
+            let pixel = IVec2::new(5, 9);
+            a.start_pixel_sample(pixel, index);
+            b.start_pixel_sample(pixel, index);
+            let film = (a.get_2d(), b.get_2d());
+            assert_eq!(film.0, film.1, "{kind}");
+            a.get_1d();
+            b.skip_1d();
+            a.get_2d();
+            b.skip_2d();
+            assert_eq!(a.get_2d_array(2).unwrap(), b.get_2d_array(2).unwrap(), "{kind}");
+            for _ in 0..6 {
+                assert_eq!(a.get_1d().to_bits(), b.get_1d().to_bits(), "{kind}");
+                assert_eq!(a.get_2d(), b.get_2d(), "{kind}");
+                a.get_2d();
+                b.skip_2d();
+                a.get_1d();
+                b.skip_1d();
+            }
+        }
+    }
+}
