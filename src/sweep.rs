@@ -438,7 +438,8 @@ pub struct SummaryInput<'a> {
     pub target: Option<(f64, String)>,
     pub threads: usize,
     pub integrators: &'a [String],
-    pub complete: bool,
+    /// Why the sweep stopped early, if it did.
+    pub stopped: Option<&'a str>,
 }
 
 /// Per integrator: `(time, error)` in budget order.
@@ -485,8 +486,8 @@ pub fn summary_markdown(rows: &[Row], s: &SummaryInput) -> String {
     let mut out = String::new();
     let _ = writeln!(out, "# penumbra sweep: {}\n", s.scene);
     let _ = writeln!(out, "Reference: {}. Error: {m} of R, G, B against it. Budget: {}.\n", s.reference, s.budget_name);
-    if !s.complete {
-        let _ = writeln!(out, "**The sweep was interrupted: only the renders that finished are included.**\n");
+    if let Some(why) = s.stopped {
+        let _ = writeln!(out, "**The sweep stopped early ({why}): only the renders that finished are included.**\n");
     }
     let eq_head = match equal_time {
         Some(t) => format!("{m} at {} s", fmt_num(t)),
@@ -520,6 +521,7 @@ pub fn summary_markdown(rows: &[Row], s: &SummaryInput) -> String {
             None => "-".into(),
         };
         let reach = match &s.target {
+            Some(_) if pts.is_empty() => "-".into(),
             Some((e, _)) => match time_to_reach(pts, *e) {
                 Reach::AtFirst(t) => format!("<= {} s (first render)", fmt_num(t)),
                 Reach::At(t) => format!("{} s", fmt_num(t)),
@@ -730,8 +732,9 @@ impl Outputs<'_> {
         write_text(&self.dir.join("sweep.json"), &(serde_json::to_string_pretty(&doc).unwrap_or_default() + "\n"))
     }
 
-    /// The plot and the summary; returns the summary text.
-    fn write_report(&self, rows: &[Row], target: Option<f64>, complete: bool) -> Result<String, String> {
+    /// The plot (if there is anything to plot) and the summary; returns the summary text and
+    /// whether the plot was written.
+    fn write_report(&self, rows: &[Row], target: Option<f64>, stopped: Option<&str>) -> Result<(String, bool), String> {
         let target = match target {
             Some(e) => Some((e, "given with --target-error".to_string())),
             None => default_target(rows, &self.integrators, self.metric),
@@ -746,7 +749,7 @@ impl Outputs<'_> {
                 target,
                 threads: self.threads,
                 integrators: &self.integrators,
-                complete,
+                stopped,
             },
         );
         write_text(&self.dir.join("summary.md"), &summary)?;
@@ -768,14 +771,15 @@ impl Outputs<'_> {
         if series.is_empty() {
             let _ = std::fs::remove_file(&png);
             let _ = std::fs::remove_file(&svg);
+            Ok((summary, false))
         } else {
             let name = Path::new(&self.scene).file_name().map(|s| s.to_string_lossy().into_owned());
             let title = format!("{}: {} vs time", name.unwrap_or_else(|| self.scene.clone()), self.metric.label());
             let (svg_text, png_bytes) = render_plots(&title, self.metric, &series)?;
             write_text(&svg, &svg_text)?;
             image::write_atomic(&png, |w| w.write_all(&png_bytes)).map_err(|e| e.to_string())?;
+            Ok((summary, true))
         }
-        Ok(summary)
     }
 }
 
@@ -846,6 +850,8 @@ struct Setup {
     crop: Option<Crop>,
     resolution: Option<(u32, u32)>,
     integrators: Vec<String>,
+    /// Warnings already printed.
+    seen: BTreeSet<String>,
 }
 
 fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
@@ -910,10 +916,18 @@ fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
         }
         pipeline::choose_integrator(&parsed.scene, Some(n), &p, &warnings)
             .map_err(|d| Failure { code: 1, message: format!("integrator \"{n}\": {}", d.message) })?;
+        // The budget parameter must be one the integrator reads.
+        if let (Some(name), Some(entry)) = (&args.budget_param, penumbra_integrators::find(n)) {
+            let ps = cli_params::merge(&Default::default(), &[budget_param(name, 1)?]);
+            let _ = (entry.create)(&ps, &DiagSink::new());
+            if !ps.find(name.trim()).is_some_and(|p| p.was_used()) {
+                return Err(fail(format!("--budget-param {}: integrator \"{n}\" has no such parameter", name.trim())));
+            }
+        }
     }
     let mut seen = BTreeSet::new();
     print_new_warnings(&warnings, &mut seen);
-    Ok(Setup { desc: parsed.scene, scene_bytes, params, crop, resolution, integrators })
+    Ok(Setup { desc: parsed.scene, scene_bytes, params, crop, resolution, integrators, seen })
 }
 
 fn budget_param(name: &str, budget: u32) -> Result<Param, Failure> {
@@ -936,7 +950,7 @@ pub fn run(args: SweepArgs) -> ExitCode {
 }
 
 fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
-    let s = setup(args)?;
+    let mut s = setup(args)?;
     // The reference file is read before anything renders.
     let mut reference = match &args.reference {
         Some(p) => Some(rgb_only(&image::read(p).map_err(fail)?, &p.display().to_string())?),
@@ -953,7 +967,7 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
             }
         });
     }
-    let mut seen = BTreeSet::new();
+    let mut seen = std::mem::take(&mut s.seen);
     let say = |m: String| {
         if !args.quiet {
             eprintln!("{m}");
@@ -1099,7 +1113,7 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
                 Ok(r) => r,
                 Err(e) => {
                     error = Some(if cancel.load(Ordering::SeqCst) {
-                        Failure { code: EXIT_CANCELLED, message: format!("{e}: writing the finished renders") }
+                        Failure { code: EXIT_CANCELLED, message: format!("{e}: the finished renders were written") }
                     } else {
                         fail(format!("{name} at budget {budget}: {e}"))
                     });
@@ -1125,18 +1139,24 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
             rows.push(row);
             out.write_tables(&rows, false).map_err(fail)?;
             if cancel.load(Ordering::SeqCst) {
-                error =
-                    Some(Failure { code: EXIT_CANCELLED, message: "cancelled: writing the finished renders".into() });
+                error = Some(Failure {
+                    code: EXIT_CANCELLED,
+                    message: "render cancelled: the finished renders were written".into(),
+                });
                 break 'outer;
             }
         }
         say(format!("{name:>16}: done, {:.2} s in all", schedule.spent()));
     }
-    let complete = error.is_none();
-    out.write_tables(&rows, complete).map_err(fail)?;
-    let summary = out.write_report(&rows, args.target_error, complete).map_err(fail)?;
+    out.write_tables(&rows, error.is_none()).map_err(fail)?;
+    let stopped = error.as_ref().map(|e| if e.code == EXIT_CANCELLED { "interrupted" } else { "error" });
+    let (summary, plotted) = out.write_report(&rows, args.target_error, stopped).map_err(fail)?;
     print!("{summary}");
-    say(format!("wrote {}/{{sweep.csv,sweep.json,sweep.png,sweep.svg,summary.md}}", args.output.display()));
+    say(format!(
+        "wrote {}/{{sweep.csv,sweep.json,{}summary.md}}",
+        args.output.display(),
+        if plotted { "sweep.png,sweep.svg," } else { "" }
+    ));
     match error {
         Some(e) => Err(e),
         None => Ok(0),
@@ -1302,7 +1322,7 @@ mod tests {
                 target,
                 threads: 2,
                 integrators: &names,
-                complete: true,
+                stopped: None,
             },
         );
         // Equal time = 2 s (ambientocclusion's largest); directlighting there: sqrt(0.5) = 0.7071.
