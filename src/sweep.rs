@@ -442,8 +442,10 @@ pub struct SummaryInput<'a> {
     pub stopped: Option<&'a str>,
 }
 
-/// Per integrator: `(time, error)` in budget order.
-fn curves(rows: &[Row], names: &[String], metric: Metric) -> Vec<(String, Vec<(f64, f64)>, Vec<u32>)> {
+/// An integrator's `(time, error)` points and budgets, in budget order.
+type Curve = (String, Vec<(f64, f64)>, Vec<u32>);
+
+fn curves(rows: &[Row], names: &[String], metric: Metric) -> Vec<Curve> {
     names
         .iter()
         .map(|n| {
@@ -575,6 +577,9 @@ const COLOURS: [(u8, u8, u8); 8] = [
     (23, 190, 207),
 ];
 
+/// One plotted line: the integrator and its renders' (time, error, budget).
+pub type Series = (String, Vec<(f64, f64, u32)>);
+
 pub const PLOT_SIZE: (u32, u32) = (800, 560);
 
 fn tick(v: f64) -> String {
@@ -594,7 +599,7 @@ fn draw_chart<DB: plotters::prelude::DrawingBackend>(
     root: plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
     title: &str,
     metric: Metric,
-    series: &[(String, Vec<(f64, f64, u32)>)],
+    series: &[Series],
 ) -> Result<(), String> {
     use plotters::prelude::*;
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
@@ -671,11 +676,7 @@ fn draw_chart<DB: plotters::prelude::DrawingBackend>(
 }
 
 /// Draws the plot as SVG text and as PNG bytes.
-pub fn render_plots(
-    title: &str,
-    metric: Metric,
-    series: &[(String, Vec<(f64, f64, u32)>)],
-) -> Result<(String, Vec<u8>), String> {
+pub fn render_plots(title: &str, metric: Metric, series: &[Series]) -> Result<(String, Vec<u8>), String> {
     use plotters::prelude::*;
     plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
         .map_err(|_| "the embedded plot font is invalid".to_string())?;
@@ -753,7 +754,7 @@ impl Outputs<'_> {
             },
         );
         write_text(&self.dir.join("summary.md"), &summary)?;
-        let series: Vec<(String, Vec<(f64, f64, u32)>)> = self
+        let series: Vec<Series> = self
             .integrators
             .iter()
             .map(|n| {
@@ -765,7 +766,7 @@ impl Outputs<'_> {
                     .collect();
                 (n.clone(), pts)
             })
-            .filter(|s: &(String, Vec<_>)| !s.1.is_empty())
+            .filter(|s: &Series| !s.1.is_empty())
             .collect();
         let (png, svg) = (self.dir.join("sweep.png"), self.dir.join("sweep.svg"));
         if series.is_empty() {
