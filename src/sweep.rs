@@ -60,7 +60,7 @@ pub struct SweepArgs {
     #[arg(long, value_name = "NAME")]
     pub budget_param: Option<String>,
     /// Samples per pixel when the budget is a parameter (default: the scene's sampler).
-    #[arg(long, requires = "budget_param")]
+    #[arg(long, requires = "budget_param", value_parser = clap::value_parser!(u32).range(1..))]
     pub spp: Option<u32>,
     /// Integrator parameter `key=value` for every integrator (repeatable; type inferred).
     #[arg(long = "param", value_name = "KEY=VALUE")]
