@@ -6,6 +6,7 @@ use std::process::ExitCode;
 mod diff;
 mod info;
 mod render;
+mod sweep;
 
 #[derive(Parser)]
 #[command(
@@ -26,6 +27,8 @@ enum Command {
     Info(info::InfoArgs),
     /// Compare two images with OpenImageIO idiff's metrics and exit codes.
     Diff(diff::DiffArgs),
+    /// Error versus time: render with several integrators at growing budgets against a reference.
+    Sweep(sweep::SweepArgs),
 }
 
 fn main() -> ExitCode {
@@ -34,6 +37,7 @@ fn main() -> ExitCode {
         Some(Command::Info(a)) => info::run(a),
         Some(Command::Diff(a)) => diff::run(a),
         Some(Command::Render(a)) => render::run(a),
+        Some(Command::Sweep(a)) => sweep::run(a),
         None => render::run(render::RenderArgs::default()),
     }
 }

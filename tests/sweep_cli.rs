@@ -1,0 +1,156 @@
+//! `penumbra sweep` end to end: a small directlighting sweep against a cached
+//! `--reference-spp` reference, and the errors that must stop it before rendering.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn out_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("penumbra-sweepcli-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn sweep(args: &[&str], out: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .arg("sweep")
+        .arg(root().join("scenes/suite/ltc/quad-cube.pbrt"))
+        .args(args)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .expect("run penumbra")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+const ARGS: &[&str] =
+    &["-i", "directlighting", "--reference-spp", "256", "--budgets", "1,4,16,64", "--resolution", "32x32"];
+
+struct CsvRow {
+    integrator: String,
+    budget: u32,
+    total_s: f64,
+    rmse: f64,
+}
+
+fn parse_csv(csv: &str) -> Vec<CsvRow> {
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    assert_eq!(
+        header,
+        [
+            "integrator",
+            "budget",
+            "build_s",
+            "render_s",
+            "total_s",
+            "mae",
+            "rmse",
+            "psnr",
+            "max_err",
+            "relmse",
+            "smape",
+            "flip",
+            "nan_count"
+        ]
+    );
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            assert_eq!(f.len(), header.len(), "{l}");
+            let num = |i: usize| f[i].parse::<f64>().unwrap_or_else(|_| panic!("column {} in {l}", header[i]));
+            for i in [2, 3, 4, 5, 6, 7, 8, 9, 10] {
+                assert!(num(i).is_finite() && num(i) >= 0.0, "{} in {l}", header[i]);
+            }
+            assert!(num(4) >= num(3), "total time below render time: {l}");
+            assert_eq!(f[12], "0", "NaNs in {l}");
+            CsvRow { integrator: f[0].to_string(), budget: f[1].parse().unwrap(), total_s: num(4), rmse: num(6) }
+        })
+        .collect()
+}
+
+#[test]
+fn directlighting_sweep_with_cached_reference() {
+    let out = out_dir("dl");
+    let o = sweep(ARGS, &out);
+    let (stdout, stderr) = (text(&o.stdout), text(&o.stderr));
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+
+    let rows = parse_csv(&std::fs::read_to_string(out.join("sweep.csv")).unwrap());
+    assert_eq!(rows.len(), 4);
+    assert!(rows.iter().all(|r| r.integrator == "directlighting"));
+    assert_eq!(rows.iter().map(|r| r.budget).collect::<Vec<_>>(), [1, 4, 16, 64]);
+    assert!(rows.iter().all(|r| r.total_s > 0.0));
+    // Error falls with the budget: 64 spp well below 1 spp, and no step up by more than 10 %.
+    assert!(rows[3].rmse < 0.5 * rows[0].rmse, "{} vs {}", rows[3].rmse, rows[0].rmse);
+    for w in rows.windows(2) {
+        assert!(w[1].rmse <= 1.1 * w[0].rmse, "rmse {} -> {}", w[0].rmse, w[1].rmse);
+    }
+
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
+    assert_eq!(json["rows"].as_array().map(|a| a.len()), Some(4));
+    assert_eq!(json["complete"], true);
+    assert_eq!(json["reference"]["spp"], 256);
+    assert!(json["machine"]["threads"].as_u64().unwrap() >= 1);
+
+    let png = std::fs::read(out.join("sweep.png")).unwrap();
+    assert!(!png.is_empty());
+    let img = penumbra_core::image::decode_png(&png, &out.join("sweep.png")).expect("valid PNG");
+    assert!(img.width > 0 && img.height > 0);
+    let svg = std::fs::read_to_string(out.join("sweep.svg")).unwrap();
+    assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"), "{}", &svg[..svg.len().min(80)]);
+    assert!(svg.contains("directlighting"));
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(summary.contains("| directlighting |"), "{summary}");
+    assert!(stdout.contains("| directlighting |"), "{stdout}");
+
+    // The reference was rendered once and cached; a second run reuses it untouched.
+    let cache: Vec<PathBuf> = std::fs::read_dir(out.join("cache")).unwrap().map(|e| e.unwrap().path()).collect();
+    assert_eq!(cache.len(), 1, "{cache:?}");
+    assert!(stderr.contains("rendering reference"), "{stderr}");
+    let mtime = std::fs::metadata(&cache[0]).unwrap().modified().unwrap();
+    let o2 = sweep(&ARGS.iter().map(|a| if *a == "1,4,16,64" { "1" } else { a }).collect::<Vec<_>>(), &out);
+    let stderr2 = text(&o2.stderr);
+    assert!(o2.status.success(), "{stderr2}");
+    assert!(stderr2.contains("using cached reference"), "{stderr2}");
+    assert_eq!(std::fs::metadata(&cache[0]).unwrap().modified().unwrap(), mtime);
+    assert_eq!(parse_csv(&std::fs::read_to_string(out.join("sweep.csv")).unwrap()).len(), 1);
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn errors_stop_before_rendering() {
+    // Unknown integrator: rejected before anything is rendered or written.
+    let out = out_dir("unknown");
+    let o = sweep(&["-i", "directlighting,nosuch", "--reference-spp", "4", "--resolution", "8x8"], &out);
+    assert!(!o.status.success());
+    let err = text(&o.stderr);
+    assert!(err.contains("unknown integrator \"nosuch\"") && err.contains("ambientocclusion"), "{err}");
+    assert!(!out.exists());
+
+    // Unreadable reference.
+    let o = sweep(&["-i", "directlighting", "--reference", "/nonexistent/ref.exr"], &out);
+    assert!(!o.status.success());
+    assert!(text(&o.stderr).contains("ref.exr"), "{}", text(&o.stderr));
+    assert!(!out.exists());
+
+    // A reference of another size: a clear error, no panic, no rows.
+    let dir = out_dir("size");
+    std::fs::create_dir_all(&dir).unwrap();
+    let small = dir.join("ref.exr");
+    let img = penumbra_core::image::Image::new(4, 4, penumbra_core::image::channel_names(&["R", "G", "B"])).unwrap();
+    penumbra_core::image::write(&img, &small).unwrap();
+    let o = sweep(&["-i", "directlighting", "--reference", small.to_str().unwrap(), "--resolution", "8x8"], &dir);
+    assert_eq!(o.status.code(), Some(1));
+    let err = text(&o.stderr);
+    assert!(err.contains("the reference is 4x4 but the render is 8x8"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
