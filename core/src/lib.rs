@@ -27,6 +27,7 @@ pub mod sampling;
 pub mod scene;
 pub mod shapes;
 pub mod spectrum;
+pub mod spherical;
 pub mod stats;
 pub mod texture;
 
