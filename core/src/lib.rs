@@ -14,6 +14,7 @@ pub mod geometry;
 pub mod image;
 pub mod integrator;
 pub mod light;
+pub mod ltc;
 pub mod material;
 pub mod mesh;
 #[rustfmt::skip]
