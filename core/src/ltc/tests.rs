@@ -94,7 +94,7 @@ fn lambertian_identity_gives_the_form_factor() {
             })
             .collect();
         let local: Vec<DVec3> = l.iter().map(|d| frame.to_local(*d)).collect();
-        let a = ltc_integrate(&DMat3::IDENTITY, &frame, &[l.clone()]);
+        let a = ltc_integrate(&DMat3::IDENTITY, &frame, std::slice::from_ref(&l));
         assert!((a - form_factor(&local)).abs() < 1e-14);
         // scaling M⁻¹ changes nothing
         let b = ltc_integrate(&(DMat3::IDENTITY * 3.0), &frame, &[l]);

@@ -253,7 +253,7 @@ fn difference_matches_monte_carlo_on_random_configurations() {
                 project(DVec3::ZERO, &random_triangle(&mut rng, c, 1.2))
             })
             .collect();
-        let vis = difference(&[light.clone()], &occ);
+        let vis = difference(std::slice::from_ref(&light), &occ);
         let f = form_factor_loops(&vis);
         let (est, se) = visible_mc(&light, &occ, 100_000, 1000 + case as u64);
         assert!((f - est).abs() < 4.0 * se, "case {case}: {f} vs {est} ± {se}");
@@ -291,7 +291,7 @@ fn difference_with_light_spanning_almost_a_hemisphere_over_several_faces() {
         project(DVec3::ZERO, &rect(-0.3, 2.0, -0.2, 0.5, 0.5)),
         project(DVec3::ZERO, &rect(5.0, 40.0, -1.0, 1.0, 0.9)),
     ];
-    let vis = difference(&[light.clone()], &occ);
+    let vis = difference(std::slice::from_ref(&light), &occ);
     let want = form_factor(&light) - form_factor(&occ[0]) - form_factor(&occ[1]);
     assert!((form_factor_loops(&vis) - want).abs() < 1e-7, "{} vs {want}", form_factor_loops(&vis));
     let sa: f64 = vis.iter().map(|l| solid_angle(l)).sum();
@@ -303,7 +303,7 @@ fn difference_with_light_spanning_almost_a_hemisphere_over_several_faces() {
 fn difference_with_no_occluders_returns_the_light() {
     let light = project(DVec3::ZERO, &rect(-0.5, 1.0, -0.2, 0.7, 1.0));
     let f = form_factor(&light);
-    let vis = difference(&[light.clone()], &[]);
+    let vis = difference(std::slice::from_ref(&light), &[]);
     assert!((form_factor_loops(&vis) - f).abs() < 1e-8);
     // negative input orientation still gives positive output
     let mut rev = light.clone();
@@ -316,7 +316,7 @@ fn difference_with_no_occluders_returns_the_light() {
 fn difference_hole_gives_outer_positive_and_hole_negative() {
     let light = project(DVec3::ZERO, &rect(-1.0, 1.0, -1.0, 1.0, 1.0));
     let occ = vec![project(DVec3::ZERO, &rect(-0.3, -0.1, 0.1, 0.2, 0.5))];
-    let vis = difference(&[light.clone()], &occ);
+    let vis = difference(std::slice::from_ref(&light), &occ);
     assert_eq!(vis.len(), 2, "{vis:?}");
     let mut s: Vec<f64> = vis.iter().map(|l| solid_angle(l)).collect();
     s.sort_by(|a, b| a.partial_cmp(b).unwrap());
@@ -358,12 +358,12 @@ fn difference_shared_vertices_and_edges_between_occluders() {
         (0..=8).map(|k| PI * k as f64 / 8.0).map(|t| DVec3::new(0.3 * t.cos(), 0.3 * t.sin(), 0.5)).collect();
     let occ: Vec<Vec<DVec3>> = ring.windows(2).map(|w| project(DVec3::ZERO, &[c, w[0], w[1]])).collect();
     let fan_ff: f64 = occ.iter().map(|o| form_factor(o).abs()).sum();
-    let vis = difference(&[light.clone()], &occ);
+    let vis = difference(std::slice::from_ref(&light), &occ);
     let want = form_factor(&light) - fan_ff;
     assert!((form_factor_loops(&vis) - want).abs() < 1e-8);
     // occluder sharing a whole edge (collinear) with the light's boundary
     let half = project(DVec3::ZERO, &rect(0.0, 1.0, -1.0, 1.0, 1.0));
-    let vis = difference(&[light.clone()], &[half.clone()]);
+    let vis = difference(std::slice::from_ref(&light), std::slice::from_ref(&half));
     let want = form_factor(&light) - form_factor(&half);
     assert!((form_factor_loops(&vis) - want).abs() < 1e-8);
     assert!(vis.len() == 1, "{vis:?}");
@@ -403,7 +403,7 @@ fn difference_union_of_many_small_triangles() {
         })
         .collect();
     let t0 = std::time::Instant::now();
-    let vis = difference(&[light.clone()], &occ);
+    let vis = difference(std::slice::from_ref(&light), &occ);
     let dt = t0.elapsed();
     eprintln!("difference: 1000 triangles -> {} loops in {:.2} ms", vis.len(), dt.as_secs_f64() * 1e3);
     let f = form_factor_loops(&vis);
