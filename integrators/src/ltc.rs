@@ -22,7 +22,8 @@
 //! that light or that point, with one warning each.
 
 use crate::directlighting::estimate_direct;
-use penumbra_core::bxdf::BxdfFlags;
+use glam::DVec3;
+use penumbra_core::bxdf::{BxdfFlags, Fresnel};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds3, Ray};
 use penumbra_core::integrator::{
@@ -37,7 +38,6 @@ use penumbra_core::scene::{Requirements, Scene, SurfaceInteraction};
 use penumbra_core::spherical;
 use penumbra_core::{Rgb, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
-use glam::DVec3;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,9 +50,22 @@ pub enum Mode {
     Auto,
 }
 
+/// How the glossy lobe's Fresnel factor is applied to the LTC integral.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FresnelMode {
+    /// Heitz et al.'s split: `magnitude · (F0 + (1 − F0) · fresnel)` with the material's
+    /// normal-incidence reflectance `F0` (exact for Schlick's Fresnel).
+    Schlick,
+    /// The material's exact Fresnel at the half-vector between ωo and the visible region's
+    /// LTC-weighted mean direction, per light triangle (handles pbrt-v3's plastic, whose
+    /// dielectric Fresnel is not Schlick-like).
+    Average,
+}
+
 pub struct LtcIntegrator {
     pub mode: Mode,
     pub shadows: bool,
+    pub fresnel: FresnelMode,
 }
 
 impl LtcIntegrator {
@@ -65,13 +78,26 @@ impl LtcIntegrator {
             other => {
                 warnings.warn(
                     params.loc_of("mode").cloned(),
-                    format!("ltc: unknown mode \"{other}\" (expected auto, silhouette or per-triangle): using \"auto\""),
+                    format!(
+                        "ltc: unknown mode \"{other}\" (expected auto, silhouette or per-triangle): using \"auto\""
+                    ),
                 );
                 Mode::Auto
             }
         };
         let shadows = params.get_one_bool("shadows", true);
-        Ok(Box::new(LtcIntegrator { mode, shadows }))
+        let fresnel = match params.get_one_string("fresnel", "average").as_str() {
+            "schlick" => FresnelMode::Schlick,
+            "average" => FresnelMode::Average,
+            other => {
+                warnings.warn(
+                    params.loc_of("fresnel").cloned(),
+                    format!("ltc: unknown fresnel \"{other}\" (expected average or schlick): using \"average\""),
+                );
+                FresnelMode::Average
+            }
+        };
+        Ok(Box::new(LtcIntegrator { mode, shadows, fresnel }))
     }
 }
 
@@ -101,7 +127,7 @@ struct Cone {
     apex: Vec3,
     axis: Vec3,
     cos: f32,
-    sin: f32,
+
     far: f32,
 }
 
@@ -112,10 +138,10 @@ impl Cone {
         let d = c - apex;
         let dist = d.length();
         if !(dist > r * 1.0001) {
-            return Cone { apex, axis: Vec3::Z, cos: -1.0, sin: 0.0, far: dist + r };
+            return Cone { apex, axis: Vec3::Z, cos: -1.0, far: dist + r };
         }
         let sin = r / dist;
-        Cone { apex, axis: d / dist, cos: (1.0 - sin * sin).max(0.0).sqrt(), sin, far: dist + r }
+        Cone { apex, axis: d / dist, cos: (1.0 - sin * sin).max(0.0).sqrt(), far: dist + r }
     }
 
     /// Whether the sphere (`c`, `r`) may intersect the cone (conservative).
@@ -250,6 +276,7 @@ impl Estimator<'_> {
     }
 
     /// Occluder loops (world-space directions from `p`) for light triangle `tri` of `light_mesh`.
+    #[allow(clippy::too_many_arguments)]
     fn occluders(
         &self,
         scene: &Scene,
@@ -257,6 +284,7 @@ impl Estimator<'_> {
         light_mesh: usize,
         tri: usize,
         light_pv: [DVec3; 3],
+        receiver: usize,
         scratch: &mut Vec<usize>,
     ) -> Vec<Vec<DVec3>> {
         let mut loops = Vec::new();
@@ -285,10 +313,13 @@ impl Estimator<'_> {
                 let q = Vec3::new(corners[k & 1].x, corners[(k >> 1) & 1].y, corners[(k >> 2) & 1].z);
                 side(q) <= 0.0
             });
+            if info.silhouette.is_some() && o == receiver {
+                // A convex object cannot shadow its own surface.
+                continue;
+            }
             if let (Some(adj), false, false) = (&info.silhouette, straddles, o == light_mesh) {
-                // A convex object cannot shadow its own surface: skip it when p lies on it
-                // (no triangle faces p then, and the silhouette comes back empty).
-                for l in spherical::silhouette_loops(mesh, adj, p, 1e-9) {
+                let eps = 1e-7 * (info.bounds.max - info.bounds.min).length() as f64;
+                for l in spherical::silhouette_loops(mesh, adj, p, eps) {
                     loops.push(spherical::project(p, &l));
                 }
                 continue;
@@ -301,6 +332,14 @@ impl Estimator<'_> {
                 let tc = (pv[0] + pv[1] + pv[2]) / 3.0;
                 let tr = pv.iter().map(|v| (*v - tc).length()).fold(0.0, f64::max);
                 if !cone.hits_sphere(tc.as_vec3(), tr as f32 * 1.001 + 1e-6) {
+                    continue;
+                }
+                // A triangle whose plane passes through p (the receiver's own, or coplanar
+                // with it) subtends no solid angle, but its projection winds around p along a
+                // great circle, which would read as a whole hemisphere: skip it.
+                let tn = (pv[1] - pv[0]).cross(pv[2] - pv[0]);
+                let tn_len = tn.length();
+                if !(tn_len > 0.0) || (tn.dot(p - pv[0]) / tn_len).abs() <= 1e-6 * (tr + (p - tc).length()) {
                     continue;
                 }
                 let clipped = clip_to_plane(&pv, plane_o, ln);
@@ -336,6 +375,9 @@ impl Estimator<'_> {
         });
         let mut diffuse_ff = 0.0f64;
         let mut spec_int = 0.0f64;
+        // Σ over triangles of F(θd)·∫LTC, for the "average" Fresnel mode.
+        let mut spec_fresnel = Rgb::ZERO;
+        let wo_local = frame.to_local(d3(si.wo));
         for &tri in &geom.tris {
             let tri = tri as usize;
             if tri >= mesh.triangle_count() {
@@ -349,7 +391,7 @@ impl Estimator<'_> {
                 }
             }
             let light_loop = spherical::project(p, &pv);
-            let occ = self.occluders(scene, p, geom.mesh as usize, tri, pv, scratch);
+            let occ = self.occluders(scene, p, geom.mesh as usize, tri, pv, si.mesh as usize, scratch);
             // Without occluders the triangle's single loop may have either orientation: its
             // integrals are taken by magnitude. `difference` returns oriented loops.
             let (visible, single) = if occ.is_empty() {
@@ -361,17 +403,53 @@ impl Estimator<'_> {
                 visible.iter().map(|l| l.iter().map(|d| frame.to_local(*d)).collect()).collect();
             let ff = spherical::form_factor_loops(&local);
             diffuse_ff += if single { ff.abs() } else { ff };
-            if let Some((_, coeffs)) = &spec {
+            if let Some((s, coeffs)) = &spec {
                 let v = ltc_integrate(&coeffs.minv, &frame, &visible);
-                spec_int += if single { v.abs() } else { v };
+                let v = if single { v.abs() } else { v };
+                spec_int += v;
+                if self.ltc.fresnel == FresnelMode::Average && v != 0.0 {
+                    // The LTC-weighted mean direction of the visible region: the vector form factor
+                    // in the cosine space, mapped back by M (Heitz et al.'s proxy direction); the
+                    // material's exact Fresnel is taken at the half-vector with ωo.
+                    let mut vff = DVec3::ZERO;
+                    for l in &local {
+                        let t: Vec<DVec3> = l.iter().map(|d| coeffs.minv * *d).collect();
+                        let c = spherical::clip_to_horizon(&t);
+                        if c.len() >= 3 {
+                            vff += spherical::vector_form_factor(&c);
+                        }
+                    }
+                    if single && vff.z < 0.0 {
+                        vff = -vff;
+                    }
+                    let dir = (coeffs.m() * vff).normalize_or_zero();
+                    let h = (wo_local + dir).normalize_or_zero();
+                    let cos_d = if h == DVec3::ZERO { 1.0 } else { wo_local.dot(h).clamp(0.0, 1.0) };
+                    spec_fresnel += fresnel_at(&s.fresnel, cos_d as f32) * v as f32;
+                }
             }
         }
         let le = geom.l;
         let mut out = desc.diffuse * le * diffuse_ff.max(0.0) as f32;
         if let Some((s, coeffs)) = spec {
-            out += s.scale * fresnel_weight(&s.fresnel, coeffs.magnitude, coeffs.fresnel) * le * spec_int.max(0.0) as f32;
+            let spec_term = match self.ltc.fresnel {
+                FresnelMode::Schlick => {
+                    fresnel_weight(&s.fresnel, coeffs.magnitude, coeffs.fresnel) * spec_int.max(0.0) as f32
+                }
+                FresnelMode::Average => (spec_fresnel * coeffs.magnitude).max(Rgb::ZERO),
+            };
+            out += s.scale * spec_term * le;
         }
         out
+    }
+}
+
+/// The material's own Fresnel reflectance at `cos_d` (pbrt-v3's definitions).
+fn fresnel_at(f: &LtcFresnel, cos_d: f32) -> Rgb {
+    match *f {
+        LtcFresnel::Dielectric { eta_i, eta_t } => Fresnel::Dielectric { eta_i, eta_t }.evaluate(cos_d),
+        LtcFresnel::Conductor { eta, k } => Fresnel::Conductor { eta_i: Rgb::ONE, eta_t: eta, k }.evaluate(cos_d),
+        LtcFresnel::Schlick { f0 } => f0 + (Rgb::ONE - f0) * (1.0 - cos_d).powi(5),
     }
 }
 
@@ -395,7 +473,14 @@ fn fresnel_weight(f: &LtcFresnel, magnitude: f32, fresnel: f32) -> Rgb {
 }
 
 impl PixelEstimator for Estimator<'_> {
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, _aov: &mut [f32]) -> Rgb {
+    fn li(
+        &self,
+        ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        _aov: &mut [f32],
+    ) -> Rgb {
         let lights = self.lights(scene);
         let mut ray = *ray;
         let mut pass = 0;
@@ -470,10 +555,8 @@ impl Integrator for LtcIntegrator {
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         if scene.lights.as_ref().is_some_and(|l| l.lights.iter().any(|x| matches!(x, Light::Infinite(_)))) {
-            ctx.warnings.warn(
-                None,
-                "ltc: infinite lights have no polygon: they are rendered with directlighting's estimator",
-            );
+            ctx.warnings
+                .warn(None, "ltc: infinite lights have no polygon: they are rendered with directlighting's estimator");
         }
         let mut objects = Vec::with_capacity(scene.meshes.len());
         let mut boxes = Vec::new();
@@ -505,5 +588,32 @@ impl Integrator for LtcIntegrator {
             warnings: ctx.warnings,
         };
         render_pixels(&est, scene, ctx, film)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    /// A coplanar light triangle sharing an edge (the other half of a quad light) does not
+    /// occlude its neighbour from any point.
+    fn coplanar_neighbour_does_not_occlude() {
+        let a = [DVec3::new(-0.8, 3.0, -0.8), DVec3::new(0.8, 3.0, -0.8), DVec3::new(0.8, 3.0, 0.8)];
+        let b = [DVec3::new(-0.8, 3.0, -0.8), DVec3::new(0.8, 3.0, 0.8), DVec3::new(-0.8, 3.0, 0.8)];
+        let mut bad = 0;
+        for i in 0..200 {
+            let p = DVec3::new(-2.0 + 0.02 * i as f64, 0.0, 0.3 - 0.01 * i as f64);
+            let la = spherical::project(p, &a);
+            let lb = spherical::project(p, &b);
+            let ff_a = spherical::form_factor(&la).abs();
+            let d = spherical::difference(std::slice::from_ref(&la), &[lb]);
+            let ff_d = spherical::form_factor_loops(&d);
+            if (ff_a - ff_d).abs() > 1e-6 * ff_a.max(1e-3) {
+                bad += 1;
+                eprintln!("p {p}: A {ff_a} diff {ff_d} loops {}", d.len());
+            }
+        }
+        assert_eq!(bad, 0);
     }
 }
