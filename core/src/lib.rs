@@ -14,6 +14,7 @@ pub mod geometry;
 pub mod image;
 pub mod integrator;
 pub mod light;
+pub mod ltc;
 pub mod material;
 pub mod mesh;
 #[rustfmt::skip]
@@ -27,6 +28,7 @@ pub mod sampling;
 pub mod scene;
 pub mod shapes;
 pub mod spectrum;
+pub mod spherical;
 pub mod stats;
 pub mod texture;
 

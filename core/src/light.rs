@@ -320,6 +320,15 @@ fn sampled_normal(mesh: &TriangleMesh, tri: usize, pv: [Vec3; 3], b: [f32; 3]) -
     n
 }
 
+/// The emitting side of triangle `tri` of `mesh`, as area lights define it (the normal
+/// [`Light::sample_li`] gives a point at the triangle's centroid). Zero for a degenerate triangle.
+pub fn emitting_normal(mesh: &TriangleMesh, tri: usize) -> Vec3 {
+    match tri_vertices(mesh, tri) {
+        Some(pv) => sampled_normal(mesh, tri, pv, [1.0 / 3.0; 3]),
+        None => Vec3::ZERO,
+    }
+}
+
 impl Light {
     /// Samples an incident direction at `ctx` (pbrt-v3's `Sample_Li`). `None` if the
     /// pdf is 0 or the sample carries no radiance.
@@ -968,7 +977,7 @@ mod tests {
     }
 
     fn object(kind: &str, area_light: Option<usize>, instance: Option<usize>) -> SceneObject {
-        SceneObject { kind: kind.into(), loc: loc(), material: None, area_light, instance }
+        SceneObject { kind: kind.into(), loc: loc(), material: None, area_light, instance, occluder: true }
     }
 
     /// Area lights of `meshes`, all emitting through AreaLightSource 0 = `area`.

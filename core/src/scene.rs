@@ -63,6 +63,9 @@ pub struct SceneObject {
     pub area_light: Option<usize>,
     /// Which `ObjectInstance` this came from, if any.
     pub instance: Option<usize>,
+    /// `"bool occluder" false` on the shape: analytic visibility methods ignore it as an
+    /// occluder (a penumbra extension; pbrt-v3 reports the parameter unused and renders).
+    pub occluder: bool,
 }
 
 /// Time spent and what was built, for `penumbra info` and `stats.json`.
@@ -251,6 +254,7 @@ impl Scene {
                         material: s.material,
                         area_light: s.area_light,
                         instance,
+                        occluder: s.entity.params.get_one_bool("occluder", true),
                     });
                 }
                 Ok(())

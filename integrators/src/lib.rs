@@ -2,6 +2,7 @@
 
 pub mod ao;
 pub mod directlighting;
+pub mod ltc;
 
 use penumbra_core::integrator::Integrator;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
@@ -20,6 +21,11 @@ pub const REGISTRY: &[Entry] = &[
         name: "directlighting",
         method: "pbrt-v3 direct lighting: light + BSDF sampling with MIS, strategy all/one, specular recursion",
         create: directlighting::DirectLighting::create,
+    },
+    Entry {
+        name: "ltc",
+        method: "analytic area-light shading and soft shadows with Linearly Transformed Cosines (seed 004)",
+        create: ltc::LtcIntegrator::create,
     },
     Entry {
         name: "ambientocclusion",

@@ -1,0 +1,288 @@
+//! Linearly Transformed Cosines (Heitz, Dupuy, Hill & Neubelt 2016) fitted to
+//! pbrt-v3's Trowbridge–Reitz (GGX) microfacet reflection as core evaluates it
+//! ([`crate::microfacet::MicrofacetDistribution`], height-correlated Smith `G`,
+//! no Fresnel): `f(ωo, ωi) cos θi = D(ωh) G(ωo, ωi) / (4 cos θo)`.
+//!
+//! # Frame and table
+//!
+//! Everything is in the local shading frame of [`ShadingFrame`]: `z` the normal,
+//! `x` the tangent direction of `ωo` (so `ωo = (sin θo, 0, cos θo)`). An LTC is
+//! the distribution `D(ω) = Do(ω̂o) |det M⁻¹| / |M⁻¹ω|³` with `ω̂o = M⁻¹ω / |M⁻¹ω|`
+//! and `Do` the clamped cosine `max(0, z)/π`. For isotropic GGX, `M⁻¹` has the
+//! form `[[m00, 0, m02], [0, 1, 0], [m20, 0, m22]]` (scale-free: the middle
+//! entry is normalised to 1).
+//!
+//! The table ([`Ltc`]) holds, on a `N_θ × N_α` grid (rows: `√α` uniform in
+//! `[√α_min, 1]`; columns: `√(1 − cos θo)` uniform in `[0, 1]`), the four
+//! entries of `M⁻¹`, the `magnitude` (directional albedo `∫ f cos dωi` with
+//! Fresnel 1) and the `fresnel` ratio `∫ f cos (1 − ωo·ωh)⁵ dωi / magnitude`, so
+//! that with Schlick's `F = F0 + (1 − F0)(1 − ωo·ωh)⁵`,
+//! `∫ f F cos ≈ magnitude · (F0 + (1 − F0) · fresnel)` ([`LtcCoeffs::schlick_scale`]).
+//! It is produced by `ltc-fit` (`cargo run --release -p penumbra-core --bin
+//! ltc-fit -- --out core/data/ltc_ggx.bin`, see [`fit`]) and embedded with
+//! `include_bytes!`.
+//!
+//! # Using it
+//!
+//! `∫_P f(ωo, ω) cos θ dω ≈ magnitude · ltc_integrate(&minv, &frame, loops)` for
+//! a region `P` given as loops of world-space directions (see
+//! [`crate::spherical`] for the loop conventions; the result is signed by
+//! orientation, positive loops give positive values).
+
+use std::sync::OnceLock;
+
+use glam::{DMat3, DVec2, DVec3};
+
+use crate::spherical;
+
+/// The embedded GGX table (see the module documentation for the format).
+static LTC_GGX_BIN: &[u8] = include_bytes!("../data/ltc_ggx.bin");
+
+/// A local shading frame: `z` the normal, `x` the tangent direction of `ωo`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadingFrame {
+    pub x: DVec3,
+    pub y: DVec3,
+    pub z: DVec3,
+}
+
+impl ShadingFrame {
+    /// The frame for normal `n` (unit) and outgoing direction `wo`: `x` is `wo`'s
+    /// projection onto the tangent plane (any tangent if `wo ∥ n`), `y = z × x`.
+    pub fn new(n: DVec3, wo: DVec3) -> Self {
+        let z = n.normalize_or_zero();
+        let z = if z == DVec3::ZERO { DVec3::Z } else { z };
+        let t = wo - z * z.dot(wo);
+        let x = if t.length_squared() > 1e-24 * wo.length_squared().max(1e-300) {
+            t.normalize()
+        } else {
+            spherical::orthonormal_basis(z).0
+        };
+        ShadingFrame { x, y: z.cross(x), z }
+    }
+
+    /// World direction to local coordinates.
+    pub fn to_local(&self, d: DVec3) -> DVec3 {
+        DVec3::new(d.dot(self.x), d.dot(self.y), d.dot(self.z))
+    }
+
+    /// Local coordinates to a world direction.
+    pub fn to_world(&self, d: DVec3) -> DVec3 {
+        self.x * d.x + self.y * d.y + self.z * d.z
+    }
+}
+
+/// One LTC: its inverse matrix (local frame) and the scalar terms.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LtcCoeffs {
+    pub minv: DMat3,
+    /// Directional albedo `∫ f cos dωi` (Fresnel 1).
+    pub magnitude: f32,
+    /// `∫ f cos (1 − ωo·ωh)⁵ dωi / magnitude`.
+    pub fresnel: f32,
+}
+
+/// `M⁻¹` from the four stored entries (middle entry 1).
+pub fn minv_from_params(p: [f64; 4]) -> DMat3 {
+    DMat3::from_cols(DVec3::new(p[0], 0.0, p[2]), DVec3::Y, DVec3::new(p[1], 0.0, p[3]))
+}
+
+/// The clamped-cosine density `max(0, z)/π` of a unit vector.
+fn cos_density(w: DVec3) -> f64 {
+    w.z.max(0.0) * std::f64::consts::FRAC_1_PI
+}
+
+/// Cosine-weighted hemisphere sample (Malley, concentric disk), f64.
+pub fn cosine_sample(u: DVec2) -> DVec3 {
+    let (a, b) = (2.0 * u.x - 1.0, 2.0 * u.y - 1.0);
+    let (r, phi) = if a == 0.0 && b == 0.0 {
+        (0.0, 0.0)
+    } else if a.abs() > b.abs() {
+        (a, std::f64::consts::FRAC_PI_4 * (b / a))
+    } else {
+        (b, std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * (a / b))
+    };
+    let (x, y) = (r * phi.cos(), r * phi.sin());
+    DVec3::new(x, y, (1.0 - x * x - y * y).max(0.0).sqrt())
+}
+
+/// The LTC density of `w` (any length) for the inverse matrix `minv`.
+pub fn ltc_pdf(minv: &DMat3, w: DVec3) -> f64 {
+    let l = w.length();
+    if l == 0.0 || !l.is_finite() {
+        return 0.0;
+    }
+    let wo = *minv * (w / l);
+    let len = wo.length();
+    if len == 0.0 || !len.is_finite() {
+        return 0.0;
+    }
+    let v = cos_density(wo / len) * minv.determinant().abs() / (len * len * len);
+    if v.is_finite() {
+        v
+    } else {
+        0.0
+    }
+}
+
+impl LtcCoeffs {
+    /// The distribution's matrix `M` (the inverse of `minv`; identity if singular).
+    pub fn m(&self) -> DMat3 {
+        let d = self.minv.determinant();
+        if d == 0.0 || !d.is_finite() {
+            DMat3::IDENTITY
+        } else {
+            self.minv.inverse()
+        }
+    }
+
+    /// Samples the LTC distribution (local frame): `normalize(M ωo)` with `ωo`
+    /// cosine-distributed. Its density is [`pdf`](Self::pdf).
+    pub fn sample(&self, u: DVec2) -> DVec3 {
+        (self.m() * cosine_sample(u)).normalize_or_zero()
+    }
+
+    /// Density (solid angle, local frame) of [`sample`](Self::sample); integrates to 1.
+    pub fn pdf(&self, w: DVec3) -> f64 {
+        ltc_pdf(&self.minv, w)
+    }
+
+    /// Schlick-Fresnel weighted magnitude `magnitude · (F0 + (1 − F0) fresnel)`.
+    pub fn schlick_scale(&self, f0: f32) -> f32 {
+        self.magnitude * (f0 + (1.0 - f0) * self.fresnel)
+    }
+}
+
+/// `∫_P D(ω) dω` of the LTC with inverse matrix `minv` over the region given by
+/// `loops` of world-space directions (seen from the shading point): each loop
+/// is taken to the local frame, transformed by `minv`, clipped to the horizon
+/// and integrated with Lambert's edge formula. Signed by orientation (positive
+/// loops positive); multiply by the magnitude for `∫ f cos`.
+pub fn ltc_integrate(minv: &DMat3, frame: &ShadingFrame, loops: &[Vec<DVec3>]) -> f64 {
+    let mut sum = 0.0;
+    let flip = minv.determinant() < 0.0;
+    for l in loops {
+        let t: Vec<DVec3> = l.iter().map(|d| *minv * frame.to_local(*d)).collect();
+        let f = spherical::form_factor(&t);
+        sum += if flip { -f } else { f };
+    }
+    sum
+}
+
+/// An LTC table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ltc {
+    pub n_theta: usize,
+    pub n_alpha: usize,
+    pub alpha_min: f32,
+    /// Row-major (alpha outer): `[m00, m02, m20, m22, magnitude, fresnel]`.
+    pub cells: Vec<[f32; 6]>,
+}
+
+/// Error reading an LTC table.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum LtcError {
+    #[error("LTC table: {0}")]
+    Format(&'static str),
+}
+
+impl Ltc {
+    /// `cos θo` of column `i`.
+    pub fn column_cos_theta(&self, i: usize) -> f64 {
+        let x = i as f64 / (self.n_theta.max(2) - 1) as f64;
+        1.0 - x * x
+    }
+
+    /// `α` of row `j`.
+    pub fn row_alpha(&self, j: usize) -> f64 {
+        let r0 = (self.alpha_min as f64).sqrt();
+        let r = r0 + (1.0 - r0) * j as f64 / (self.n_alpha.max(2) - 1) as f64;
+        r * r
+    }
+
+    /// Parses the binary format: `b"LTC1"`, `u32` n_theta, `u32` n_alpha,
+    /// `f32` alpha_min, then `n_alpha × n_theta × 6` `f32`, little-endian.
+    pub fn from_bytes(b: &[u8]) -> Result<Ltc, LtcError> {
+        if b.len() < 16 || &b[0..4] != b"LTC1" {
+            return Err(LtcError::Format("bad header"));
+        }
+        let u = |o: usize| u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);
+        let f = |o: usize| f32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);
+        let (n_theta, n_alpha) = (u(4) as usize, u(8) as usize);
+        let alpha_min = f(12);
+        if !(2..=4096).contains(&n_theta) || !(2..=4096).contains(&n_alpha) {
+            return Err(LtcError::Format("bad grid size"));
+        }
+        if !(alpha_min > 0.0 && alpha_min < 1.0) {
+            return Err(LtcError::Format("bad alpha_min"));
+        }
+        let n = n_theta * n_alpha;
+        if b.len() != 16 + n * 24 {
+            return Err(LtcError::Format("bad length"));
+        }
+        let cells: Vec<[f32; 6]> = (0..n).map(|c| std::array::from_fn(|k| f(16 + c * 24 + k * 4))).collect();
+        if cells.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(LtcError::Format("non-finite entry"));
+        }
+        Ok(Ltc { n_theta, n_alpha, alpha_min, cells })
+    }
+
+    /// Serialises to [`from_bytes`](Self::from_bytes)'s format.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(16 + self.cells.len() * 24);
+        out.extend_from_slice(b"LTC1");
+        out.extend_from_slice(&(self.n_theta as u32).to_le_bytes());
+        out.extend_from_slice(&(self.n_alpha as u32).to_le_bytes());
+        out.extend_from_slice(&self.alpha_min.to_le_bytes());
+        for c in &self.cells {
+            for v in c {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        out
+    }
+
+    /// The embedded GGX table (`None` only if the embedded data is invalid,
+    /// which a test rules out).
+    pub fn ggx() -> Option<&'static Ltc> {
+        static TABLE: OnceLock<Option<Ltc>> = OnceLock::new();
+        TABLE.get_or_init(|| Ltc::from_bytes(LTC_GGX_BIN).ok()).as_ref()
+    }
+
+    /// Bilinearly interpolated coefficients of the embedded GGX table for
+    /// `cos θo` and the (already remapped) Trowbridge–Reitz `alpha`; both are
+    /// clamped to the table's range (`alpha ∈ [alpha_min, 1]`, `cos θo ∈ [0, 1]`).
+    /// Falls back to the Lambertian identity if the table is unavailable.
+    pub fn lookup(cos_theta_o: f32, alpha: f32) -> LtcCoeffs {
+        match Ltc::ggx() {
+            Some(t) => t.eval(cos_theta_o, alpha),
+            None => LtcCoeffs { minv: DMat3::IDENTITY, magnitude: 1.0, fresnel: 0.0 },
+        }
+    }
+
+    /// Bilinear lookup in this table (see [`lookup`](Self::lookup)).
+    pub fn eval(&self, cos_theta_o: f32, alpha: f32) -> LtcCoeffs {
+        let c = if cos_theta_o.is_nan() { 1.0 } else { cos_theta_o.clamp(0.0, 1.0) as f64 };
+        let a = if alpha.is_nan() { 1.0 } else { alpha.clamp(self.alpha_min, 1.0) as f64 };
+        let x = (1.0 - c).max(0.0).sqrt() * (self.n_theta - 1) as f64;
+        let r0 = (self.alpha_min as f64).sqrt();
+        let y = ((a.sqrt() - r0) / (1.0 - r0)).clamp(0.0, 1.0) * (self.n_alpha - 1) as f64;
+        let (i0, j0) = ((x.floor() as usize).min(self.n_theta - 2), (y.floor() as usize).min(self.n_alpha - 2));
+        let (fx, fy) = (x - i0 as f64, y - j0 as f64);
+        let cell = |i: usize, j: usize| &self.cells[j * self.n_theta + i];
+        let mut v = [0.0f64; 6];
+        for (k, vk) in v.iter_mut().enumerate() {
+            let a00 = cell(i0, j0)[k] as f64;
+            let a10 = cell(i0 + 1, j0)[k] as f64;
+            let a01 = cell(i0, j0 + 1)[k] as f64;
+            let a11 = cell(i0 + 1, j0 + 1)[k] as f64;
+            *vk = (a00 * (1.0 - fx) + a10 * fx) * (1.0 - fy) + (a01 * (1.0 - fx) + a11 * fx) * fy;
+        }
+        LtcCoeffs { minv: minv_from_params([v[0], v[1], v[2], v[3]]), magnitude: v[4] as f32, fresnel: v[5] as f32 }
+    }
+}
+
+pub mod fit;
+
+#[cfg(test)]
+mod tests;

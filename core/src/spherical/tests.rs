@@ -1,0 +1,548 @@
+use super::*;
+use crate::rng::Rng;
+use glam::Vec3;
+use std::f64::consts::PI;
+
+fn cos_sample(rng: &mut Rng) -> DVec3 {
+    let (u1, u2) = (rng.uniform_f64(), rng.uniform_f64());
+    let r = u1.sqrt();
+    let phi = 2.0 * PI * u2;
+    DVec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
+}
+
+/// Monte Carlo form factor of `inside` (cosine-weighted sampling: the hit fraction)
+/// and its standard error.
+fn mc_form_factor(n: usize, seed: u64, inside: impl Fn(DVec3) -> bool) -> (f64, f64) {
+    let mut rng = Rng::new(seed);
+    let hits = (0..n).filter(|_| inside(cos_sample(&mut rng))).count() as f64;
+    let p = hits / n as f64;
+    (p, (p * (1.0 - p) / n as f64).sqrt().max(1.0 / n as f64))
+}
+
+/// Form factor from the origin to the rectangle [0,a]x[0,b] at height h (corner above the point).
+fn corner_rect(a: f64, b: f64, h: f64) -> f64 {
+    let (x, y) = (a / h, b / h);
+    let sx = (1.0 + x * x).sqrt();
+    let sy = (1.0 + y * y).sqrt();
+    (x / sx * (y / sx).atan() + y / sy * (x / sy).atan()) / (2.0 * PI)
+}
+
+fn rect(x0: f64, x1: f64, y0: f64, y1: f64, h: f64) -> Vec<DVec3> {
+    vec![DVec3::new(x0, y0, h), DVec3::new(x1, y0, h), DVec3::new(x1, y1, h), DVec3::new(x0, y1, h)]
+}
+
+fn rand_dir(rng: &mut Rng) -> DVec3 {
+    let z = 1.0 - 2.0 * rng.uniform_f64();
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * rng.uniform_f64();
+    DVec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+fn rot_z(v: DVec3, a: f64) -> DVec3 {
+    DVec3::new(v.x * a.cos() - v.y * a.sin(), v.x * a.sin() + v.y * a.cos(), v.z)
+}
+
+// --- edge integral, form factor, solid angle ---------------------------------------------------
+
+#[test]
+fn edge_integral_matches_naive_formula_and_is_stable() {
+    let mut rng = Rng::new(1);
+    for _ in 0..1000 {
+        let a = rand_dir(&mut rng);
+        let b = rand_dir(&mut rng);
+        let naive = a.dot(b).clamp(-1.0, 1.0).acos() * a.cross(b).normalize().z;
+        assert!((edge_integral(a, b) - naive).abs() < 1e-9, "{a} {b}");
+        // non-unit input gives the same value
+        assert!((edge_integral(a * 3.0, b * 0.25) - naive).abs() < 1e-9);
+        assert!((edge_integral(b, a) + naive).abs() < 1e-9);
+    }
+    // nearly parallel: θ ~ 1e-12 -> contribution ~ θ·n_z, finite and tiny
+    let a = DVec3::new(0.3, 0.4, 0.866).normalize();
+    let b = (a + DVec3::new(1e-12, -2e-12, 0.0)).normalize();
+    let e = edge_integral(a, b);
+    assert!(e.is_finite() && e.abs() < 1e-11, "{e}");
+    assert_eq!(edge_integral(a, a), 0.0);
+    assert_eq!(edge_integral(a, DVec3::ZERO), 0.0);
+    // nearly antipodal: θ -> π, |n_z| ≤ 1
+    let b = -a + DVec3::new(0.0, 1e-9, 0.0);
+    let e = edge_integral(a, b);
+    assert!(e.is_finite() && e.abs() <= PI + 1e-9);
+    // exactly antipodal: undefined arc -> 0
+    assert_eq!(edge_integral(a, -a), 0.0);
+    // small angle series branch agrees with the direct formula at the switch point
+    let c = DVec3::new(1.0, 0.0, 0.0);
+    for t in [0.9e-4f64, 1.1e-4] {
+        let d = DVec3::new(t.cos(), t.sin(), 0.0);
+        assert!((edge_integral(c, d) - t).abs() < 1e-15, "t={t}: {}", edge_integral(c, d));
+    }
+}
+
+#[test]
+fn rectangle_parallel_to_receiver_matches_closed_form() {
+    for (a, b, h) in [(1.0, 1.0, 1.0), (2.0, 0.5, 0.7), (10.0, 3.0, 0.1), (0.01, 0.02, 5.0)] {
+        let p = rect(0.0, a, 0.0, b, h);
+        let f = form_factor(&p);
+        let want = corner_rect(a, b, h);
+        assert!((f - want).abs() < 1e-12 * (1.0 + want), "{a} {b} {h}: {f} vs {want}");
+        // reversed orientation: negative
+        let mut r = p.clone();
+        r.reverse();
+        assert!((form_factor(&r) + want).abs() < 1e-12);
+    }
+    // unit square centred on the axis at height h: four corner rectangles
+    for h in [0.25, 1.0, 4.0] {
+        let f = form_factor(&rect(-0.5, 0.5, -0.5, 0.5, h));
+        assert!((f - 4.0 * corner_rect(0.5, 0.5, h)).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn disk_polygon_matches_disk_form_factor() {
+    // inscribed regular N-gon of radius R at height h: area-equivalent radius
+    let (rr, h, n) = (0.8f64, 0.6f64, 4000usize);
+    let poly: Vec<DVec3> =
+        (0..n).map(|i| 2.0 * PI * i as f64 / n as f64).map(|t| DVec3::new(rr * t.cos(), rr * t.sin(), h)).collect();
+    let f = form_factor(&poly);
+    let want = rr * rr / (h * h + rr * rr);
+    assert!((f - want).abs() < 2e-6, "{f} vs {want}");
+    // solid angle of the disk: 2π(1 − h/√(h²+R²))
+    let sa = solid_angle(&poly);
+    let want = 2.0 * PI * (1.0 - h / (h * h + rr * rr).sqrt());
+    assert!((sa - want).abs() < 2e-5, "{sa} vs {want}");
+}
+
+#[test]
+fn form_factor_is_invariant_under_rotation_about_z() {
+    let mut rng = Rng::new(7);
+    for _ in 0..50 {
+        let m = rand_dir(&mut rng);
+        let poly: Vec<DVec3> = (0..5).map(|_| (m + 0.5 * rand_dir(&mut rng)).normalize()).collect();
+        let f = form_factor(&poly);
+        for a in [0.3, 1.7, 4.0] {
+            let r: Vec<DVec3> = poly.iter().map(|v| rot_z(*v, a)).collect();
+            assert!((form_factor(&r) - f).abs() < 1e-12);
+        }
+    }
+}
+
+#[test]
+fn solid_angle_closed_forms() {
+    // octant
+    let o = [DVec3::X, DVec3::Y, DVec3::Z];
+    assert!((solid_angle(&o) - PI / 2.0).abs() < 1e-14);
+    // a cube face from the cube's centre
+    let face = rect(-1.0, 1.0, -1.0, 1.0, 1.0);
+    assert!((solid_angle(&face) - 4.0 * PI / 6.0).abs() < 1e-13);
+    // form factor of the cube's top face from its centre: 1/3 of... check vector form factor: along z
+    let v = vector_form_factor(&face);
+    assert!(v.x.abs() < 1e-14 && v.y.abs() < 1e-14);
+    assert!((v.z - form_factor(&face)).abs() < 1e-14);
+    // a hemisphere-sized loop: the whole upper hemisphere (4 horizon points plus ... ) via a big square
+    let big = rect(-1e7, 1e7, -1e7, 1e7, 1.0);
+    assert!((solid_angle(&big) - 2.0 * PI).abs() < 1e-6);
+    assert!((form_factor(&big) - 1.0).abs() < 1e-6);
+}
+
+#[test]
+fn winding_number_agrees_with_solid_angle_by_monte_carlo() {
+    let mut rng = Rng::new(3);
+    let poly: Vec<DVec3> = [(0.2, 0.1), (0.9, 0.3), (0.4, 0.5), (0.8, 0.9), (0.1, 0.7)]
+        .iter()
+        .map(|&(x, y)| DVec3::new(x, y, 0.5))
+        .collect();
+    let n = 200_000;
+    let hits = (0..n).filter(|_| contains(&poly, rand_dir(&mut rng))).count() as f64;
+    let est = 4.0 * PI * hits / n as f64;
+    let se = 4.0 * PI * ((hits / n as f64) * (1.0 - hits / n as f64) / n as f64).sqrt();
+    let sa = solid_angle(&poly);
+    assert!((est - sa).abs() < 4.0 * se, "{est} vs {sa} ± {se}");
+}
+
+// --- horizon clipping --------------------------------------------------------------------------
+
+#[test]
+fn horizon_clipping_of_a_crossing_polygon_matches_monte_carlo() {
+    let mut rng = Rng::new(11);
+    for case in 0..6 {
+        // random quad around a direction near the horizon
+        let m =
+            DVec3::new(rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5, 0.2 * (rng.uniform_f64() - 0.5)).normalize();
+        let poly: Vec<DVec3> = (0..4)
+            .map(|k| {
+                let (u, v) = orthonormal_basis(m);
+                let t = PI / 2.0 * k as f64 + 0.3 * rng.uniform_f64();
+                (m + 0.6 * (u * t.cos() + v * t.sin())).normalize()
+            })
+            .collect();
+        let f = form_factor(&poly);
+        let (est, se) = mc_form_factor(100_000, 100 + case, |d| contains(&poly, d));
+        // orientation sign
+        let s = solid_angle(&poly).signum();
+        assert!((s * f - est).abs() < 4.0 * se + 1e-9, "case {case}: {f} vs {est} ± {se}");
+    }
+}
+
+#[test]
+fn horizon_clipping_of_a_non_convex_comb_crossing_many_times() {
+    // a comb in the plane y = 1: teeth dip below z = 0 several times
+    let mut pts = vec![DVec3::new(-2.0, 1.0, 1.0)];
+    for k in 0..5 {
+        let x = -2.0 + 0.8 * k as f64;
+        pts.push(DVec3::new(x + 0.1, 1.0, -0.5));
+        pts.push(DVec3::new(x + 0.3, 1.0, -0.5));
+        pts.push(DVec3::new(x + 0.4, 1.0, 0.3));
+        pts.push(DVec3::new(x + 0.8, 1.0, 0.3));
+    }
+    pts.push(DVec3::new(2.0, 1.0, 1.0));
+    let poly = project(DVec3::ZERO, &pts);
+    let c = clip_to_horizon(&poly);
+    assert!(c.iter().all(|v| v.z >= 0.0));
+    let f = form_factor(&poly).abs();
+    let (est, se) = mc_form_factor(200_000, 5, |d| contains(&poly, d));
+    assert!((f - est).abs() < 4.0 * se, "{f} vs {est} ± {se}");
+}
+
+#[test]
+fn horizon_clipping_with_vertices_on_the_horizon() {
+    // triangle with two vertices exactly on the horizon
+    let t = vec![DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0), DVec3::new(0.0, 0.0, 1.0)];
+    assert_eq!(clip_to_horizon(&t), t);
+    assert!((form_factor(&t) - 0.25).abs() < 1e-14); // octant: 1/4 of the cosine
+                                                     // the mirrored triangle below: touching, not crossing -> empty
+    let b = vec![DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 0.0, -1.0), DVec3::new(0.0, 1.0, 0.0)];
+    assert!(clip_to_horizon(&b).is_empty());
+    assert_eq!(form_factor(&b), 0.0);
+    // a quad with an edge lying on the horizon and a vertex below
+    let q = project(
+        DVec3::ZERO,
+        &[(1.0, 0.0), (0.5, 1.0), (-1.0, 0.5), (-0.5, -1.0), (2.0, 0.0)].map(|(x, z)| DVec3::new(x, 1.0, z)),
+    );
+    let c = clip_to_horizon(&q);
+    assert!(c.iter().all(|v| v.z >= 0.0));
+    let (est, se) = mc_form_factor(100_000, 9, |d| contains(&q, d));
+    assert!((form_factor(&q).abs() - est).abs() < 4.0 * se);
+    // entirely below
+    let below: Vec<DVec3> = t.iter().map(|v| DVec3::new(v.x, v.y, -v.z - 0.1)).collect();
+    assert_eq!(form_factor(&below), 0.0);
+}
+
+// --- set difference ----------------------------------------------------------------------------
+
+fn random_triangle(rng: &mut Rng, center: DVec3, size: f64) -> Vec<DVec3> {
+    (0..3)
+        .map(|_| center + size * DVec3::new(rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5))
+        .collect()
+}
+
+fn visible_mc(light: &[DVec3], occ: &[Vec<DVec3>], n: usize, seed: u64) -> (f64, f64) {
+    mc_form_factor(n, seed, |d| contains(light, d) && !occ.iter().any(|o| contains(o, d)))
+}
+
+#[test]
+fn difference_matches_monte_carlo_on_random_configurations() {
+    let mut rng = Rng::new(21);
+    for case in 0..8 {
+        let lc = DVec3::new(rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5, 2.0 + rng.uniform_f64());
+        let (lx, ly) = (0.5 + rng.uniform_f64(), 0.5 + rng.uniform_f64());
+        let lw = rect(lc.x - lx, lc.x + lx, lc.y - ly, lc.y + ly, lc.z);
+        let light = project(DVec3::ZERO, &lw);
+        let occ: Vec<Vec<DVec3>> = (0..(1 + case))
+            .map(|_| {
+                let c = lc * (0.3 + 0.5 * rng.uniform_f64())
+                    + DVec3::new(rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5, 0.0);
+                project(DVec3::ZERO, &random_triangle(&mut rng, c, 1.2))
+            })
+            .collect();
+        let vis = difference(std::slice::from_ref(&light), &occ);
+        let f = form_factor_loops(&vis);
+        let (est, se) = visible_mc(&light, &occ, 100_000, 1000 + case as u64);
+        assert!((f - est).abs() < 4.0 * se, "case {case}: {f} vs {est} ± {se}");
+    }
+}
+
+#[test]
+fn difference_with_light_crossing_horizon_and_occluder_partly_behind() {
+    // tilted light crossing the horizon, occluder triangle with a vertex behind the shading point
+    let lw = vec![
+        DVec3::new(-1.0, 2.0, -0.5),
+        DVec3::new(1.0, 2.0, -0.5),
+        DVec3::new(1.0, 1.0, 1.5),
+        DVec3::new(-1.0, 1.0, 1.5),
+    ];
+    let light = project(DVec3::ZERO, &lw);
+    let ow = vec![DVec3::new(-0.2, 1.0, 0.3), DVec3::new(0.5, 1.5, 0.3), DVec3::new(0.0, -3.0, 0.4)];
+    let occ = vec![project(DVec3::ZERO, &ow)];
+    let clipped = clip_to_horizon(&light);
+    let vis = difference(&[clipped], &occ);
+    let f = form_factor_loops(&vis);
+    let (est, se) = visible_mc(&light, &occ, 200_000, 77);
+    assert!((f - est).abs() < 4.0 * se, "{f} vs {est} ± {se}");
+    // the same without clipping the light first (difference itself needs no horizon clip)
+    let f2 = form_factor_loops(&difference(&[light], &occ));
+    assert!((f - f2).abs() < 1e-7, "{f} vs {f2}");
+}
+
+#[test]
+fn difference_with_light_spanning_almost_a_hemisphere_over_several_faces() {
+    // huge light close to the point: spans five cube faces
+    let lw = rect(-50.0, 50.0, -50.0, 50.0, 1.0);
+    let light = project(DVec3::ZERO, &lw);
+    let occ = vec![
+        project(DVec3::ZERO, &rect(-0.3, 2.0, -0.2, 0.5, 0.5)),
+        project(DVec3::ZERO, &rect(5.0, 40.0, -1.0, 1.0, 0.9)),
+    ];
+    let vis = difference(std::slice::from_ref(&light), &occ);
+    let want = form_factor(&light) - form_factor(&occ[0]) - form_factor(&occ[1]);
+    assert!((form_factor_loops(&vis) - want).abs() < 1e-7, "{} vs {want}", form_factor_loops(&vis));
+    let sa: f64 = vis.iter().map(|l| solid_angle(l)).sum();
+    let want_sa = solid_angle(&light) - solid_angle(&occ[0]) - solid_angle(&occ[1]);
+    assert!((sa - want_sa).abs() < 1e-6);
+}
+
+#[test]
+fn difference_with_no_occluders_returns_the_light() {
+    let light = project(DVec3::ZERO, &rect(-0.5, 1.0, -0.2, 0.7, 1.0));
+    let f = form_factor(&light);
+    let vis = difference(std::slice::from_ref(&light), &[]);
+    assert!((form_factor_loops(&vis) - f).abs() < 1e-8);
+    // negative input orientation still gives positive output
+    let mut rev = light.clone();
+    rev.reverse();
+    let vis = difference(&[rev], &[]);
+    assert!((form_factor_loops(&vis) - f).abs() < 1e-8);
+}
+
+#[test]
+fn difference_hole_gives_outer_positive_and_hole_negative() {
+    let light = project(DVec3::ZERO, &rect(-1.0, 1.0, -1.0, 1.0, 1.0));
+    let occ = vec![project(DVec3::ZERO, &rect(-0.3, -0.1, 0.1, 0.2, 0.5))];
+    let vis = difference(std::slice::from_ref(&light), &occ);
+    assert_eq!(vis.len(), 2, "{vis:?}");
+    let mut s: Vec<f64> = vis.iter().map(|l| solid_angle(l)).collect();
+    s.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    assert!(s[0] < 0.0 && s[1] > 0.0);
+    let want = form_factor(&light) - form_factor(&occ[0]);
+    assert!((form_factor_loops(&vis) - want).abs() < 1e-8);
+    // feeding the result back in: subtract a second occluder
+    let occ2 = vec![project(DVec3::ZERO, &rect(0.2, 0.4, -0.5, -0.3, 0.7))];
+    let vis2 = difference(&vis, &occ2);
+    let want2 = want - form_factor(&occ2[0]);
+    assert!((form_factor_loops(&vis2) - want2).abs() < 1e-8);
+}
+
+#[test]
+fn difference_occluder_covering_light_entirely_is_empty() {
+    let light = project(DVec3::ZERO, &rect(-0.5, 0.5, -0.5, 0.5, 2.0));
+    let occ = vec![project(DVec3::ZERO, &rect(-1.0, 1.0, -1.0, 1.0, 1.0))];
+    let vis = difference(&[light], &occ);
+    assert!(form_factor_loops(&vis).abs() < 1e-9, "{vis:?}");
+}
+
+#[test]
+fn difference_coplanar_identical_occluder_removes_everything() {
+    let lw = rect(-0.5, 0.5, -0.5, 0.5, 2.0);
+    let light = project(DVec3::ZERO, &lw);
+    // the same quad as two triangles (shared diagonal), one of them reversed
+    let t1 = project(DVec3::ZERO, &[lw[0], lw[1], lw[2]]);
+    let t2 = project(DVec3::ZERO, &[lw[0], lw[3], lw[2]]);
+    let vis = difference(&[light], &[t1, t2]);
+    assert!(form_factor_loops(&vis).abs() < 1e-9, "{vis:?}");
+}
+
+#[test]
+fn difference_shared_vertices_and_edges_between_occluders() {
+    // a fan of triangles sharing the centre vertex and their edges, covering half of the light
+    let light = project(DVec3::ZERO, &rect(-1.0, 1.0, -1.0, 1.0, 1.0));
+    let c = DVec3::new(0.0, 0.0, 0.5);
+    let ring: Vec<DVec3> =
+        (0..=8).map(|k| PI * k as f64 / 8.0).map(|t| DVec3::new(0.3 * t.cos(), 0.3 * t.sin(), 0.5)).collect();
+    let occ: Vec<Vec<DVec3>> = ring.windows(2).map(|w| project(DVec3::ZERO, &[c, w[0], w[1]])).collect();
+    let fan_ff: f64 = occ.iter().map(|o| form_factor(o).abs()).sum();
+    let vis = difference(std::slice::from_ref(&light), &occ);
+    let want = form_factor(&light) - fan_ff;
+    assert!((form_factor_loops(&vis) - want).abs() < 1e-8);
+    // occluder sharing a whole edge (collinear) with the light's boundary
+    let half = project(DVec3::ZERO, &rect(0.0, 1.0, -1.0, 1.0, 1.0));
+    let vis = difference(std::slice::from_ref(&light), std::slice::from_ref(&half));
+    let want = form_factor(&light) - form_factor(&half);
+    assert!((form_factor_loops(&vis) - want).abs() < 1e-8);
+    assert!(vis.len() == 1, "{vis:?}");
+}
+
+#[test]
+fn difference_zero_area_and_degenerate_occluders_are_ignored() {
+    let light = project(DVec3::ZERO, &rect(-1.0, 1.0, -1.0, 1.0, 1.0));
+    let f = form_factor(&light);
+    let occ = vec![
+        // collinear points
+        project(DVec3::ZERO, &[DVec3::new(0.0, 0.0, 0.5), DVec3::new(0.1, 0.1, 0.5), DVec3::new(0.2, 0.2, 0.5)]),
+        // repeated vertex
+        project(DVec3::ZERO, &[DVec3::new(0.0, 0.0, 0.5), DVec3::new(0.0, 0.0, 0.5), DVec3::new(0.2, 0.0, 0.5)]),
+        // a triangle whose plane contains the shading point (edge-on: zero solid angle)
+        project(DVec3::ZERO, &[DVec3::new(0.0, 0.0, 1.0), DVec3::new(0.0, 0.0, 0.5), DVec3::new(0.0, 0.3, 0.7)]),
+        // a triangle through the shading point itself (antipodal directions, zero vector)
+        project(DVec3::ZERO, &[DVec3::new(-1.0, 0.0, -1.0), DVec3::new(1.0, 0.0, 1.0), DVec3::ZERO]),
+        // too few vertices, non-finite
+        vec![DVec3::X, DVec3::Y],
+        vec![DVec3::X, DVec3::Y, DVec3::new(f64::NAN, 0.0, 1.0)],
+    ];
+    let vis = difference(&[light], &occ);
+    assert!((form_factor_loops(&vis) - f).abs() < 1e-8, "{} vs {f}", form_factor_loops(&vis));
+}
+
+#[test]
+fn difference_union_of_many_small_triangles() {
+    // per-triangle mode: 1000 random small triangles in front of a light; checks against MC and
+    // reports the time (no timed assertion).
+    let mut rng = Rng::new(99);
+    let light = project(DVec3::ZERO, &rect(-1.0, 1.0, -1.0, 1.0, 2.0));
+    let occ: Vec<Vec<DVec3>> = (0..1000)
+        .map(|_| {
+            let c = DVec3::new(2.0 * rng.uniform_f64() - 1.0, 2.0 * rng.uniform_f64() - 1.0, 1.0 + rng.uniform_f64());
+            project(DVec3::ZERO, &random_triangle(&mut rng, c, 0.15))
+        })
+        .collect();
+    let t0 = std::time::Instant::now();
+    let vis = difference(std::slice::from_ref(&light), &occ);
+    let dt = t0.elapsed();
+    eprintln!("difference: 1000 triangles -> {} loops in {:.2} ms", vis.len(), dt.as_secs_f64() * 1e3);
+    let f = form_factor_loops(&vis);
+    let (est, se) = visible_mc(&light, &occ, 100_000, 4242);
+    assert!((f - est).abs() < 4.0 * se, "{f} vs {est} ± {se}");
+}
+
+// --- silhouettes -------------------------------------------------------------------------------
+
+fn cube_mesh(c: Vec3, h: f32) -> TriangleMesh {
+    let p: Vec<Vec3> = (0..8)
+        .map(|i| {
+            c + h * Vec3::new(
+                if i & 1 == 0 { -1.0 } else { 1.0 },
+                if i & 2 == 0 { -1.0 } else { 1.0 },
+                if i & 4 == 0 { -1.0 } else { 1.0 },
+            )
+        })
+        .collect();
+    // outward-wound quads
+    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    let mut indices = Vec::new();
+    for q in quads {
+        indices.push([q[0], q[1], q[2]]);
+        indices.push([q[0], q[2], q[3]]);
+    }
+    TriangleMesh { positions: p, indices, ..Default::default() }
+}
+
+fn icosphere(c: Vec3, r: f32) -> TriangleMesh {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let v = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ];
+    let f: [[u32; 3]; 20] = [
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    let positions = v.iter().map(|&(x, y, z)| c + r * Vec3::new(x, y, z).normalize()).collect();
+    TriangleMesh { positions, indices: f.to_vec(), ..Default::default() }
+}
+
+fn brute_silhouette_form_factor(mesh: &TriangleMesh, p: DVec3) -> f64 {
+    // sum of the front faces' (projected, reversed = positive) signed form factors
+    (0..mesh.triangle_count())
+        .map(|t| {
+            let w = mesh.vertices(t).map(|q| q.as_dvec3());
+            let n = (w[1] - w[0]).cross(w[2] - w[0]);
+            if n.dot(p - w[0]) > 0.0 {
+                let mut l = project(p, &w);
+                l.reverse();
+                form_factor(&l)
+            } else {
+                0.0
+            }
+        })
+        .sum()
+}
+
+#[test]
+fn silhouette_of_cube_and_icosphere_matches_brute_force() {
+    let mut rng = Rng::new(5);
+    for mesh in [cube_mesh(Vec3::new(0.2, -0.1, 3.0), 1.0), icosphere(Vec3::new(0.0, 0.5, 2.5), 1.2)] {
+        assert!(mesh.is_closed_convex(1e-5));
+        let adj = mesh.build_adjacency();
+        for _ in 0..30 {
+            let p =
+                DVec3::new(4.0 * rng.uniform_f64() - 2.0, 4.0 * rng.uniform_f64() - 2.0, 1.5 * rng.uniform_f64() - 1.0);
+            let loops = silhouette_loops(&mesh, &adj, p, 1e-9);
+            assert_eq!(loops.len(), 1, "p = {p}");
+            let l = &loops[0];
+            // brute-force: every silhouette edge (front/back pair) appears exactly once in the loop
+            let front = |t: u32| {
+                let w = mesh.vertices(t as usize).map(|q| q.as_dvec3());
+                (w[1] - w[0]).cross(w[2] - w[0]).normalize().dot(p - w[0]) > 1e-9
+            };
+            let sil = adj.edges.iter().filter(|e| front(e.tris[0]) != front(e.tris[1])).count();
+            assert_eq!(l.len(), sil);
+            let proj = project(p, l);
+            assert!(solid_angle(&proj) > 0.0, "loop must be positive as seen from p");
+            let want = brute_silhouette_form_factor(&mesh, p);
+            assert!((form_factor(&proj) - want).abs() < 1e-9, "{} vs {want}", form_factor(&proj));
+        }
+    }
+}
+
+#[test]
+fn silhouette_with_exactly_edge_on_faces() {
+    // a point in the plane of the cube's top face (z = 4) and of its side x = 1.2: those faces are edge-on
+    let mesh = cube_mesh(Vec3::new(0.2, 0.0, 3.0), 1.0);
+    let adj = mesh.build_adjacency();
+    for p in [DVec3::new(0.0, -3.0, 4.0), DVec3::new(1.2, -3.0, 4.0), DVec3::new(1.2, -3.0, 1.0)] {
+        let loops = silhouette_loops(&mesh, &adj, p, 1e-7);
+        assert_eq!(loops.len(), 1, "p = {p}");
+        let proj = project(p, &loops[0]);
+        let sa = solid_angle(&proj);
+        // brute force solid angle of the cube: sum over strictly front faces
+        let want: f64 = (0..mesh.triangle_count())
+            .map(|t| {
+                let w = mesh.vertices(t).map(|q| q.as_dvec3());
+                let n = (w[1] - w[0]).cross(w[2] - w[0]).normalize();
+                if n.dot(p - w[0]) > 1e-7 {
+                    -solid_angle(&project(p, &w))
+                } else {
+                    0.0
+                }
+            })
+            .sum();
+        assert!((sa - want).abs() < 1e-9, "{sa} vs {want}");
+    }
+    // inside the cube: nothing faces p
+    assert!(silhouette_loops(&mesh, &adj, DVec3::new(0.2, 0.0, 3.0), 1e-7).is_empty());
+}
