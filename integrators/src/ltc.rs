@@ -246,6 +246,34 @@ struct Estimator<'a> {
     warnings: &'a DiagSink,
 }
 
+/// A cone of directions containing a loop: unit `axis` and the half-angle's cosine.
+struct BoundingCone {
+    axis: DVec3,
+    cos: f64,
+}
+
+impl BoundingCone {
+    /// `None` when the loop is too wide for a useful cone (then it is kept).
+    fn of(l: &[DVec3]) -> Option<BoundingCone> {
+        let sum: DVec3 = l.iter().map(|d| d.normalize_or_zero()).sum();
+        let axis = sum.normalize_or_zero();
+        if axis == DVec3::ZERO {
+            return None;
+        }
+        // The loop's arcs bulge at most to their endpoints' great circles; for loops within a
+        // hemisphere around `axis` the vertex bound holds for the arcs when every vertex is
+        // within 90° of the axis (minor arcs between two points of a cap stay in the cap).
+        let cos = l.iter().map(|d| d.normalize_or_zero().dot(axis)).fold(1.0, f64::min);
+        (cos > 1e-3).then_some(BoundingCone { axis, cos })
+    }
+
+    fn overlaps(&self, o: &BoundingCone) -> bool {
+        // Angle between axes < sum of half-angles (with a small margin).
+        let (a, b) = (self.cos.clamp(-1.0, 1.0).acos(), o.cos.clamp(-1.0, 1.0).acos());
+        self.axis.dot(o.axis).clamp(-1.0, 1.0).acos() < a + b + 1e-6
+    }
+}
+
 /// Sutherland–Hodgman in 3D: the part of polygon `poly` with `(x − o)·n ≥ 0`.
 fn clip_to_plane(poly: &[DVec3], o: DVec3, n: DVec3) -> Vec<DVec3> {
     let mut out = Vec::with_capacity(poly.len() + 2);
@@ -342,6 +370,13 @@ impl Estimator<'_> {
                 if !(tn_len > 0.0) || (tn.dot(p - pv[0]) / tn_len).abs() <= 1e-6 * (tr + (p - tc).length()) {
                     continue;
                 }
+                // Nothing strictly in front of the light's plane (e.g. the other half of a quad
+                // light, coplanar with it): it cannot occlude the light.
+                let ln_len = ln.length();
+                let front = pv.iter().map(|v| (*v - plane_o).dot(ln) / ln_len).fold(f64::MIN, f64::max);
+                if !(front > 1e-7 * (tr + (p - tc).length())) {
+                    continue;
+                }
                 let clipped = clip_to_plane(&pv, plane_o, ln);
                 if clipped.is_empty() {
                     continue;
@@ -391,7 +426,14 @@ impl Estimator<'_> {
                 }
             }
             let light_loop = spherical::project(p, &pv);
-            let occ = self.occluders(scene, p, geom.mesh as usize, tri, pv, si.mesh as usize, scratch);
+            let mut occ = self.occluders(scene, p, geom.mesh as usize, tri, pv, si.mesh as usize, scratch);
+            // Keep only occluder loops whose bounding cone meets the light's: most shading
+            // points see most lights unoccluded and then need no polygon clipping at all.
+            if !occ.is_empty() {
+                if let Some(lc) = BoundingCone::of(&light_loop) {
+                    occ.retain(|o| BoundingCone::of(o).is_none_or(|oc| oc.overlaps(&lc)));
+                }
+            }
             // Without occluders the triangle's single loop may have either orientation: its
             // integrals are taken by magnitude. `difference` returns oriented loops.
             let (visible, single) = if occ.is_empty() {
