@@ -403,6 +403,9 @@ impl Estimator<'_> {
         if n == Vec3::ZERO {
             return Rgb::ZERO;
         }
+        // pbrt-v3's BSDFs reflect on whichever side ωo is (a mesh wound inwards still lights
+        // up): integrate over the hemisphere around the normal on ωo's side.
+        let n = if n.dot(si.wo) < 0.0 { -n } else { n };
         let frame = ShadingFrame::new(d3(n), d3(si.wo));
         let spec = desc.specular.map(|s| {
             let cos_o = frame.to_local(d3(si.wo)).z.clamp(0.0, 1.0);
