@@ -238,10 +238,17 @@ impl ObjectBvh {
     }
 }
 
-struct Estimator<'a> {
+/// What `ltc` prepares per scene (object bounds, convexity, the object hierarchy) and the
+/// analytic shading of one area light at a point: shared with the `ratio` estimator, which
+/// needs the unshadowed term.
+pub struct LtcShader<'a> {
     ltc: &'a LtcIntegrator,
     objects: Vec<ObjectInfo>,
     bvh: ObjectBvh,
+}
+
+struct Estimator<'a> {
+    shader: LtcShader<'a>,
     warn_material: AtomicBool,
     warnings: &'a DiagSink,
 }
@@ -298,9 +305,47 @@ fn d3(v: Vec3) -> DVec3 {
     v.as_dvec3()
 }
 
-impl Estimator<'_> {
-    fn lights<'s>(&self, scene: &'s Scene) -> &'s [Light] {
-        scene.lights.as_ref().map(|l| l.lights.as_slice()).unwrap_or(&[])
+fn scene_lights(scene: &Scene) -> &[Light] {
+    scene.lights.as_ref().map(|l| l.lights.as_slice()).unwrap_or(&[])
+}
+
+impl<'a> LtcShader<'a> {
+    /// Prepares the per-object data `settings` needs on `scene` (silhouette adjacency only for
+    /// the objects its mode takes as silhouettes).
+    pub fn new(settings: &'a LtcIntegrator, scene: &Scene) -> LtcShader<'a> {
+        let mut objects = Vec::with_capacity(scene.meshes.len());
+        let mut boxes = Vec::new();
+        for (i, mesh) in scene.meshes.iter().enumerate() {
+            let mut b = Bounds3::EMPTY;
+            for p in &mesh.positions {
+                b.extend(*p);
+            }
+            let occluder = scene.objects.get(i).is_none_or(|o| o.occluder);
+            let silhouette = match settings.mode {
+                Mode::PerTriangle => None,
+                _ if !settings.shadows || !occluder => None,
+                Mode::Auto => mesh.is_closed_convex(1e-4).then(|| mesh.build_adjacency()),
+                Mode::Silhouette => {
+                    let adj = mesh.build_adjacency();
+                    adj.is_closed_manifold().then_some(adj)
+                }
+            };
+            if occluder && mesh.triangle_count() > 0 {
+                boxes.push((i, b));
+            }
+            objects.push(ObjectInfo { bounds: b, occluder, silhouette });
+        }
+        LtcShader { ltc: settings, objects, bvh: ObjectBvh::build(&boxes) }
+    }
+
+    /// The LTC description of the material at `si` (`None`: no LTC form, or no material).
+    pub fn lobes(scene: &Scene, si: &SurfaceInteraction) -> Option<LtcDescription> {
+        scene
+            .objects
+            .get(si.mesh as usize)
+            .and_then(|o| o.material)
+            .and_then(|m| scene.materials.as_ref()?.get(m))
+            .and_then(|m| m.ltc_lobes(si, scene.textures.as_ref()?))
     }
 
     /// Occluder loops (world-space directions from `p`) for light triangle `tri` of `light_mesh`.
@@ -316,9 +361,6 @@ impl Estimator<'_> {
         scratch: &mut Vec<usize>,
     ) -> Vec<Vec<DVec3>> {
         let mut loops = Vec::new();
-        if !self.ltc.shadows {
-            return loops;
-        }
         let c = (light_pv[0] + light_pv[1] + light_pv[2]) / 3.0;
         let r = light_pv.iter().map(|v| (*v - c).length()).fold(0.0, f64::max);
         let cone = Cone::towards(p.as_vec3(), c.as_vec3(), r as f32 * 1.001 + 1e-6);
@@ -387,13 +429,15 @@ impl Estimator<'_> {
         loops
     }
 
-    /// Unshadowed or shadowed analytic radiance from area light `light` at `si`.
-    fn area_light(
+    /// Analytic radiance reflected towards `si.wo` from area light `light` (zero for other
+    /// lights), with analytic visibility when `shadows`, else unshadowed.
+    pub fn area_light(
         &self,
         scene: &Scene,
         si: &SurfaceInteraction,
         desc: &LtcDescription,
         light: &Light,
+        shadows: bool,
         scratch: &mut Vec<usize>,
     ) -> Rgb {
         let Some(geom) = light.area() else { return Rgb::ZERO };
@@ -429,7 +473,11 @@ impl Estimator<'_> {
                 }
             }
             let light_loop = spherical::project(p, &pv);
-            let mut occ = self.occluders(scene, p, geom.mesh as usize, tri, pv, si.mesh as usize, scratch);
+            let mut occ = if shadows {
+                self.occluders(scene, p, geom.mesh as usize, tri, pv, si.mesh as usize, scratch)
+            } else {
+                Vec::new()
+            };
             // Keep only occluder loops whose bounding cone meets the light's: most shading
             // points see most lights unoccluded and then need no polygon clipping at all.
             if !occ.is_empty() {
@@ -526,7 +574,7 @@ impl PixelEstimator for Estimator<'_> {
         stats: &mut ThreadStats,
         _aov: &mut [f32],
     ) -> Rgb {
-        let lights = self.lights(scene);
+        let lights = scene_lights(scene);
         let mut ray = *ray;
         let mut pass = 0;
         let (hit, si, bsdf) = loop {
@@ -550,16 +598,13 @@ impl PixelEstimator for Estimator<'_> {
         if let Some(k) = scene.area_light_at(&hit) {
             l += lights[k].l(si.n, si.wo);
         }
-        let desc = scene
-            .objects
-            .get(si.mesh as usize)
-            .and_then(|o| o.material)
-            .and_then(|m| scene.materials.as_ref()?.get(m))
-            .and_then(|m| m.ltc_lobes(&si, scene.textures.as_ref()?));
+        let desc = LtcShader::lobes(scene, &si);
         let mut scratch = Vec::new();
         for (k, light) in lights.iter().enumerate() {
             match (light, &desc) {
-                (Light::Area(_), Some(d)) => l += self.area_light(scene, &si, d, light, &mut scratch),
+                (Light::Area(_), Some(d)) => {
+                    l += self.shader.area_light(scene, &si, d, light, self.shader.ltc.shadows, &mut scratch)
+                }
                 (Light::Infinite(_), _) | (Light::Area(_), None) => {
                     if desc.is_none() && !self.warn_material.swap(true, Ordering::Relaxed) {
                         self.warnings.warn(
@@ -603,32 +648,8 @@ impl Integrator for LtcIntegrator {
             ctx.warnings
                 .warn(None, "ltc: infinite lights have no polygon: they are rendered with directlighting's estimator");
         }
-        let mut objects = Vec::with_capacity(scene.meshes.len());
-        let mut boxes = Vec::new();
-        for (i, mesh) in scene.meshes.iter().enumerate() {
-            let mut b = Bounds3::EMPTY;
-            for p in &mesh.positions {
-                b.extend(*p);
-            }
-            let occluder = scene.objects.get(i).is_none_or(|o| o.occluder);
-            let silhouette = match self.mode {
-                Mode::PerTriangle => None,
-                _ if !self.shadows || !occluder => None,
-                Mode::Auto => mesh.is_closed_convex(1e-4).then(|| mesh.build_adjacency()),
-                Mode::Silhouette => {
-                    let adj = mesh.build_adjacency();
-                    adj.is_closed_manifold().then_some(adj)
-                }
-            };
-            if occluder && mesh.triangle_count() > 0 {
-                boxes.push((i, b));
-            }
-            objects.push(ObjectInfo { bounds: b, occluder, silhouette });
-        }
         let est = Estimator {
-            ltc: self,
-            objects,
-            bvh: ObjectBvh::build(&boxes),
+            shader: LtcShader::new(self, scene),
             warn_material: AtomicBool::new(false),
             warnings: ctx.warnings,
         };
