@@ -107,6 +107,8 @@ struct ObjectInfo {
     occluder: bool,
     /// Closed and convex (proven by the builder), with its adjacency for silhouettes.
     silhouette: Option<EdgeAdjacency>,
+    /// A hierarchy over the object's triangles, for the per-triangle cone query.
+    tris: ObjectBvh,
 }
 
 /// A binary hierarchy over object bounds, for the cone query.
@@ -330,10 +332,24 @@ impl<'a> LtcShader<'a> {
                     adj.is_closed_manifold().then_some(adj)
                 }
             };
+            let tris = if occluder && settings.shadows {
+                let tb: Vec<(usize, Bounds3)> = (0..mesh.triangle_count())
+                    .map(|t| {
+                        let mut tb = Bounds3::EMPTY;
+                        for v in mesh.vertices(t) {
+                            tb.extend(v);
+                        }
+                        (t, tb)
+                    })
+                    .collect();
+                ObjectBvh::build(&tb)
+            } else {
+                ObjectBvh::build(&[])
+            };
             if occluder && mesh.triangle_count() > 0 {
                 boxes.push((i, b));
             }
-            objects.push(ObjectInfo { bounds: b, occluder, silhouette });
+            objects.push(ObjectInfo { bounds: b, occluder, silhouette, tris });
         }
         LtcShader { ltc: settings, objects, bvh: ObjectBvh::build(&boxes) }
     }
@@ -394,7 +410,9 @@ impl<'a> LtcShader<'a> {
                 }
                 continue;
             }
-            for t in 0..mesh.triangle_count() {
+            let mut candidates = Vec::new();
+            info.tris.query(&cone, &mut candidates);
+            for t in candidates {
                 if o == light_mesh && t == tri {
                     continue;
                 }
