@@ -568,7 +568,15 @@ mod props {
     /// Convex triangles and quads (points on a circle at increasing angles), regular-ish stars
     /// and random star-shaped polygons (both simple, generally non-convex).
     fn shape() -> impl Strategy<Value = Shape> {
-        (0..4usize, 3..10usize, vec(0.0..1.0f64, 20), vec(0.15..1.0f64, 20), vec(0.3..3.0f64, 20), 0.0..TAU, any::<bool>())
+        (
+            0..4usize,
+            3..10usize,
+            vec(0.0..1.0f64, 20),
+            vec(0.15..1.0f64, 20),
+            vec(0.3..3.0f64, 20),
+            0.0..TAU,
+            any::<bool>(),
+        )
             .prop_map(|(kind, n, jitter, radii, lengths, phase, reversed)| {
                 let (n, radius): (usize, Box<dyn Fn(usize) -> f64>) = match kind {
                     0 => (3, Box::new(|_| 1.0)),
@@ -597,12 +605,8 @@ mod props {
     /// The loop of `s` scaled by `size` in the chart of the tangent plane at `center`.
     fn place(s: &Shape, center: DVec3, size: f64) -> Vec<DVec3> {
         let (u, v) = orthonormal_basis(center);
-        let mut l: Vec<DVec3> = s
-            .pts
-            .iter()
-            .zip(&s.lengths)
-            .map(|(&(x, y), &len)| (center + size * (x * u + y * v)) * len)
-            .collect();
+        let mut l: Vec<DVec3> =
+            s.pts.iter().zip(&s.lengths).map(|(&(x, y), &len)| (center + size * (x * u + y * v)) * len).collect();
         if s.reversed {
             l.reverse();
         }
