@@ -10,7 +10,7 @@
 //!
 //! `cargo run --release -p penumbra-integrators --example ltc_scaling [-- RES [MAX_SECONDS]]`
 //! (per-triangle runs stop once one takes more than MAX_SECONDS), or `-- --one N_L N_O MODE RES`
-//! for a single render to profile.
+//! for a single render to profile, or `-- --poly` for the polygon micro-benchmark alone.
 
 use penumbra_core::film::Film;
 use penumbra_core::integrator::RenderContext;
@@ -105,7 +105,7 @@ fn timed(text: &str, res: u32) -> (f64, f64) {
     if t > 3.0 {
         return (t, m); // slow enough that one run is stable
     }
-    let mut ts = vec![t, render_once(text, res).0, render_once(text, res).0];
+    let mut ts = [t, render_once(text, res).0, render_once(text, res).0];
     ts.sort_by(f64::total_cmp);
     (ts[1], m)
 }
@@ -182,6 +182,9 @@ fn main() {
         b * 1e6,
         exponent(&xs, &ts)
     );
+    if args.get(1).map(String::as_str) == Some("--poly") {
+        return;
+    }
     println!("ltc scaling: {res}x{res} pixels, 1 spp, 1 thread; fixed count {FIXED}; median of 3 (1 run if > 3 s)");
     for (label, vary_light) in
         [("light vertices n_l (occluder n_o = 64)", true), ("occluder vertices n_o (light n_l = 64)", false)]

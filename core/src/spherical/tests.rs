@@ -789,6 +789,29 @@ mod props {
     }
 }
 #[test]
+fn intersection_and_union_of_coplanar_rectangles_are_rectangles() {
+    // Two overlapping rectangles in the plane z = 1.5: their intersection is the overlap
+    // rectangle and their union's integrals follow by inclusion–exclusion.
+    let a = project(DVec3::ZERO, &rect(-1.0, 0.5, -0.4, 0.8, 1.5));
+    let b = project(DVec3::ZERO, &rect(-0.2, 2.0, 0.1, 1.9, 1.5));
+    let overlap = project(DVec3::ZERO, &rect(-0.2, 0.5, 0.1, 0.8, 1.5));
+    let mut b_rev = b.clone();
+    b_rev.reverse();
+    let i = intersection(std::slice::from_ref(&a), &[b_rev]);
+    assert!((form_factor_loops(&i) - form_factor(&overlap)).abs() < 1e-8, "{}", form_factor_loops(&i));
+    let u = union(std::slice::from_ref(&a), std::slice::from_ref(&b));
+    let want = form_factor(&a) + form_factor(&b) - form_factor(&overlap);
+    assert!((form_factor_loops(&u) - want).abs() < 1e-8, "{} vs {want}", form_factor_loops(&u));
+    // Disjoint: empty intersection; no second operand: empty intersection, union = a.
+    let far = project(DVec3::ZERO, &rect(3.0, 4.0, 3.0, 4.0, 1.5));
+    assert!(intersection(std::slice::from_ref(&a), &[far]).is_empty());
+    assert!(intersection(std::slice::from_ref(&a), &[]).is_empty());
+    let ua = union(std::slice::from_ref(&a), &[]);
+    assert!((form_factor_loops(&ua) - form_factor(&a)).abs() < 1e-8);
+    assert!(union(&[], &[]).is_empty());
+}
+
+#[test]
 fn hemisphere_center_of_a_wide_triangle_and_of_thin_margins() {
     // Found by the property tests: a wide triangle (solid angle 1.67) on which the former
     // normalised half-step perceptron bounced between vertices and gave up.
