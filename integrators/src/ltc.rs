@@ -109,6 +109,23 @@ struct ObjectInfo {
     silhouette: Option<EdgeAdjacency>,
     /// A hierarchy over the object's triangles, for the per-triangle cone query.
     tris: ObjectBvh,
+    /// All vertices in one plane: as a light, it cannot shadow itself.
+    planar: bool,
+}
+
+/// Whether every vertex of `mesh` lies within 1e-6 of its extent from the plane of its
+/// largest triangle.
+fn is_planar(mesh: &penumbra_core::mesh::TriangleMesh, bounds: &Bounds3) -> bool {
+    let Some(t) = (0..mesh.triangle_count()).max_by(|a, b| mesh.area(*a).total_cmp(&mesh.area(*b))) else {
+        return true;
+    };
+    let [a, b, c] = mesh.vertices(t).map(d3);
+    let n = (b - a).cross(c - a).normalize_or_zero();
+    if n == DVec3::ZERO {
+        return false;
+    }
+    let tol = 1e-6 * (bounds.max - bounds.min).length() as f64;
+    mesh.positions.iter().all(|p| (d3(*p) - a).dot(n).abs() <= tol)
 }
 
 /// A binary hierarchy over object bounds, for the cone query.
@@ -349,7 +366,8 @@ impl<'a> LtcShader<'a> {
             if occluder && mesh.triangle_count() > 0 {
                 boxes.push((i, b));
             }
-            objects.push(ObjectInfo { bounds: b, occluder, silhouette, tris });
+            let planar = is_planar(mesh, &b);
+            objects.push(ObjectInfo { bounds: b, occluder, silhouette, tris, planar });
         }
         LtcShader { ltc: settings, objects, bvh: ObjectBvh::build(&boxes) }
     }
@@ -389,7 +407,7 @@ impl<'a> LtcShader<'a> {
         self.bvh.query(&cone, scratch);
         for &o in scratch.iter() {
             let info = &self.objects[o];
-            if !info.occluder {
+            if !info.occluder || (o == light_mesh && info.planar) {
                 continue;
             }
             let mesh = &scene.meshes[o];
