@@ -64,11 +64,23 @@ pub struct FilterParams {
     pub sigma_plane: f32,
     /// Relative tolerance on the analytic `U` (luminance): `exp(−½ ((U_q − U_p) / (σ max(U_p, U_q)))²)`.
     pub sigma_u: f32,
+    /// Edge stop on the raw ratio itself: `exp(−½ (|r_q − r_p| / (k √(σ_p² + σ_q²) + floor))²)`
+    /// with `k` = `ratio_k` (0 disables it) and `floor` = `ratio_floor`: differences the
+    /// pixels' own noise explains do not stop the filter, a contact shadow next to lit floor does.
+    pub ratio_k: f32,
+    pub ratio_floor: f32,
 }
 
 impl Default for FilterParams {
     fn default() -> Self {
-        FilterParams { sigma_depth: 0.1, normal_exponent: 32.0, sigma_plane: 0.02, sigma_u: 0.5 }
+        FilterParams {
+            sigma_depth: 0.1,
+            normal_exponent: 32.0,
+            sigma_plane: 0.02,
+            sigma_u: 0.5,
+            ratio_k: 2.0,
+            ratio_floor: 0.02,
+        }
     }
 }
 
@@ -80,6 +92,9 @@ pub struct Guide {
     pub normal: Vec3,
     pub plane: f32,
     pub u: f32,
+    /// The raw ratio `S_N / U_N` (luminance) and the standard deviation of its estimate.
+    pub ratio: f32,
+    pub ratio_sigma: f32,
 }
 
 /// Cross-bilateral filter of `values` (`channels` interleaved values per pixel, row-major
@@ -134,7 +149,14 @@ pub fn cross_bilateral(
                         let dd = (gq.plane - gp.plane) / (params.sigma_plane * gp.depth);
                         let umax = gp.u.max(gq.u);
                         let du = if umax > 0.0 { (gq.u - gp.u) / (params.sigma_u * umax) } else { 0.0 };
-                        e += 0.5 * (dz * dz + dd * dd + du * du);
+                        let dr = if params.ratio_k > 0.0 {
+                            let sr = params.ratio_k * (gp.ratio_sigma.powi(2) + gq.ratio_sigma.powi(2)).sqrt()
+                                + params.ratio_floor;
+                            (gq.ratio - gp.ratio) / sr
+                        } else {
+                            0.0
+                        };
+                        e += 0.5 * (dz * dz + dd * dd + du * du + dr * dr);
                         let c = np.dot(unit(gq.normal));
                         let wn = if j == i {
                             1.0
@@ -268,12 +290,24 @@ impl RatioIntegrator {
                 ))
             }
         };
-        let noise_target = positive("noisetarget", 0.02)?;
+        let noise_target = positive("noisetarget", 0.05)?;
         let filter = FilterParams {
             sigma_depth: positive("sigmadepth", d.sigma_depth)?,
             normal_exponent: positive("normalexponent", d.normal_exponent)?,
             sigma_plane: positive("sigmaplane", d.sigma_plane)?,
             sigma_u: positive("sigmau", d.sigma_u)?,
+            ratio_k: {
+                let v = params.get_one_float("ratiok", d.ratio_k);
+                if v >= 0.0 && v.is_finite() {
+                    v
+                } else {
+                    return Err(Diagnostic::error(
+                        params.loc_of("ratiok").cloned(),
+                        format!("ratio: \"ratiok\" must be non-negative and finite, got {v}"),
+                    ));
+                }
+            },
+            ratio_floor: positive("ratiofloor", d.ratio_floor)?,
         };
         let fresnel = match params.get_one_string("fresnel", "average").as_str() {
             "schlick" => FresnelMode::Schlick,
@@ -299,8 +333,23 @@ impl RatioIntegrator {
 
 /// Extra film channels, in this order.
 pub const CHANNELS: [&str; 17] = [
-    "U.R", "U.G", "U.B", "S.R", "S.G", "S.B", "UN.R", "UN.G", "UN.B", "moment.SS", "moment.UU", "moment.SU", "depth",
-    "N.X", "N.Y", "N.Z", "plane",
+    "U.R",
+    "U.G",
+    "U.B",
+    "S.R",
+    "S.G",
+    "S.B",
+    "UN.R",
+    "UN.G",
+    "UN.B",
+    "moment.SS",
+    "moment.UU",
+    "moment.SU",
+    "depth",
+    "N.X",
+    "N.Y",
+    "N.Z",
+    "plane",
 ];
 const C_U: usize = 0;
 const C_S: usize = 3;
@@ -392,11 +441,8 @@ impl Estimator<'_> {
             .map(|(sp, c)| luminance(sp.scale * fresnel_at(&sp.fresnel, cos_o) * c.magnitude).max(0.0) as f64)
             .unwrap_or(0.0);
         let w_sum = w_d + w_s;
-        let (w_d, w_s) = if w_sum > 0.0 && w_sum.is_finite() && n != Vec3::ZERO {
-            (w_d / w_sum, w_s / w_sum)
-        } else {
-            (0.0, 0.0)
-        };
+        let (w_d, w_s) =
+            if w_sum > 0.0 && w_sum.is_finite() && n != Vec3::ZERO { (w_d / w_sum, w_s / w_sum) } else { (0.0, 0.0) };
         let total = us.len();
         let n_b = if w_d + w_s > 0.0 { total / 2 } else { 0 };
         let n_l = total - n_b;
@@ -680,9 +726,9 @@ impl RatioIntegrator {
             let m = ps.own_count as f64;
             count[i] = m;
             if m > 1.0 {
-                for c in 0..3 {
+                for (c, v) in rest_var[i].iter_mut().enumerate() {
                     let mean = ps.own_sum[c] / m;
-                    rest_var[i][c] = ((ps.own_sum_sq[c] / m - mean * mean).max(0.0) * m / (m - 1.0)) / m;
+                    *v = ((ps.own_sum_sq[c] / m - mean * mean).max(0.0) * m / (m - 1.0)) / m;
                 }
             }
             for (e, v) in ex.iter().enumerate() {
@@ -717,6 +763,12 @@ impl RatioIntegrator {
                 normal: Vec3::new(at(i, C_N), at(i, C_N + 1), at(i, C_N + 2)),
                 plane: at(i, C_PLANE),
                 u: luminance(Rgb::new(at(i, C_U), at(i, C_U + 1), at(i, C_U + 2))),
+                ratio: {
+                    let s = luminance(Rgb::new(at(i, C_S), at(i, C_S + 1), at(i, C_S + 2)));
+                    let u = luminance(Rgb::new(at(i, C_UN), at(i, C_UN + 1), at(i, C_UN + 2)));
+                    guarded_ratio(f32::NAN, 0.0, s, u)
+                },
+                ratio_sigma: sigma[i],
             })
             .collect();
         let mut su = vec![0.0f32; n * 6];
@@ -724,11 +776,8 @@ impl RatioIntegrator {
             su[i * 6..i * 6 + 3].copy_from_slice(&ch[i * nc + C_S..i * nc + C_S + 3]);
             su[i * 6 + 3..i * 6 + 6].copy_from_slice(&ch[i * nc + C_UN..i * nc + C_UN + 3]);
         }
-        let radius = if self.denoise {
-            noise_radius(w, h, &sigma, self.noise_target, self.max_radius)
-        } else {
-            vec![0; n]
-        };
+        let radius =
+            if self.denoise { noise_radius(w, h, &sigma, self.noise_target, self.max_radius) } else { vec![0; n] };
         let (d, reduction) = cross_bilateral(w, h, &guides, &radius, &su, 6, &self.filter);
         let (mut rsum, mut rcount) = (0.0f64, 0usize);
         for (i, p) in pb.iter().enumerate() {
@@ -764,7 +813,7 @@ mod tests {
     use penumbra_core::rng::Rng;
 
     fn plane_guides(w: usize, h: usize) -> Vec<Guide> {
-        vec![Guide { depth: 5.0, normal: Vec3::Z, plane: 1.0, u: 1.0 }; w * h]
+        vec![Guide { depth: 5.0, normal: Vec3::Z, plane: 1.0, u: 1.0, ..Default::default() }; w * h]
     }
 
     #[test]
@@ -839,6 +888,31 @@ mod tests {
             // Same weights for every channel: the second channel stays twice the first.
             assert!((out[i * 2 + 1] - 2.0 * out[i * 2]).abs() < 1e-5);
         }
+    }
+
+    /// The raw-ratio edge stop keeps a step the pixels' noise cannot explain (a contact shadow
+    /// on one plane) and smooths one it can.
+    #[test]
+    fn ratio_edge_stop_follows_noise() {
+        let (w, h) = (16, 8);
+        let mut g = plane_guides(w, h);
+        let mut vals = vec![0.0f32; w * h];
+        for y in 0..h {
+            for x in w / 2..w {
+                vals[y * w + x] = 1.0;
+                g[y * w + x].ratio = 1.0;
+            }
+        }
+        let p = FilterParams::default();
+        let (sharp, _) = cross_bilateral(w, h, &g, &vec![4; w * h], &vals, 1, &p);
+        assert!(sharp.iter().zip(&vals).all(|(a, b)| (a - b).abs() < 1e-4), "confident step blurred");
+        g.iter_mut().for_each(|q| q.ratio_sigma = 1.0);
+        let (soft, _) = cross_bilateral(w, h, &g, &vec![4; w * h], &vals, 1, &p);
+        assert!(soft[w / 2 - 1] > 0.2 && soft[w / 2] < 0.8, "noisy step kept: {} {}", soft[w / 2 - 1], soft[w / 2]);
+        let off = FilterParams { ratio_k: 0.0, ..p };
+        g.iter_mut().for_each(|q| q.ratio_sigma = 0.0);
+        let (blur, _) = cross_bilateral(w, h, &g, &vec![4; w * h], &vals, 1, &off);
+        assert!(blur[w / 2 - 1] > 0.2, "ratio_k = 0 must disable the edge stop");
     }
 
     #[test]
