@@ -185,3 +185,39 @@ fn stiff_scenes_are_finite() {
         }
     }
 }
+
+/// Infinite lights only (through `directlighting`'s estimator, as `ltc` does): the image mean
+/// is within 3 % of pbrt-v3's.
+#[test]
+fn env_scenes_against_pbrt_v3() {
+    for name in ["objects-sky-sun", "objects-studio"] {
+        let reference = reference(&format!("env/{name}.exr"));
+        let r = render_path(
+            &scene(&format!("suite/env/{name}.pbrt")),
+            &Opts { integrator: Some("ratio"), spp: Some(8), ..Default::default() },
+        );
+        assert!(r.image.data.iter().all(|v| v.is_finite() && *v >= 0.0), "{name}: bad values");
+        let rel = mean(&r.image) / mean(&reference) - 1.0;
+        eprintln!("{name}: ratio vs pbrt-v3 mean {:+.3}%, RMSE {:.4e}", rel * 100.0, rmse(&r.image, &reference));
+        assert!(rel.abs() < 0.03, "{name}: mean off by {:.2}%", rel * 100.0);
+    }
+}
+
+/// Point and distant lights take `ltc`'s path (one shadow ray, the real BSDF): with no area
+/// light the image is `ltc`'s to float rounding.
+#[test]
+fn delta_lights_as_ltc() {
+    let text = HALF_SHADOWED.replace(
+        "AttributeBegin\n  AreaLightSource",
+        "LightSource \"point\" \"point from\" [ 0.3 2.5 0.2 ] \"rgb I\" [ 5 5 5 ]\n\
+         LightSource \"distant\" \"point from\" [ 1 3 -1 ] \"point to\" [ 0 0 0 ] \"rgb L\" [ 0.5 0.5 0.5 ]\n\
+         AttributeBegin\n  Material \"matte\"\n  #",
+    );
+    assert_ne!(text, HALF_SHADOWED);
+    let o = |i| Opts { integrator: Some(i), spp: Some(2), ..Default::default() };
+    let (r, l) = (render_text(&text, &o("ratio")), render_text(&text, &o("ltc")));
+    assert!(mean(&l.image) > 1e-3, "the delta lights must light the scene");
+    for (a, b) in r.image.data.iter().zip(&l.image.data) {
+        assert!((a - b).abs() <= 1e-5 * b.abs() + 1e-7, "ratio {a} vs ltc {b}");
+    }
+}
