@@ -151,10 +151,30 @@ fn ltc_scenes_against_pbrt_v3() {
     }
 }
 
+/// All channels of a `ratio` render (R, G, B, then the `ratio.*` extra channels).
+fn ratio_channels(path: &std::path::Path, params: &[&str], spp: u32, res: (u32, u32)) -> penumbra_core::image::Image {
+    let parsed = penumbra_parser::parse_file(path).unwrap();
+    let warnings = penumbra_parser::DiagSink::new();
+    let params: Vec<_> = params.iter().map(|p| penumbra::cli_params::parse_param(p).unwrap()).collect();
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    let opts = penumbra::pipeline::RenderOptions {
+        integrator: Some("ratio"),
+        params: &params,
+        build: penumbra_core::scene::BuildOptions { spp: Some(spp), seed: 0, crop: None, resolution: Some(res) },
+        threads: 0,
+        with_variance: false,
+        cancel: &cancel,
+        progress: None,
+    };
+    penumbra::pipeline::render(&parsed.scene, &opts, &warnings).unwrap().image
+}
+
 /// The stiff scenes render with finite, non-negative values, denoised or not, and the
-/// denoised ratio never exceeds `U` (the unshadowed `ltc`).
+/// denoised ratio never exceeds `U` (the unshadowed `ltc`). Pixels where `U > 0` but no
+/// sample reached the light (`U_N = 0`: shadowing unknown) get exactly `U`.
 #[test]
 fn stiff_scenes_are_finite() {
+    let mut unknown_total = 0;
     for name in [
         "coincident-geometry",
         "grazing-light",
@@ -183,7 +203,32 @@ fn stiff_scenes_are_finite() {
                 r.image.data.iter().zip(&u.image.data).filter(|(s, u)| **s > **u * (1.0 + 1e-5) + 1e-7).count();
             assert_eq!(brighter, 0, "{name} {params:?}: {brighter} values brighter than unshadowed");
         }
+        let all = ratio_channels(&path, &["denoise=false"], 2, (32, 32));
+        assert!(all.data.iter().all(|v| v.is_finite()), "{name}: non-finite extra channels");
+        let ch = |n: &str| all.channel_index(n).unwrap();
+        let nc = all.channels.len();
+        let mut unknown = 0;
+        let mut u_max = 0.0f32;
+        for px in all.data.chunks(nc) {
+            for c in 0..3 {
+                let (u, un) = (
+                    px[ch(["ratio.U.R", "ratio.U.G", "ratio.U.B"][c])],
+                    px[ch(["ratio.UN.R", "ratio.UN.G", "ratio.UN.B"][c])],
+                );
+                if u > 0.0 && un == 0.0 {
+                    unknown += 1;
+                    u_max = u_max.max(u);
+                    assert!(px[c] >= u * (1.0 - 1e-5), "{name}: U_N = 0 but {} < U {u}", px[c]);
+                }
+            }
+        }
+        let u_mean = (0..all.data.len() / nc).map(|p| all.data[p * nc + ch("ratio.U.G")] as f64).sum::<f64>()
+            / (all.data.len() / nc) as f64;
+        eprintln!("{name}: {unknown} values with U > 0 and U_N = 0 (largest U {u_max:.3e}, mean U {u_mean:.3e})");
+        unknown_total += unknown;
     }
+    eprintln!("stiff scenes: {unknown_total} values with U > 0 and U_N = 0 in all");
+    assert!(unknown_total > 0, "the stiff scenes no longer exercise the U_N = 0 guard");
 }
 
 /// Infinite lights only (through `directlighting`'s estimator, as `ltc` does): the image mean
