@@ -214,6 +214,39 @@ impl Film {
         pb.contains(p).then(|| &self.pixels[((p.y - pb.min.y) * pb.width() + (p.x - pb.min.x)) as usize])
     }
 
+    /// The filter-weighted sums of the extra channels at `p` (divide by the pixel's
+    /// `PixelSums::weight` for their values), in `extra_channel_names` order.
+    pub fn pixel_extra(&self, p: IVec2) -> Option<&[f64]> {
+        let pb = self.spec.pixel_bounds;
+        let ne = self.extra_channel_names.len();
+        pb.contains(p).then(|| {
+            let i = ((p.y - pb.min.y) * pb.width() + (p.x - pb.min.x)) as usize;
+            &self.extra[i * ne..(i + 1) * ne]
+        })
+    }
+
+    /// Replaces the value of pixel `p` (before the film's `scale`) by `rgb`, for integrators
+    /// that post-process the whole image: the weighted sums become `rgb × weight` (the weight
+    /// is kept), and the pixel's own-sample statistics are rewritten so that its mean is `rgb`
+    /// and [`to_image`](Self::to_image) reports `variance` (the variance of the pixel's
+    /// estimate, before `scale`; shown only for pixels with at least 2 own samples). Pixels
+    /// outside the film and non-finite inputs are ignored (returns `false`).
+    pub fn set_pixel_rgb(&mut self, p: IVec2, rgb: Rgb, variance: [f64; 3]) -> bool {
+        let pb = self.spec.pixel_bounds;
+        if !pb.contains(p) || !rgb.is_finite() || variance.iter().any(|v| !v.is_finite()) {
+            return false;
+        }
+        let px = &mut self.pixels[((p.y - pb.min.y) * pb.width() + (p.x - pb.min.x)) as usize];
+        let n = px.own_count as f64;
+        for c in 0..3 {
+            let m = rgb[c] as f64;
+            px.rgb[c] = m * px.weight;
+            px.own_sum[c] = m * n;
+            px.own_sum_sq[c] = n * (m * m + variance[c].max(0.0) * (n - 1.0).max(0.0));
+        }
+        true
+    }
+
     /// The image: `R G B`, then the extra channels, then (if `with_variance`)
     /// `variance.R/G/B`: the estimated variance of each pixel's mean from its own samples.
     pub fn to_image(&self, with_variance: bool) -> Image {
@@ -266,6 +299,36 @@ mod tests {
         };
         t.add_sample(filter, p, Rgb::ONE, &[]);
         t.pixels.iter().map(|px| px.weight).collect()
+    }
+
+    /// `set_pixel_rgb` replaces a pixel's value and variance; the other pixels and the extra
+    /// channels are untouched.
+    #[test]
+    fn set_pixel_rgb_replaces_value_and_variance() {
+        let spec = FilmSpec {
+            full_resolution: (2, 1),
+            pixel_bounds: Bounds2i::new(IVec2::ZERO, IVec2::new(2, 1)),
+            filename: String::new(),
+            scale: 2.0,
+            max_sample_luminance: f32::INFINITY,
+        };
+        let b = BoxFilter { radius: Vec2::splat(0.5) };
+        let mut film = Film::new(spec, b.radius(), vec!["a".into()]);
+        let mut tile = film.make_tile(film.pixel_bounds());
+        for (i, x) in [0.25f32, 0.75].iter().enumerate() {
+            tile.add_sample(&b, Vec2::new(*x, 0.5), Rgb::splat(i as f32 + 1.0), &[3.0]);
+            tile.add_sample(&b, Vec2::new(1.0 + *x, 0.5), Rgb::splat(5.0), &[7.0]);
+        }
+        film.merge_tile(&tile);
+        assert_eq!(film.pixel_extra(IVec2::new(1, 0)), Some(&[14.0][..]));
+        assert_eq!(film.pixel_extra(IVec2::new(2, 0)), None);
+        assert!(film.set_pixel_rgb(IVec2::new(0, 0), Rgb::new(0.5, 1.0, 4.0), [0.25, 0.0, 1.0]));
+        assert!(!film.set_pixel_rgb(IVec2::new(0, 0), Rgb::new(f32::NAN, 1.0, 4.0), [0.0; 3]));
+        assert!(!film.set_pixel_rgb(IVec2::new(-1, 0), Rgb::ONE, [0.0; 3]));
+        let img = film.to_image(true);
+        // R G B a var.R var.G var.B per pixel; the film's scale (2) applies to values and variances (×4).
+        assert_eq!(&img.data[0..7], &[1.0, 2.0, 8.0, 3.0, 1.0, 0.0, 4.0]);
+        assert_eq!(&img.data[7..14], &[10.0, 10.0, 10.0, 7.0, 0.0, 0.0, 0.0]);
     }
 
     /// A sample exactly on a pixel border reaches one pixel under the box filter (the one it

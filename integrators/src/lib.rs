@@ -3,6 +3,7 @@
 pub mod ao;
 pub mod directlighting;
 pub mod ltc;
+pub mod ratio;
 
 use penumbra_core::integrator::Integrator;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
@@ -26,6 +27,11 @@ pub const REGISTRY: &[Entry] = &[
         name: "ltc",
         method: "analytic area-light shading and soft shadows with Linearly Transformed Cosines (seed 004)",
         create: ltc::LtcIntegrator::create,
+    },
+    Entry {
+        name: "ratio",
+        method: "analytic LTC shading × denoised stochastic shadow ratio S_N/U_N (Heitz, Hill & McGuire 2018)",
+        create: ratio::RatioIntegrator::create,
     },
     Entry {
         name: "ambientocclusion",

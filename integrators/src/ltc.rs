@@ -574,7 +574,7 @@ impl<'a> LtcShader<'a> {
 }
 
 /// The material's own Fresnel reflectance at `cos_d` (pbrt-v3's definitions).
-fn fresnel_at(f: &LtcFresnel, cos_d: f32) -> Rgb {
+pub(crate) fn fresnel_at(f: &LtcFresnel, cos_d: f32) -> Rgb {
     match *f {
         LtcFresnel::Dielectric { eta_i, eta_t } => Fresnel::Dielectric { eta_i, eta_t }.evaluate(cos_d),
         LtcFresnel::Conductor { eta, k } => Fresnel::Conductor { eta_i: Rgb::ONE, eta_t: eta, k }.evaluate(cos_d),
