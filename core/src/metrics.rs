@@ -63,7 +63,7 @@ pub enum MetricsError {
         b: (u32, u32),
     },
     /// Different channel sets.
-    #[error("images have different channels: [{}] vs [{}]", a.join(", "), b.join(", "))]
+    #[error("images have different channels: [{}] vs [{}] (compare common ones with e.g. --channels R,G,B)", a.join(", "), b.join(", "))]
     ChannelMismatch {
         /// A's channels.
         a: Vec<String>,
