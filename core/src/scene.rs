@@ -7,7 +7,7 @@ use crate::camera::Camera;
 use crate::film::{Bounds2i, FilmSpec};
 use crate::filter::{create_filter, Filter};
 use crate::geometry::{face_forward, gamma, Bounds3, Frame, Ray};
-use crate::light::Lights;
+use crate::light::{Light, Lights};
 use crate::material::{BsdfOptions, Materials, ShadingGeometry};
 use crate::mesh::TriangleMesh;
 use crate::sampler::{create_sampler, Sampler};
@@ -66,6 +66,15 @@ pub struct SceneObject {
     /// `"bool occluder" false` on the shape: analytic visibility methods ignore it as an
     /// occluder (a penumbra extension; pbrt-v3 reports the parameter unused and renders).
     pub occluder: bool,
+}
+
+/// The first surface with a material along a ray ([`Scene::first_surface`]).
+pub struct SurfaceHit {
+    pub hit: Hit,
+    pub si: SurfaceInteraction,
+    pub bsdf: Bsdf,
+    /// Radiance emitted towards the ray's origin when the surface is an area light.
+    pub le: crate::Rgb,
 }
 
 /// Time spent and what was built, for `penumbra info` and `stats.json`.
@@ -344,6 +353,31 @@ impl Scene {
     /// Closest hit (requires `Requirements::accel`).
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         self.accel.as_ref().and_then(|a| a.intersect(ray))
+    }
+
+    /// The scene's lights (empty when they were not built).
+    pub fn light_list(&self) -> &[Light] {
+        self.lights.as_ref().map(|l| l.lights.as_slice()).unwrap_or(&[])
+    }
+
+    /// Follows `ray` through surfaces without a material (pbrt-v3's `Material "none"`: passed
+    /// through without counting depth, at most 64 of them) to the first surface with one.
+    /// `Err` carries the radiance of the ray leaving the scene (the infinite lights'), or 0 after
+    /// 64 pass-throughs. The second value is the number of intersection queries made.
+    pub fn first_surface(&self, ray: &Ray) -> (Result<SurfaceHit, crate::Rgb>, u64) {
+        let mut ray = *ray;
+        for queries in 1..=65u64 {
+            let Some(hit) = self.intersect(&ray) else {
+                return (Err(self.light_list().iter().map(|l| l.le(&ray)).sum()), queries);
+            };
+            let si = self.interaction(&ray, &hit);
+            if let Some(bsdf) = self.bsdf(&si) {
+                let le = self.area_light_at(&hit).map_or(crate::Rgb::ZERO, |k| self.light_list()[k].l(si.n, si.wo));
+                return (Ok(SurfaceHit { hit, si, bsdf, le }), queries);
+            }
+            ray = si.spawn_ray(ray.d);
+        }
+        (Err(crate::Rgb::ZERO), 65)
     }
 
     /// The index (into `lights.lights`) of the area light that the hit triangle belongs to.

@@ -19,7 +19,7 @@ use penumbra_core::integrator::{
 use penumbra_core::light::{Light, LightContext};
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::power_heuristic;
-use penumbra_core::scene::{Requirements, Scene, SurfaceInteraction};
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction};
 use penumbra_core::{Rgb, Vec2};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 
@@ -68,36 +68,16 @@ struct Estimator<'a> {
 }
 
 impl Estimator<'_> {
-    fn lights<'s>(&self, scene: &'s Scene) -> &'s [Light] {
-        scene.lights.as_ref().map(|l| l.lights.as_slice()).unwrap_or(&[])
-    }
-
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
-        let lights = self.lights(scene);
-        let mut ray = *ray;
+        let lights = scene.light_list();
         // Surfaces without a material are passed through without counting depth, as pbrt-v3 does.
-        let mut pass = 0;
-        let (hit, si, bsdf) = loop {
-            let Some(hit) = scene.intersect(&ray) else {
-                return lights.iter().map(|l| l.le(&ray)).sum();
-            };
-            let si = scene.interaction(&ray, &hit);
-            match scene.bsdf(&si) {
-                Some(b) => break (hit, si, b),
-                None => {
-                    pass += 1;
-                    if pass > 64 {
-                        return Rgb::ZERO;
-                    }
-                    ray = si.spawn_ray(ray.d);
-                    stats.rays += 1;
-                }
-            }
+        let (first, queries) = scene.first_surface(ray);
+        stats.rays += queries - 1;
+        let SurfaceHit { si, bsdf, le, .. } = match first {
+            Ok(h) => h,
+            Err(escaped) => return escaped,
         };
-        let mut l = Rgb::ZERO;
-        if let Some(li) = scene.area_light_at(&hit) {
-            l += lights[li].l(si.n, si.wo);
-        }
+        let mut l = le;
         if !lights.is_empty() {
             l += match self.dl.strategy {
                 Strategy::All => self.sample_all_lights(&si, &bsdf, scene, sampler, stats),
@@ -143,7 +123,7 @@ impl Estimator<'_> {
     ) -> Rgb {
         let mut l = Rgb::ZERO;
         let mut ul = Vec::new();
-        for (i, light) in self.lights(scene).iter().enumerate() {
+        for (i, light) in scene.light_list().iter().enumerate() {
             let n = self.n_light_samples[i];
             // pbrt-v3 takes the light array first, then the scattering array;
             // when either is exhausted, one sample from the plain 2D dimensions.
@@ -177,7 +157,7 @@ impl Estimator<'_> {
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
     ) -> Rgb {
-        let lights = self.lights(scene);
+        let lights = scene.light_list();
         let n = lights.len();
         let k = ((sampler.get_1d() * n as f32) as usize).min(n - 1);
         let ul = sampler.get_2d();

@@ -34,7 +34,7 @@ use penumbra_core::ltc::{ltc_integrate, Ltc, ShadingFrame};
 use penumbra_core::material::{LtcDescription, LtcFresnel};
 use penumbra_core::mesh::EdgeAdjacency;
 use penumbra_core::sampler::Sampler;
-use penumbra_core::scene::{Requirements, Scene, SurfaceInteraction};
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction};
 use penumbra_core::spherical;
 use penumbra_core::{Rgb, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
@@ -324,10 +324,6 @@ fn d3(v: Vec3) -> DVec3 {
     v.as_dvec3()
 }
 
-fn scene_lights(scene: &Scene) -> &[Light] {
-    scene.lights.as_ref().map(|l| l.lights.as_slice()).unwrap_or(&[])
-}
-
 impl<'a> LtcShader<'a> {
     /// Prepares the per-object data `settings` needs on `scene` (silhouette adjacency only for
     /// the objects its mode takes as silhouettes).
@@ -610,30 +606,14 @@ impl PixelEstimator for Estimator<'_> {
         stats: &mut ThreadStats,
         _aov: &mut [f32],
     ) -> Rgb {
-        let lights = scene_lights(scene);
-        let mut ray = *ray;
-        let mut pass = 0;
-        let (hit, si, bsdf) = loop {
-            stats.rays += 1;
-            let Some(hit) = scene.intersect(&ray) else {
-                return lights.iter().map(|l| l.le(&ray)).sum();
-            };
-            let si = scene.interaction(&ray, &hit);
-            match scene.bsdf(&si) {
-                Some(b) => break (hit, si, b),
-                None => {
-                    pass += 1;
-                    if pass > 64 {
-                        return Rgb::ZERO;
-                    }
-                    ray = si.spawn_ray(ray.d);
-                }
-            }
+        let lights = scene.light_list();
+        let (first, queries) = scene.first_surface(ray);
+        stats.rays += queries;
+        let SurfaceHit { si, bsdf, le, .. } = match first {
+            Ok(h) => h,
+            Err(escaped) => return escaped,
         };
-        let mut l = Rgb::ZERO;
-        if let Some(k) = scene.area_light_at(&hit) {
-            l += lights[k].l(si.n, si.wo);
-        }
+        let mut l = le;
         let desc = LtcShader::lobes(scene, &si);
         let mut scratch = Vec::new();
         for (k, light) in lights.iter().enumerate() {

@@ -46,7 +46,7 @@ use penumbra_core::light::{emitting_normal, Light, LightContext};
 use penumbra_core::ltc::{Ltc, ShadingFrame};
 use penumbra_core::material::LtcDescription;
 use penumbra_core::sampler::Sampler;
-use penumbra_core::scene::{Requirements, Scene, SurfaceInteraction};
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction};
 use penumbra_core::spectrum::luminance;
 use penumbra_core::{Rgb, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
@@ -379,10 +379,6 @@ fn d3(v: Vec3) -> DVec3 {
     v.as_dvec3()
 }
 
-fn scene_lights(scene: &Scene) -> &[Light] {
-    scene.lights.as_ref().map(|l| l.lights.as_slice()).unwrap_or(&[])
-}
-
 /// Ray–triangle intersection (Möller–Trumbore, both sides): the distance along unit `d`.
 fn hit_triangle(o: DVec3, d: DVec3, pv: [DVec3; 3]) -> Option<f64> {
     let (e1, e2) = (pv[1] - pv[0], pv[2] - pv[0]);
@@ -558,30 +554,14 @@ impl PixelEstimator for Estimator<'_> {
     }
 
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
-        let lights = scene_lights(scene);
-        let mut ray = *ray;
-        let mut pass = 0;
-        let (hit, si, bsdf) = loop {
-            stats.rays += 1;
-            let Some(hit) = scene.intersect(&ray) else {
-                return lights.iter().map(|l| l.le(&ray)).sum();
-            };
-            let si = scene.interaction(&ray, &hit);
-            match scene.bsdf(&si) {
-                Some(b) => break (hit, si, b),
-                None => {
-                    pass += 1;
-                    if pass > 64 {
-                        return Rgb::ZERO;
-                    }
-                    ray = si.spawn_ray(ray.d);
-                }
-            }
+        let lights = scene.light_list();
+        let (first, queries) = scene.first_surface(ray);
+        stats.rays += queries;
+        let SurfaceHit { si, bsdf, le, .. } = match first {
+            Ok(h) => h,
+            Err(escaped) => return escaped,
         };
-        let mut rest = Rgb::ZERO;
-        if let Some(k) = scene.area_light_at(&hit) {
-            rest += lights[k].l(si.n, si.wo);
-        }
+        let mut rest = le;
         let desc = LtcShader::lobes(scene, &si);
         let nf = if si.n.dot(si.wo) < 0.0 { -si.n } else { si.n };
         let (mut u, mut s, mut un) = (Rgb::ZERO, Rgb::ZERO, Rgb::ZERO);
@@ -665,7 +645,8 @@ impl Integrator for RatioIntegrator {
                 "ratio: infinite lights have no polygon: they are rendered with directlighting's estimator",
             );
         }
-        let bounds = scene_lights(scene)
+        let bounds = scene
+            .light_list()
             .iter()
             .map(|l| {
                 let g = l.area()?;
