@@ -9,7 +9,7 @@
 use crate::microfacet::{cos_phi, sin_phi, sin_theta, MicrofacetDistribution};
 use crate::spectrum::Rgb;
 use glam::{Vec2, Vec3};
-use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
+use std::f32::consts::{FRAC_1_PI, PI};
 use std::ops::BitOr;
 
 /// The largest f32 below 1 (pbrt-v3's `OneMinusEpsilon`).
@@ -132,23 +132,7 @@ pub fn refract(wi: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
     Some(eta * -wi + (eta * cos_i - cos_t) * n)
 }
 
-/// Uniform sample of the unit disk by Shirley–Chiu's concentric map (as pbrt-v3).
-pub fn concentric_sample_disk(u: Vec2) -> Vec2 {
-    let o = 2.0 * u - Vec2::ONE;
-    if o.x == 0.0 && o.y == 0.0 {
-        return Vec2::ZERO;
-    }
-    let (r, theta) =
-        if o.x.abs() > o.y.abs() { (o.x, FRAC_PI_4 * (o.y / o.x)) } else { (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y)) };
-    r * Vec2::new(theta.cos(), theta.sin())
-}
-
-/// Cosine-weighted sample of the upper hemisphere (Malley's method, as pbrt-v3).
-pub fn cosine_sample_hemisphere(u: Vec2) -> Vec3 {
-    let d = concentric_sample_disk(u);
-    let z = (1.0 - d.x * d.x - d.y * d.y).max(0.0).sqrt();
-    Vec3::new(d.x, d.y, z)
-}
+pub use crate::sampling::{concentric_sample_disk, cosine_sample_hemisphere};
 
 /// Unpolarised Fresnel reflectance of a dielectric interface (pbrt-v3's `FrDielectric`):
 /// `cos_i` is signed; a negative value means the ray arrives from the `eta_t` side.

@@ -11,10 +11,11 @@ use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
 use penumbra_core::sampler::Sampler;
+use penumbra_core::sampling::{cosine_sample_hemisphere, uniform_sample_hemisphere};
 use penumbra_core::scene::{Requirements, Scene};
-use penumbra_core::{Rgb, Vec2, Vec3};
+use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
-use std::f32::consts::{FRAC_1_PI, PI};
+use std::f32::consts::FRAC_1_PI;
 
 pub struct AmbientOcclusion {
     pub nsamples: u32,
@@ -41,28 +42,6 @@ impl AmbientOcclusion {
             max_distance,
         }))
     }
-}
-
-fn cosine_hemisphere(u: Vec2) -> Vec3 {
-    let o = 2.0 * u - Vec2::ONE;
-    let d = if o == Vec2::ZERO {
-        Vec2::ZERO
-    } else {
-        let (r, t) = if o.x.abs() > o.y.abs() {
-            (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
-        } else {
-            (o.y, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y))
-        };
-        r * Vec2::new(t.cos(), t.sin())
-    };
-    Vec3::new(d.x, d.y, (1.0 - d.x * d.x - d.y * d.y).max(0.0).sqrt())
-}
-
-fn uniform_hemisphere(u: Vec2) -> Vec3 {
-    let z = u.x;
-    let r = (1.0 - z * z).max(0.0).sqrt();
-    let phi = 2.0 * PI * u.y;
-    Vec3::new(r * phi.cos(), r * phi.sin(), z)
 }
 
 struct Estimator<'a> {
@@ -99,10 +78,10 @@ impl PixelEstimator for Estimator<'_> {
             let mut sum = 0.0f32;
             for &u in us {
                 let (w, pdf) = if self.ao.cos_sample {
-                    let w = cosine_hemisphere(u);
+                    let w = cosine_sample_hemisphere(u);
                     (w, w.z * FRAC_1_PI)
                 } else {
-                    (uniform_hemisphere(u), 0.5 * FRAC_1_PI)
+                    (uniform_sample_hemisphere(u), 0.5 * FRAC_1_PI)
                 };
                 if pdf <= 0.0 {
                     continue;
