@@ -76,7 +76,36 @@ pub trait PixelEstimator: Send + Sync {
     fn request_samples(&self, _sampler: &mut dyn Sampler) {}
     /// Radiance along a camera ray; `aov` holds the integrator's extra channels for this sample.
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb;
+    /// Work shared by all samples of one pixel (e.g. `ltc` shading each surface seen in the
+    /// pixel once): called with the pixel's camera rays, in sample order, before any of its
+    /// samples is estimated. `Some` makes the driver call [`li_shared`](Self::li_shared)
+    /// instead of `li` for that pixel. Only called when [`shares_pixel_work`](Self::shares_pixel_work).
+    fn begin_pixel(&self, _rays: &[Ray], _scene: &Scene, _stats: &mut ThreadStats) -> Option<PixelShared> {
+        None
+    }
+    /// Whether [`begin_pixel`](Self::begin_pixel) should be called (it costs the camera rays
+    /// being generated twice).
+    fn shares_pixel_work(&self) -> bool {
+        false
+    }
+    /// `li` for sample `index` of a pixel whose shared work is `shared`.
+    #[allow(clippy::too_many_arguments)]
+    fn li_shared(
+        &self,
+        ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        aov: &mut [f32],
+        _shared: &PixelShared,
+        _index: usize,
+    ) -> Rgb {
+        self.li(ray, scene, sampler, stats, aov)
+    }
 }
+
+/// What an estimator's [`PixelEstimator::begin_pixel`] computed for one pixel.
+pub type PixelShared = Box<dyn std::any::Any + Send>;
 
 /// The tiles covering `bounds`, on the fixed grid, in raster order.
 pub fn tiles(bounds: Bounds2i) -> Vec<Bounds2i> {
@@ -148,28 +177,48 @@ pub fn render_pixels(
                 let mut tile = film_ref.make_tile(*tb);
                 let mut stats = ThreadStats::default();
                 let mut aov = vec![0.0f32; naov];
+                // The film, time and lens dimensions are drawn in pbrt-v3's order; the ones the
+                // camera ignores are skipped without being computed.
+                let camera_sample = |sampler: &mut dyn Sampler, p: IVec2| {
+                    let p_film = p.as_vec2() + sampler.get_2d();
+                    let time = if uses_time {
+                        sampler.get_1d()
+                    } else {
+                        sampler.skip_1d();
+                        0.0
+                    };
+                    let p_lens = if uses_lens {
+                        sampler.get_2d()
+                    } else {
+                        sampler.skip_2d();
+                        Vec2::splat(0.5)
+                    };
+                    CameraSample { p_film, time, p_lens }
+                };
+                let shares = est.shares_pixel_work();
+                let mut rays = Vec::new();
                 for p in tb.iter() {
+                    let shared = if shares {
+                        rays.clear();
+                        for s in 0..spp {
+                            sampler.start_pixel_sample(p, s);
+                            rays.push(scene.camera.generate_ray(&camera_sample(sampler.as_mut(), p)));
+                        }
+                        est.begin_pixel(&rays, scene, &mut stats)
+                    } else {
+                        None
+                    };
                     for s in 0..spp {
                         sampler.start_pixel_sample(p, s);
-                        // The film, time and lens dimensions are drawn in pbrt-v3's order; the
-                        // ones the camera ignores are skipped without being computed.
-                        let p_film = p.as_vec2() + sampler.get_2d();
-                        let time = if uses_time {
-                            sampler.get_1d()
-                        } else {
-                            sampler.skip_1d();
-                            0.0
-                        };
-                        let p_lens = if uses_lens {
-                            sampler.get_2d()
-                        } else {
-                            sampler.skip_2d();
-                            Vec2::splat(0.5)
-                        };
-                        let cs = CameraSample { p_film, time, p_lens };
+                        let cs = camera_sample(sampler.as_mut(), p);
                         let ray = scene.camera.generate_ray(&cs);
                         aov.iter_mut().for_each(|v| *v = 0.0);
-                        let mut l = est.li(&ray, scene, sampler.as_mut(), &mut stats, &mut aov);
+                        let mut l = match &shared {
+                            Some(sh) => {
+                                est.li_shared(&ray, scene, sampler.as_mut(), &mut stats, &mut aov, sh, s as usize)
+                            }
+                            None => est.li(&ray, scene, sampler.as_mut(), &mut stats, &mut aov),
+                        };
                         stats.rays += 1;
                         // pbrt-v3's guard: NaN, infinite or clearly negative luminance becomes black.
                         let y = crate::spectrum::luminance(l);

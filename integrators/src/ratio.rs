@@ -321,7 +321,7 @@ impl RatioIntegrator {
             }
         };
         Ok(Box::new(RatioIntegrator {
-            ltc: LtcIntegrator { mode: Mode::PerTriangle, shadows: false, fresnel },
+            ltc: LtcIntegrator { mode: Mode::PerTriangle, shadows: false, fresnel, pixel_shading: false },
             nsamples: nsamples as u32,
             denoise: params.get_one_bool("denoise", true),
             max_radius: max_radius as u32,
@@ -567,6 +567,9 @@ impl PixelEstimator for Estimator<'_> {
         let (mut u, mut s, mut un) = (Rgb::ZERO, Rgb::ZERO, Rgb::ZERO);
         let mut scratch = Vec::new();
         let mut us = Vec::new();
+        if let Some(d) = &desc {
+            u = self.shader.area_lights(scene, &si, d, false, &mut scratch);
+        }
         for (k, light) in lights.iter().enumerate() {
             if self.bounds.get(k).is_some_and(|b| b.is_some()) {
                 // Always drawn, so that every light gets its own array whatever the material.
@@ -578,7 +581,6 @@ impl PixelEstimator for Estimator<'_> {
             }
             match (light, &desc) {
                 (Light::Area(_), Some(d)) => {
-                    u += self.shader.area_light(scene, &si, d, light, false, &mut scratch);
                     let (sk, uk) = self.stochastic(scene, &si, &bsdf, d, k, light, &us, stats);
                     s += sk;
                     un += uk;
