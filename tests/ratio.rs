@@ -46,8 +46,8 @@ fn run<'a>(integrator: &'a str, params: &'a [&'a str], spp: u32) -> Render {
 #[allow(clippy::needless_range_loop)]
 fn fully_lit_is_u_and_fully_shadowed_is_zero() {
     let spp = 4;
-    let shadowed = run("ltc", &[], spp);
-    let u = run("ltc", &["shadows=false"], spp);
+    let shadowed = run("ltc", &["shading=sample"], spp);
+    let u = run("ltc", &["shadows=false", "shading=sample"], spp);
     let raw = run("ratio", &["denoise=false"], spp);
     let den = run("ratio", &[], spp);
     let (w, h) = (u.image.width as usize, u.image.height as usize);
@@ -193,7 +193,7 @@ fn stiff_scenes_are_finite() {
             resolution: Some((32, 32)),
             ..Default::default()
         };
-        let u = render_path(&path, &o("ltc", &["shadows=false"]));
+        let u = render_path(&path, &o("ltc", &["shadows=false", "shading=sample"]));
         for params in [&[][..], &["denoise=false"][..]] {
             let r = render_path(&path, &o("ratio", params));
             let bad = r.image.data.iter().filter(|v| !v.is_finite() || **v < 0.0).count();
