@@ -23,7 +23,7 @@
 
 use crate::directlighting::estimate_direct;
 use glam::DVec3;
-use penumbra_core::bxdf::{BxdfFlags, Fresnel};
+use penumbra_core::bxdf::{Bsdf, BxdfFlags, Fresnel};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds3, Ray};
 use penumbra_core::integrator::{
@@ -1022,6 +1022,43 @@ impl ConvexLight {
     }
 }
 
+/// A delta light (point, spot, distant, goniometric, projection) at `si`: exact hard shadow by one
+/// ray, the real BSDF (`ltc` and `ratio`).
+pub(crate) fn delta_light(
+    si: &SurfaceInteraction,
+    bsdf: &Bsdf,
+    light: &Light,
+    scene: &Scene,
+    stats: &mut ThreadStats,
+) -> Rgb {
+    let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
+    let Some(ls) = light.sample_li(&ctx, Vec2::splat(0.5), &scene.meshes) else { return Rgb::ZERO };
+    let f = bsdf.f(si.wo, ls.wi, BxdfFlags::NON_SPECULAR) * ls.wi.dot(si.shading.z).abs();
+    if f == Rgb::ZERO {
+        return Rgb::ZERO;
+    }
+    stats.shadow_rays += 1;
+    if scene.occluded(&si.spawn_ray_to(ls.p_light)) {
+        Rgb::ZERO
+    } else {
+        f * ls.li / ls.pdf
+    }
+}
+
+/// The one warning `integrator` gives when a material without an LTC form is rendered with
+/// directlighting's estimator.
+pub(crate) fn warn_no_ltc_form(integrator: &str, warned: &AtomicBool, warnings: &DiagSink) {
+    if !warned.swap(true, Ordering::Relaxed) {
+        warnings.warn(
+            None,
+            format!(
+                "{integrator}: a material that does not reduce to a Lambertian plus a GGX lobe (mirror, glass, \
+                 translucent, mix, Oren–Nayar, anisotropic…) is rendered with directlighting's estimator"
+            ),
+        );
+    }
+}
+
 /// The material's own Fresnel reflectance at `cos_d` (pbrt-v3's definitions).
 pub(crate) fn fresnel_at(f: &LtcFresnel, cos_d: f32) -> Rgb {
     match *f {
@@ -1146,30 +1183,13 @@ impl Estimator<'_> {
             match (light, &desc) {
                 (Light::Area(_), Some(_)) => {} // all at once, below
                 (Light::Infinite(_), _) | (Light::Area(_), None) => {
-                    if desc.is_none() && !self.warn_material.swap(true, Ordering::Relaxed) {
-                        self.warnings.warn(
-                            None,
-                            "ltc: a material that does not reduce to a Lambertian plus a GGX lobe \
-                             (mirror, glass, translucent, mix, Oren–Nayar, anisotropic…) is rendered \
-                             with directlighting's estimator",
-                        );
+                    if desc.is_none() {
+                        warn_no_ltc_form("ltc", &self.warn_material, self.warnings);
                     }
                     let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
                     l += estimate_direct(si, bsdf, u_scatter, k, light, u_light, scene, stats);
                 }
-                _ => {
-                    // Delta lights: exact hard shadows with one ray and the real BSDF.
-                    let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
-                    if let Some(ls) = light.sample_li(&ctx, Vec2::splat(0.5), &scene.meshes) {
-                        let f = bsdf.f(si.wo, ls.wi, BxdfFlags::NON_SPECULAR) * ls.wi.dot(si.shading.z).abs();
-                        if f != Rgb::ZERO {
-                            stats.shadow_rays += 1;
-                            if !scene.occluded(&si.spawn_ray_to(ls.p_light)) {
-                                l += f * ls.li / ls.pdf;
-                            }
-                        }
-                    }
-                }
+                _ => l += delta_light(si, bsdf, light, scene, stats),
             }
         }
         l

@@ -34,7 +34,7 @@
 //! output is never NaN or infinite.
 
 use crate::directlighting::estimate_direct;
-use crate::ltc::{fresnel_at, FresnelMode, LtcIntegrator, LtcShader, Mode};
+use crate::ltc::{delta_light, fresnel_at, warn_no_ltc_form, FresnelMode, LtcIntegrator, LtcShader, Mode};
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::Film;
@@ -51,7 +51,7 @@ use penumbra_core::spectrum::luminance;
 use penumbra_core::{Rgb, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 /// Weights of the cross-bilateral filter (all relative, see [`cross_bilateral`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -586,30 +586,13 @@ impl PixelEstimator for Estimator<'_> {
                     un += uk;
                 }
                 (Light::Infinite(_), _) | (Light::Area(_), None) => {
-                    if desc.is_none() && !self.warn_material.swap(true, Ordering::Relaxed) {
-                        self.warnings.warn(
-                            None,
-                            "ratio: a material that does not reduce to a Lambertian plus a GGX lobe \
-                             (mirror, glass, translucent, mix, Oren–Nayar, anisotropic…) is rendered \
-                             with directlighting's estimator",
-                        );
+                    if desc.is_none() {
+                        warn_no_ltc_form("ratio", &self.warn_material, self.warnings);
                     }
                     let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
                     rest += estimate_direct(&si, &bsdf, u_scatter, k, light, u_light, scene, stats);
                 }
-                _ => {
-                    // Delta lights: exact hard shadows with one ray and the real BSDF (as `ltc`).
-                    let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
-                    if let Some(ls) = light.sample_li(&ctx, Vec2::splat(0.5), &scene.meshes) {
-                        let f = bsdf.f(si.wo, ls.wi, BxdfFlags::NON_SPECULAR) * ls.wi.dot(si.shading.z).abs();
-                        if f != Rgb::ZERO {
-                            stats.shadow_rays += 1;
-                            if !scene.occluded(&si.spawn_ray_to(ls.p_light)) {
-                                rest += f * ls.li / ls.pdf;
-                            }
-                        }
-                    }
-                }
+                _ => rest += delta_light(&si, &bsdf, light, scene, stats),
             }
         }
         if aov.len() == CHANNELS.len() {
