@@ -834,3 +834,86 @@ fn hemisphere_center_of_a_wide_triangle_and_of_thin_margins() {
     assert_eq!(hemisphere_center(&bad), None);
     assert_eq!(hemisphere_center(&[DVec3::X, -DVec3::X, DVec3::Y]), None);
 }
+
+// --- triangle chains ---------------------------------------------------------------------------
+
+/// A closed torus (major radius `big`, minor `small`) about the z axis at `c`; vertices shared.
+fn torus_mesh(c: Vec3, big: f32, small: f32, nu: usize, nv: usize) -> TriangleMesh {
+    let mut positions = Vec::new();
+    for i in 0..nu {
+        let u = i as f32 / nu as f32 * std::f32::consts::TAU;
+        for j in 0..nv {
+            let v = j as f32 / nv as f32 * std::f32::consts::TAU;
+            let r = big + small * v.cos();
+            positions.push(c + Vec3::new(r * u.cos(), r * u.sin(), small * v.sin()));
+        }
+    }
+    let id = |i: usize, j: usize| ((i % nu) * nv + j % nv) as u32;
+    let mut indices = Vec::new();
+    for i in 0..nu {
+        for j in 0..nv {
+            indices.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            indices.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriangleMesh { positions, indices, ..Default::default() }
+}
+
+/// Whether direction `d` from `p` passes through triangle `t` (its projection covers `d`).
+fn covers(mesh: &TriangleMesh, t: usize, p: DVec3, d: DVec3) -> bool {
+    let pv = project(p, &mesh.vertices(t).map(|q| q.as_dvec3()));
+    let s = [pv[0].cross(pv[1]).dot(d), pv[1].cross(pv[2]).dot(d), pv[2].cross(pv[0]).dot(d)];
+    let det = pv[0].dot(pv[1].cross(pv[2]));
+    det != 0.0 && s.iter().all(|x| x * det.signum() > 0.0)
+}
+
+#[test]
+fn triangle_chains_wind_once_per_covering_triangle() {
+    // A non-convex closed mesh seen from outside, whole and in random subsets (open patches,
+    // holes, folds in the projection): the chains' winding number in any direction is the
+    // number of chosen triangles covering it, with far fewer edges than the triangles have.
+    let mesh = torus_mesh(Vec3::ZERO, 1.0, 0.35, 24, 12);
+    let weld: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    let mut rng = Rng::new(7);
+    for case in 0..12 {
+        let p = rand_dir(&mut rng) * (1.6 + 2.0 * rng.uniform_f64()) + DVec3::new(0.0, 0.0, 0.2);
+        let tris: Vec<usize> = (0..mesh.triangle_count()).filter(|_| case < 4 || rng.uniform_f64() < 0.7).collect();
+        let chains = triangle_chains(&mesh, &tris, &weld, p);
+        let loops: Vec<Vec<DVec3>> = chains.iter().map(|l| project(p, l)).collect();
+        let edges: usize = loops.iter().map(|l| l.len()).sum();
+        assert!(edges < tris.len() * 3, "case {case}: {edges} edges for {} triangles", tris.len());
+        let centre = (DVec3::ZERO - p).normalize();
+        for _ in 0..400 {
+            // Directions around the torus (within ~35° of its centre).
+            let d = (centre + rand_dir(&mut rng) * 0.7 * rng.uniform_f64()).normalize();
+            let n = tris.iter().filter(|&&t| covers(&mesh, t, p, d)).count() as i32;
+            assert_eq!(winding_number_loops(&loops, d), n, "case {case}: direction {d}");
+        }
+    }
+}
+
+#[test]
+fn difference_chains_equals_difference_of_the_triangles() {
+    // Subtracting the chains of a torus patch and subtracting its triangles one by one give the
+    // same visible region (solid angle and form factor), with and without extra loops.
+    let mesh = torus_mesh(Vec3::new(0.0, 0.0, 1.5), 0.6, 0.2, 20, 10);
+    let weld: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    let mut rng = Rng::new(11);
+    for case in 0..6 {
+        let p = DVec3::new(0.3 * rng.uniform_f64(), 0.3 * rng.uniform_f64(), 0.0);
+        let tris: Vec<usize> = (0..mesh.triangle_count()).filter(|_| case == 0 || rng.uniform_f64() < 0.6).collect();
+        let each: Vec<Vec<DVec3>> = tris.iter().map(|&t| project(p, &mesh.vertices(t).map(|q| q.as_dvec3()))).collect();
+        let chains: Vec<Vec<DVec3>> = triangle_chains(&mesh, &tris, &weld, p).iter().map(|l| project(p, l)).collect();
+        let extra = vec![project(p, &rect(-0.2, 0.4, 0.1, 0.5, 2.0))];
+        let light = vec![project(p, &rect(-1.2, 1.2, -1.0, 1.0, 3.0))];
+        let mut all = each.clone();
+        all.extend(extra.iter().cloned());
+        let a = difference(&light, &all);
+        let b = difference_chains(&light, &extra, &chains);
+        let solid_angle_loops = |l: &[Vec<DVec3>]| l.iter().map(|x| solid_angle(x)).sum::<f64>();
+        let (sa, sb) = (solid_angle_loops(&a), solid_angle_loops(&b));
+        assert!((sa - sb).abs() < 1e-7, "case {case}: solid angle {sa} (triangles) vs {sb} (chains)");
+        assert!((form_factor_loops(&a) - form_factor_loops(&b)).abs() < 1e-7, "case {case}: form factor");
+        assert!(sb < solid_angle(&light[0]) - 1e-3, "case {case}: the torus must hide part of the light");
+    }
+}
