@@ -48,8 +48,10 @@ fn fully_lit_is_u_and_fully_shadowed_is_zero() {
     let spp = 4;
     let shadowed = run("ltc", &["shading=sample"], spp);
     let u = run("ltc", &["shadows=false", "shading=sample"], spp);
-    let raw = run("ratio", &["denoise=false"], spp);
-    let den = run("ratio", &[], spp);
+    // Per-sample U, as the ltc images it is compared with (the ratio's property does not
+    // depend on where U is evaluated).
+    let raw = run("ratio", &["denoise=false", "shading=sample"], spp);
+    let den = run("ratio", &["shading=sample"], spp);
     let (w, h) = (u.image.width as usize, u.image.height as usize);
     // Per pixel: 1 fully lit, 0 fully shadowed, -1 neither.
     let class: Vec<i32> = (0..w * h)
@@ -193,8 +195,15 @@ fn stiff_scenes_are_finite() {
             resolution: Some((32, 32)),
             ..Default::default()
         };
-        let u = render_path(&path, &o("ltc", &["shadows=false", "shading=sample"]));
-        for params in [&[][..], &["denoise=false"][..]] {
+        // U per camera sample and once per surface seen in a pixel: the ratio scales U by at
+        // most 1 either way.
+        let u_sample = render_path(&path, &o("ltc", &["shadows=false", "shading=sample"]));
+        let u_pixel = render_path(&path, &o("ltc", &["shadows=false"]));
+        for (params, u) in [
+            (&[][..], &u_pixel),
+            (&["denoise=false"][..], &u_pixel),
+            (&["denoise=false", "shading=sample"][..], &u_sample),
+        ] {
             let r = render_path(&path, &o("ratio", params));
             let bad = r.image.data.iter().filter(|v| !v.is_finite() || **v < 0.0).count();
             assert_eq!(bad, 0, "{name} {params:?}: {bad} non-finite or negative values");

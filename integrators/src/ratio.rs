@@ -8,18 +8,24 @@
 //!   the *same* samples (same directions, same points on the light, same weights; `S_N`
 //!   multiplies each by its visibility), with the real BSDF and the light's radiance.
 //!
-//! Per light and camera sample, `nsamples` samples are drawn: `⌈n/2⌉` from the light
-//! (`Light::sample_li`, uniform by area) and `⌊n/2⌋` from the point's BRDF as LTCs (the
-//! clamped cosine for the diffuse part, the GGX LTC for the glossy part, chosen in
+//! Per camera sample and area light, `nsamples` samples are drawn: `⌈n/2⌉` from the light
+//! (a triangle of the emitting mesh in proportion to its area, then a point uniformly on it:
+//! pbrt-v3's per-triangle lights of one mesh are sampled as one light, so that a sample costs
+//! one shadow ray whatever the number of triangles) and `⌊n/2⌋` from the point's BRDF as LTCs
+//! (the clamped cosine for the diffuse part, the GGX LTC for the glossy part, chosen in
 //! proportion to their luminance weights `Kd` and `scale · F(θo) · magnitude`), combined
 //! with the balance heuristic (every sample is weighted by `1 / (n_l p_light + n_b p_brdf)`,
 //! densities at the sample's point on the light). A BRDF-sampled direction counts every
 //! light triangle it crosses (ignoring occluders), as `U` integrates every triangle, so
 //! that `E[U_N]` is the unshadowed integral whatever the light's shape.
 //!
-//! The film's extra channels hold, per pixel, `U`, `S_N`, `U_N` (RGB), the luminance
-//! moments `⟨S²⟩`, `⟨U²⟩`, `⟨S·U⟩` of the per-camera-sample estimates (the noise estimate),
-//! the depth, the normal facing the viewer and the plane offset `n·p`. After the pass the
+//! `U` is `ltc`'s: with `"string shading" "pixel"` (default) once per surface seen in a pixel
+//! (see `ltc`), with `"sample"` per camera sample. The film's extra channels hold, per pixel,
+//! `U`, `S_N`, `U_N` (RGB), the luminance moments `⟨S²⟩`, `⟨U²⟩`, `⟨S·U⟩` of the
+//! single-sample estimates `n · (contribution of stochastic sample k)` (summed over the
+//! lights; the noise estimate, over camera × stochastic samples, so that one camera sample
+//! per pixel still has one), the depth, the normal facing the viewer and the plane offset
+//! `n·p`. After the pass the
 //! image is `rest + U · D(S_N) / D(U_N)` per channel, where `rest` is everything else
 //! (emission seen directly, delta lights with one shadow ray, infinite lights and
 //! materials without LTC form through `directlighting`'s estimator, as in `ltc`) and `D`
@@ -34,18 +40,21 @@
 //! output is never NaN or infinite.
 
 use crate::directlighting::estimate_direct;
-use crate::ltc::{delta_light, fresnel_at, warn_no_ltc_form, FresnelMode, LtcIntegrator, LtcShader, Mode};
+use crate::ltc::{
+    delta_light, fresnel_at, parse_shading, warn_no_ltc_form, FresnelMode, LtcIntegrator, LtcShader, Mode, SharedPixel,
+};
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{gamma, Ray};
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, PixelShared, RenderContext, RenderError, RenderStats, ThreadStats,
 };
-use penumbra_core::light::{emitting_normal, Light, LightContext};
+use penumbra_core::light::{emitting_normal, AreaLight, DiffuseAreaLight, Light, LightContext};
 use penumbra_core::ltc::{Ltc, ShadingFrame};
 use penumbra_core::material::LtcDescription;
 use penumbra_core::sampler::Sampler;
+use penumbra_core::sampling::Distribution1D;
 use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction};
 use penumbra_core::spectrum::luminance;
 use penumbra_core::{Rgb, Vec2, Vec3};
@@ -321,7 +330,13 @@ impl RatioIntegrator {
             }
         };
         Ok(Box::new(RatioIntegrator {
-            ltc: LtcIntegrator { mode: Mode::PerTriangle, shadows: false, fresnel, pixel_shading: false },
+            ltc: LtcIntegrator {
+                mode: Mode::PerTriangle,
+                shadows: false,
+                fresnel,
+                pixel_shading: parse_shading("ratio", params, warnings),
+                merge_occluders: true,
+            },
             nsamples: nsamples as u32,
             denoise: params.get_one_bool("denoise", true),
             max_radius: max_radius as u32,
@@ -367,10 +382,58 @@ struct LightBound {
     r: f64,
 }
 
+/// One area light as `ratio` samples it: an emitting mesh's triangles gathered (pbrt-v3 makes
+/// one light per triangle of a `trianglemesh`), a triangle chosen in proportion to its area
+/// and a point uniformly on it, so that each sample costs one shadow ray whatever the
+/// number of triangles.
+struct SampleGroup {
+    /// A `Light::Area` over all the group's triangles (with their area distribution).
+    light: Light,
+    bound: LightBound,
+}
+
+impl SampleGroup {
+    /// The groups of `shader`'s area lights (those with a positive area).
+    fn of(shader: &LtcShader, scene: &Scene) -> Vec<SampleGroup> {
+        let mut out = Vec::new();
+        for g in shader.light_groups() {
+            let Some(mesh) = scene.meshes.get(g.mesh) else { continue };
+            let tri_area = |t: u32| -> f32 {
+                if (t as usize) >= mesh.triangle_count() {
+                    return 0.0;
+                }
+                let [a, b, c] = mesh.vertices(t as usize);
+                0.5 * (b - a).cross(c - a).length()
+            };
+            let tris: Vec<u32> =
+                g.tris.iter().copied().filter(|&t| tri_area(t) > 0.0 && tri_area(t).is_finite()).collect();
+            let areas: Vec<f32> = tris.iter().map(|&t| tri_area(t)).collect();
+            let total: f64 = areas.iter().map(|&a| a as f64).sum();
+            if tris.is_empty() || !(total > 0.0) || !(total as f32).is_finite() {
+                continue;
+            }
+            let pts: Vec<DVec3> = tris.iter().flat_map(|&t| mesh.vertices(t as usize).map(d3)).collect();
+            let c = pts.iter().copied().sum::<DVec3>() / pts.len() as f64;
+            let r = pts.iter().map(|p| (*p - c).length()).fold(0.0, f64::max);
+            let tri_dist = (tris.len() > 1).then(|| Distribution1D::new(&areas));
+            out.push(SampleGroup {
+                light: Light::Area(DiffuseAreaLight {
+                    geom: AreaLight { mesh: g.mesh as u32, tris, l: g.l, two_sided: g.two_sided, area: total as f32 },
+                    tri_dist,
+                    n_samples: 1,
+                }),
+                bound: LightBound { c, r: r * (1.0 + 1e-6) + 1e-9 },
+            });
+        }
+        out
+    }
+}
+
 struct Estimator<'a> {
     shader: LtcShader<'a>,
     n: u32,
-    bounds: Vec<Option<LightBound>>,
+    groups: Vec<SampleGroup>,
+    pixel_shading: bool,
     warn_material: AtomicBool,
     warnings: &'a DiagSink,
 }
@@ -411,7 +474,7 @@ struct LightPoint {
 }
 
 impl Estimator<'_> {
-    /// `(S_N, U_N)` for area light `light` (index `k`) at `si`, from the 2D samples `us`.
+    /// `(S_N, U_N)` for the area light `group` at `si`, from the 2D samples `us`.
     #[allow(clippy::too_many_arguments)]
     fn stochastic(
         &self,
@@ -419,11 +482,12 @@ impl Estimator<'_> {
         si: &SurfaceInteraction,
         bsdf: &Bsdf,
         desc: &LtcDescription,
-        k: usize,
-        light: &Light,
+        group: &SampleGroup,
         us: &[Vec2],
+        per_sample: &mut [(f32, f32)],
         stats: &mut ThreadStats,
     ) -> (Rgb, Rgb) {
+        let light = &group.light;
         let (mut s, mut u) = (Rgb::ZERO, Rgb::ZERO);
         let Some(geom) = light.area() else { return (s, u) };
         let Some(mesh) = scene.meshes.get(geom.mesh as usize) else { return (s, u) };
@@ -458,17 +522,23 @@ impl Estimator<'_> {
             }
         };
         let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
-        let mut add = |c: Rgb, lp: &LightPoint, stats: &mut ThreadStats| {
+        let mut add = |k: usize, c: Rgb, lp: &LightPoint, stats: &mut ThreadStats| {
             if !(c.is_finite() && c.min_element() >= 0.0) || c == Rgb::ZERO {
                 return;
             }
             u += c;
+            let y = luminance(c);
             stats.shadow_rays += 1;
-            if !scene.occluded(&si.spawn_ray_to_surface(lp.p, lp.p_error, lp.n)) {
+            let visible = !scene.occluded(&si.spawn_ray_to_surface(lp.p, lp.p_error, lp.n));
+            if visible {
                 s += c;
             }
+            if let Some(ps) = per_sample.get_mut(k) {
+                ps.0 += if visible { y } else { 0.0 };
+                ps.1 += y;
+            }
         };
-        for uv in &us[..n_l] {
+        for (k, uv) in us[..n_l].iter().enumerate() {
             let Some(ls) = light.sample_li(&ctx, *uv, &scene.meshes) else { continue };
             if !(ls.pdf > 0.0) || ls.li == Rgb::ZERO {
                 continue;
@@ -479,13 +549,14 @@ impl Estimator<'_> {
             }
             let denom = n_l as f64 * ls.pdf as f64 + n_b as f64 * pdf_brdf(ls.wi);
             let c = f * ls.li * (1.0 / denom) as f32;
-            add(c, &LightPoint { p: ls.p_light, p_error: ls.p_light_error, n: ls.n_light }, stats);
+            add(k, c, &LightPoint { p: ls.p_light, p_error: ls.p_light_error, n: ls.n_light }, stats);
         }
         if n_b == 0 {
             return (s, u);
         }
         let o = d3(si.p);
-        for uv in &us[n_l..] {
+        for (j, uv) in us[n_l..].iter().enumerate() {
+            let k = n_l + j;
             let (x, y) = (uv.x as f64, uv.y as f64);
             let local = if x < w_d || spec.is_none() {
                 let x = (x / w_d.max(1e-300)).min(1.0 - f64::EPSILON / 2.0);
@@ -507,14 +578,13 @@ impl Estimator<'_> {
             if f == Rgb::ZERO {
                 continue;
             }
-            if let Some(Some(b)) = self.bounds.get(k) {
-                // Distance from the sphere's centre to the ray (half-line from o along wd).
-                let oc = b.c - o;
-                let t = oc.dot(wd);
-                let dist2 = (oc - wd * t).length_squared();
-                if dist2 > b.r * b.r || (t < 0.0 && oc.length_squared() > b.r * b.r) {
-                    continue;
-                }
+            // Distance from the bounding sphere's centre to the ray (half-line from o along wd).
+            let b = &group.bound;
+            let oc = b.c - o;
+            let t = oc.dot(wd);
+            let dist2 = (oc - wd * t).length_squared();
+            if dist2 > b.r * b.r || (t < 0.0 && oc.length_squared() > b.r * b.r) {
+                continue;
             }
             for &tri in &geom.tris {
                 let tri = tri as usize;
@@ -537,62 +607,68 @@ impl Estimator<'_> {
                 let denom = n_l as f64 * p_l + n_b as f64 * p_b;
                 let c = f * le * (1.0 / denom) as f32;
                 let err = Vec3::splat(gamma(6)) * (pv[0].abs() + pv[1].abs() + pv[2].abs()).as_vec3();
-                add(c, &LightPoint { p: xp.as_vec3(), p_error: err, n: ne }, stats);
+                add(k, c, &LightPoint { p: xp.as_vec3(), p_error: err, n: ne }, stats);
             }
         }
         (s, u)
     }
 }
 
-impl PixelEstimator for Estimator<'_> {
-    fn request_samples(&self, sampler: &mut dyn Sampler) {
-        for b in &self.bounds {
-            if b.is_some() {
-                sampler.request_2d_array(self.n);
-            }
-        }
-    }
-
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+impl Estimator<'_> {
+    /// Radiance (everything but the area lights' shaded part) from the first surface `hit`
+    /// of `ray`, writing `U`, `S_N`, `U_N` and the guides to `aov`; `area` is the analytic
+    /// unshadowed area lighting (form factor, glossy) when already computed for the pixel.
+    #[allow(clippy::too_many_arguments)]
+    fn shade(
+        &self,
+        ray: &Ray,
+        hit: &SurfaceHit,
+        area: Option<(Rgb, Rgb)>,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        aov: &mut [f32],
+    ) -> Rgb {
         let lights = scene.light_list();
-        let (first, queries) = scene.first_surface(ray);
-        stats.rays += queries;
-        let SurfaceHit { si, bsdf, le, .. } = match first {
-            Ok(h) => h,
-            Err(escaped) => return escaped,
-        };
-        let mut rest = le;
-        let desc = LtcShader::lobes(scene, &si);
+        let SurfaceHit { si, bsdf, le, .. } = hit;
+        let mut rest = *le;
+        let desc = LtcShader::lobes(scene, si);
         let nf = if si.n.dot(si.wo) < 0.0 { -si.n } else { si.n };
         let (mut u, mut s, mut un) = (Rgb::ZERO, Rgb::ZERO, Rgb::ZERO);
-        let mut scratch = Vec::new();
         let mut us = Vec::new();
+        // Per stochastic sample index, its luminance contributions (shadowed, unshadowed) summed
+        // over the lights: the noise estimate.
+        let mut per_sample = vec![(0.0f32, 0.0f32); self.n as usize];
         if let Some(d) = &desc {
-            u = self.shader.area_lights(scene, &si, d, false, &mut scratch);
+            u = match area {
+                Some((diffuse, specular)) => d.diffuse * diffuse + specular,
+                None => self.shader.area_lights(scene, si, d, false, &mut Vec::new()),
+            };
+        }
+        for g in &self.groups {
+            // Always drawn, so that every light gets its own array whatever the material.
+            us.clear();
+            match sampler.get_2d_array(self.n) {
+                Some(a) => us.extend_from_slice(a),
+                None => us.extend((0..self.n).map(|_| sampler.get_2d())),
+            }
+            if let Some(d) = &desc {
+                let (sk, uk) = self.stochastic(scene, si, bsdf, d, g, &us, &mut per_sample, stats);
+                s += sk;
+                un += uk;
+            }
         }
         for (k, light) in lights.iter().enumerate() {
-            if self.bounds.get(k).is_some_and(|b| b.is_some()) {
-                // Always drawn, so that every light gets its own array whatever the material.
-                us.clear();
-                match sampler.get_2d_array(self.n) {
-                    Some(a) => us.extend_from_slice(a),
-                    None => us.extend((0..self.n).map(|_| sampler.get_2d())),
-                }
-            }
             match (light, &desc) {
-                (Light::Area(_), Some(d)) => {
-                    let (sk, uk) = self.stochastic(scene, &si, &bsdf, d, k, light, &us, stats);
-                    s += sk;
-                    un += uk;
-                }
+                (Light::Area(_), Some(_)) => {} // the groups above
                 (Light::Infinite(_), _) | (Light::Area(_), None) => {
                     if desc.is_none() {
                         warn_no_ltc_form("ratio", &self.warn_material, self.warnings);
                     }
                     let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
-                    rest += estimate_direct(&si, &bsdf, u_scatter, k, light, u_light, scene, stats);
+                    rest += estimate_direct(si, bsdf, u_scatter, k, light, u_light, scene, stats);
                 }
-                _ => rest += delta_light(&si, &bsdf, light, scene, stats),
+                _ => rest += delta_light(si, bsdf, light, scene, stats),
             }
         }
         if aov.len() == CHANNELS.len() {
@@ -601,15 +677,81 @@ impl PixelEstimator for Estimator<'_> {
             aov[C_U..C_U + 3].copy_from_slice(&u.to_array());
             aov[C_S..C_S + 3].copy_from_slice(&s.to_array());
             aov[C_UN..C_UN + 3].copy_from_slice(&un.to_array());
-            let (ys, yu) = (luminance(s), luminance(un));
-            aov[C_SS] = ys * ys;
-            aov[C_UU] = yu * yu;
-            aov[C_SU] = ys * yu;
+            // Moments of the single-sample estimates n·(contribution of sample k).
+            let n = per_sample.len().max(1) as f32;
+            let (mut ss, mut uu, mut su) = (0.0f32, 0.0f32, 0.0f32);
+            for &(ys, yu) in &per_sample {
+                let (ys, yu) = (n * ys, n * yu);
+                ss += ys * ys;
+                uu += yu * yu;
+                su += ys * yu;
+            }
+            let finite1 = |v: f32| if v.is_finite() { v } else { 0.0 };
+            aov[C_SS] = finite1(ss / n);
+            aov[C_UU] = finite1(uu / n);
+            aov[C_SU] = finite1(su / n);
             aov[C_DEPTH] = (si.p - ray.o).length();
             aov[C_N..C_N + 3].copy_from_slice(&nf.to_array());
             aov[C_PLANE] = nf.dot(si.p);
         }
         rest
+    }
+}
+
+impl PixelEstimator for Estimator<'_> {
+    fn request_samples(&self, sampler: &mut dyn Sampler) {
+        for _ in &self.groups {
+            sampler.request_2d_array(self.n);
+        }
+    }
+
+    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+        let (first, queries) = scene.first_surface(ray);
+        stats.rays += queries;
+        match first {
+            Ok(h) => self.shade(ray, &h, None, scene, sampler, stats, aov),
+            Err(escaped) => escaped,
+        }
+    }
+
+    fn shares_pixel_work(&self) -> bool {
+        self.pixel_shading
+    }
+
+    /// `U` once per surface seen in the pixel (as `ltc`'s pixel shading, unshadowed); the
+    /// stochastic `S_N`, `U_N` stay per camera sample.
+    fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<PixelShared> {
+        let hits: Vec<Result<SurfaceHit, Rgb>> = rays
+            .iter()
+            .map(|r| {
+                let (first, queries) = scene.first_surface(r);
+                stats.rays += queries;
+                first
+            })
+            .collect();
+        let area = self.shader.shade_pixel(rays, &hits, scene, false);
+        Some(Box::new(SharedPixel { hits, area }))
+    }
+
+    fn li_shared(
+        &self,
+        ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        aov: &mut [f32],
+        shared: &PixelShared,
+        index: usize,
+    ) -> Rgb {
+        let Some(sh) = shared.downcast_ref::<SharedPixel>() else { return self.li(ray, scene, sampler, stats, aov) };
+        match sh.hits.get(index) {
+            Some(Ok(h)) => {
+                let area = sh.area.get(index).copied().flatten();
+                self.shade(ray, h, area, scene, sampler, stats, aov)
+            }
+            Some(Err(escaped)) => *escaped,
+            None => self.li(ray, scene, sampler, stats, aov),
+        }
     }
 }
 
@@ -630,36 +772,19 @@ impl Integrator for RatioIntegrator {
                 "ratio: infinite lights have no polygon: they are rendered with directlighting's estimator",
             );
         }
-        let bounds = scene
-            .light_list()
-            .iter()
-            .map(|l| {
-                let g = l.area()?;
-                let mesh = scene.meshes.get(g.mesh as usize)?;
-                let pts: Vec<DVec3> = g
-                    .tris
-                    .iter()
-                    .filter(|&&t| (t as usize) < mesh.triangle_count())
-                    .flat_map(|&t| mesh.vertices(t as usize).map(d3))
-                    .collect();
-                if pts.is_empty() {
-                    return None;
-                }
-                let c = pts.iter().copied().sum::<DVec3>() / pts.len() as f64;
-                let r = pts.iter().map(|p| (*p - c).length()).fold(0.0, f64::max);
-                Some(LightBound { c, r: r * (1.0 + 1e-6) + 1e-9 })
-            })
-            .collect();
+        let shader = LtcShader::new(&self.ltc, scene);
+        let groups = SampleGroup::of(&shader, scene);
         let est = Estimator {
-            shader: LtcShader::new(&self.ltc, scene),
+            shader,
             n: scene.sampler.round_count(self.nsamples).max(1),
-            bounds,
+            groups,
+            pixel_shading: self.ltc.pixel_shading,
             warn_material: AtomicBool::new(false),
             warnings: ctx.warnings,
         };
         let mut stats = render_pixels(&est, scene, ctx, film)?;
         let t = std::time::Instant::now();
-        let filtered = self.resolve(film);
+        let filtered = self.resolve(film, est.n);
         stats.counters.insert("denoise_seconds".into(), t.elapsed().as_secs_f64());
         stats.counters.insert("mean_radius".into(), filtered);
         stats.render_seconds += t.elapsed().as_secs_f64();
@@ -670,7 +795,7 @@ impl Integrator for RatioIntegrator {
 impl RatioIntegrator {
     /// The whole-image pass: reads the channels back, denoises, writes `rest + U·ratio`.
     /// Returns the mean kernel radius over pixels with area-light shading.
-    fn resolve(&self, film: &mut Film) -> f64 {
+    fn resolve(&self, film: &mut Film, n_stochastic: u32) -> f64 {
         let pb = film.pixel_bounds();
         let (w, h) = (pb.width().max(0) as usize, pb.height().max(0) as usize);
         let n = w * h;
@@ -714,7 +839,9 @@ impl RatioIntegrator {
                 let var_s = at(i, C_SS) as f64 - s * s;
                 let var_u = at(i, C_UU) as f64 - u * u;
                 let cov = at(i, C_SU) as f64 - s * u;
-                let v = (var_s - 2.0 * r * cov + r * r * var_u).max(0.0) / (count[i].max(2.0) - 1.0) / (u * u);
+                // Over the pixel's camera samples × stochastic samples.
+                let count = count[i] * n_stochastic as f64;
+                let v = (var_s - 2.0 * r * cov + r * r * var_u).max(0.0) / (count.max(2.0) - 1.0) / (u * u);
                 let sd = v.sqrt() as f32;
                 if sd.is_finite() {
                     sd
