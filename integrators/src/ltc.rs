@@ -964,14 +964,7 @@ impl<'a> LtcShader<'a> {
                     // mean direction underestimates a region's average there (F is convex):
                     // nested circles where F = 1/2, 1/4 and 1/8 split the inside into rings,
                     // each with the Fresnel at its own LTC-weighted mean direction.
-                    let mut ts = vec![tc];
-                    for y in [0.5, 0.25, 0.125] {
-                        if let Some(t) = fresnel_circle(&s.fresnel, y) {
-                            if t > ts[ts.len() - 1] + 1e-4 && t < 1.0 {
-                                ts.push(t);
-                            }
-                        }
-                    }
+                    let ts = fresnel_circles(&s.fresnel, tc);
                     // (LTC integral, vector form factor) of `region` within each ring, from
                     // the outermost (beyond the critical circle) to the innermost cap.
                     let rings = |region: &[Vec<DVec3>], total: (f64, DVec3)| -> Vec<(f64, DVec3)> {
@@ -1002,7 +995,7 @@ impl<'a> LtcShader<'a> {
                                 // F is continuous across every circle (it reaches 1 at the
                                 // critical one): a 16-gon's error only moves area between rings
                                 // of nearly the same F (images unchanged from 64-gons to 1e-4).
-                                _ => spherical::intersection(&region, &[cap_loop(wo_world, t, 16)]),
+                                _ => clip_to_cap(&region, wo_world, t, 16),
                             };
                             let inner_total = if inner.is_empty() {
                                 (0.0, DVec3::ZERO)
@@ -1017,6 +1010,16 @@ impl<'a> LtcShader<'a> {
                         out
                     };
                     let ring_fresnel = |k: usize, vff: DVec3| if k == 0 { Rgb::ONE } else { fresnel_of(vff) };
+                    // Sutherland–Hodgman keeps each loop's orientation: a single loop (either
+                    // orientation) is turned positive first.
+                    let positive = |l: &Vec<DVec3>| -> Vec<Vec<DVec3>> {
+                        let mut l = l.clone();
+                        if spherical::solid_angle(&l) < 0.0 {
+                            l.reverse();
+                        }
+                        vec![l]
+                    };
+                    let visible = if single { positive(&visible[0]) } else { visible.clone() };
                     let visible_rings = rings(&visible, (v, vff_of(&local, single)));
                     // With occluders, each ring's Fresnel is the whole light's in that ring, so that
                     // a shadowed value never exceeds the unshadowed one (the mean direction of a
@@ -1024,7 +1027,7 @@ impl<'a> LtcShader<'a> {
                     let light_rings = if single {
                         None
                     } else {
-                        let l = vec![light_loop.clone()];
+                        let l = positive(&light_loop);
                         let ll = to_local(&l);
                         Some(rings(&l, (ltc_integrate(&coeffs.minv, frame, &l).abs(), vff_of(&ll, true))))
                     };
@@ -1065,6 +1068,33 @@ fn tir_threshold(f: &LtcFresnel) -> Option<f64> {
     }
 }
 
+/// The critical circle `tc` and the circles where the dielectric's Fresnel is 1/2, 1/4 and 1/8,
+/// increasing (memoised per thread: one material's values are needed at every shading point).
+fn fresnel_circles(f: &LtcFresnel, tc: f64) -> Vec<f64> {
+    thread_local! {
+        static MEMO: std::cell::RefCell<Vec<(LtcFresnel, Vec<f64>)>> = const { std::cell::RefCell::new(Vec::new()) };
+    }
+    MEMO.with(|m| {
+        if let Some((_, ts)) = m.borrow().iter().find(|(g, _)| g == f) {
+            return ts.clone();
+        }
+        let mut ts = vec![tc];
+        for y in [0.5, 0.25, 0.125] {
+            if let Some(t) = fresnel_circle(f, y) {
+                if t > ts[ts.len() - 1] + 1e-4 && t < 1.0 {
+                    ts.push(t);
+                }
+            }
+        }
+        let mut m = m.borrow_mut();
+        if m.len() >= 16 {
+            m.clear();
+        }
+        m.push((*f, ts.clone()));
+        ts
+    })
+}
+
 /// For a dielectric seen from its dense side, the value `t` of `ωo·ωi` at which the Fresnel
 /// reflectance (at the half-vector) equals `y` (between its normal-incidence value and 1),
 /// by bisection on `cos θd` (F decreases with it); `None` otherwise.
@@ -1084,6 +1114,32 @@ fn fresnel_circle(f: &LtcFresnel, y: f32) -> Option<f64> {
         }
     }
     Some(2.0 * hi * hi - 1.0)
+}
+
+/// The part of `region` (oriented loops, each within an open hemisphere) inside the cap
+/// `{ω : ω·axis ≥ t}` approximated by its inscribed `n`-gon: Sutherland–Hodgman against the
+/// polygon's `n` great-circle half-spaces, exact in every additive integral and far cheaper
+/// than a general overlay. Caps of a hemisphere or more (t ≤ 0.02: not convex enough) go
+/// through [`spherical::intersection`].
+fn clip_to_cap(region: &[Vec<DVec3>], axis: DVec3, t: f64, n: usize) -> Vec<Vec<DVec3>> {
+    let cap = cap_loop(axis, t, n);
+    if t <= 0.02 {
+        return spherical::intersection(region, &[cap]);
+    }
+    let sign = if cap[0].cross(cap[1]).dot(axis) >= 0.0 { 1.0 } else { -1.0 };
+    region
+        .iter()
+        .filter_map(|l| {
+            let mut c = l.clone();
+            for i in 0..n {
+                c = spherical::clip_to_halfspace(&c, cap[i].cross(cap[(i + 1) % n]) * sign);
+                if c.is_empty() {
+                    return None;
+                }
+            }
+            Some(c)
+        })
+        .collect()
 }
 
 /// The circle `{ω : ω·axis = t}` as an `n`-gon of unit directions (its arcs bow slightly
