@@ -902,9 +902,6 @@ impl<'a> LtcShader<'a> {
         let v = if single { v.abs() } else { v };
         acc.spec_int += v;
         if self.ltc.fresnel == FresnelMode::Average && v != 0.0 {
-            // The material's exact Fresnel at the half-vector between ωo and the LTC-weighted
-            // mean direction of a region (the vector form factor in the cosine space, mapped
-            // back by M: Heitz et al.'s proxy direction).
             // The LTC-space vector form factor of a region (additive over regions).
             let vff_of = |local: &[Vec<DVec3>], single: bool| {
                 let mut vff = DVec3::ZERO;
@@ -920,6 +917,9 @@ impl<'a> LtcShader<'a> {
                 }
                 vff
             };
+            // The material's exact Fresnel at the half-vector between ωo and the LTC-weighted
+            // mean direction of a region (its vector form factor in the cosine space, mapped
+            // back by M: Heitz et al.'s proxy direction).
             let fresnel_of = |vff: DVec3| {
                 let dir = (coeffs.m() * vff).normalize_or_zero();
                 let h = (wo_local + dir).normalize_or_zero();
