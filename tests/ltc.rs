@@ -108,16 +108,7 @@ fn shadows_switch_and_occluder_flag() {
 /// unshadowed analytic result.
 #[test]
 fn stiff_scenes_are_finite_and_never_brighter_than_unshadowed() {
-    for name in [
-        "coincident-geometry",
-        "grazing-light",
-        "intersecting-occluders",
-        "light-touching-floor",
-        "roughness-extremes",
-        "scaled-1e-4",
-        "scaled-1e4",
-        "tiny-far-light",
-    ] {
+    for name in STIFF_SCENES {
         let path = scene(&format!("suite/stiff/{name}.pbrt"));
         let o = |params| Opts {
             integrator: Some("ltc"),

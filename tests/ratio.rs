@@ -177,16 +177,7 @@ fn ratio_channels(path: &std::path::Path, params: &[&str], spp: u32, res: (u32, 
 #[test]
 fn stiff_scenes_are_finite() {
     let mut unknown_total = 0;
-    for name in [
-        "coincident-geometry",
-        "grazing-light",
-        "intersecting-occluders",
-        "light-touching-floor",
-        "roughness-extremes",
-        "scaled-1e-4",
-        "scaled-1e4",
-        "tiny-far-light",
-    ] {
+    for name in STIFF_SCENES {
         let path = scene(&format!("suite/stiff/{name}.pbrt"));
         let o = |integrator, params| Opts {
             integrator: Some(integrator),

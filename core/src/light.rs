@@ -165,6 +165,37 @@ pub struct DiffuseAreaLight {
     pub n_samples: u32,
 }
 
+impl DiffuseAreaLight {
+    /// One light over the triangles `tris` of mesh `mesh_index` (`mesh`) that have a positive,
+    /// finite area, a triangle chosen for sampling in proportion to its area; `None` when no
+    /// triangle qualifies or the total area is not finite.
+    pub fn over_triangles(
+        mesh_index: u32,
+        mesh: &TriangleMesh,
+        tris: &mut dyn Iterator<Item = u32>,
+        l: Rgb,
+        two_sided: bool,
+        n_samples: u32,
+    ) -> Option<DiffuseAreaLight> {
+        let area = |t: u32| match tri_vertices(mesh, t as usize) {
+            Some([a, b, c]) => 0.5 * (b - a).cross(c - a).length(),
+            None => 0.0,
+        };
+        let (tris, w): (Vec<u32>, Vec<f32>) =
+            tris.map(|t| (t, area(t))).filter(|&(_, a)| a > 0.0 && a.is_finite()).unzip();
+        let total: f64 = w.iter().map(|&a| a as f64).sum();
+        if tris.is_empty() || !(total > 0.0) || !(total as f32).is_finite() {
+            return None;
+        }
+        let tri_dist = (tris.len() > 1).then(|| Distribution1D::new(&w));
+        Some(DiffuseAreaLight {
+            geom: AreaLight { mesh: mesh_index, tris, l, two_sided, area: total as f32 },
+            tri_dist,
+            n_samples,
+        })
+    }
+}
+
 /// `infinite`: an environment map in pbrt-v3's lat-long parameterisation
 /// (u = φ/2π, v = θ/π about light-space +z), importance-sampled by a
 /// piecewise-constant distribution of luminance × sin θ.
@@ -698,39 +729,21 @@ impl Lights {
                 continue;
             }
             let mesh = &meshes[oi];
-            let areas: Vec<f32> = (0..mesh.triangle_count())
-                .map(|t| match tri_vertices(mesh, t) {
-                    Some([a, b, c]) => 0.5 * (b - a).cross(c - a).length(),
-                    None => 0.0,
-                })
-                .collect();
-            let ok = |a: f32| a > 0.0 && a.is_finite();
-            let make = |tris: Vec<u32>, area: f32, tri_dist: Option<Distribution1D>| {
-                Light::Area(DiffuseAreaLight {
-                    geom: AreaLight { mesh: oi as u32, tris, l, two_sided, area },
-                    tri_dist,
-                    n_samples,
-                })
+            let over = |tris: &mut dyn Iterator<Item = u32>| {
+                DiffuseAreaLight::over_triangles(oi as u32, mesh, tris, l, two_sided, n_samples)
             };
             if is_per_triangle_shape(&obj.kind) {
-                let mut per = vec![u32::MAX; areas.len()];
-                for (t, &a) in areas.iter().enumerate() {
-                    if ok(a) {
-                        per[t] = lights.len() as u32;
-                        lights.push(make(vec![t as u32], a, None));
+                let mut per = vec![u32::MAX; mesh.triangle_count()];
+                for (t, slot) in per.iter_mut().enumerate() {
+                    if let Some(a) = over(&mut std::iter::once(t as u32)) {
+                        *slot = lights.len() as u32;
+                        lights.push(Light::Area(a));
                     }
                 }
                 mesh_lights[oi] = MeshLights::PerTriangle(per);
-            } else {
-                let tris: Vec<u32> = (0..areas.len() as u32).filter(|&t| ok(areas[t as usize])).collect();
-                let w: Vec<f32> = tris.iter().map(|&t| areas[t as usize]).collect();
-                let total: f64 = w.iter().map(|&a| a as f64).sum();
-                if tris.is_empty() || !(total > 0.0) || !(total as f32).is_finite() {
-                    continue;
-                }
-                let dist = if tris.len() > 1 { Some(Distribution1D::new(&w)) } else { None };
+            } else if let Some(a) = over(&mut (0..mesh.triangle_count() as u32)) {
                 mesh_lights[oi] = MeshLights::Whole(lights.len() as u32);
-                lights.push(make(tris, total as f32, dist));
+                lights.push(Light::Area(a));
             }
         }
         Ok(Lights { lights, mesh_lights })

@@ -894,7 +894,10 @@ impl<'a> LtcShader<'a> {
         } else {
             (spherical::difference_chains(std::slice::from_ref(&light_loop), &occ.loops, &occ.chains), false)
         };
-        let local: Vec<Vec<DVec3>> = visible.iter().map(|l| l.iter().map(|d| frame.to_local(*d)).collect()).collect();
+        let to_local = |loops: &[Vec<DVec3>]| -> Vec<Vec<DVec3>> {
+            loops.iter().map(|l| l.iter().map(|d| frame.to_local(*d)).collect()).collect()
+        };
+        let local = to_local(&visible);
         let ff = spherical::form_factor_loops(&local);
         acc.diffuse_ff += if single { ff.abs() } else { ff };
         let Some((s, coeffs)) = spec else { return };
@@ -925,9 +928,6 @@ impl<'a> LtcShader<'a> {
                 let h = (wo_local + dir).normalize_or_zero();
                 let cos_d = if h == DVec3::ZERO { 1.0 } else { wo_local.dot(h).clamp(0.0, 1.0) };
                 fresnel_at(&s.fresnel, cos_d as f32)
-            };
-            let to_local = |loops: &[Vec<DVec3>]| -> Vec<Vec<DVec3>> {
-                loops.iter().map(|l| l.iter().map(|d| frame.to_local(*d)).collect()).collect()
             };
             let mean_fresnel = |local: &[Vec<DVec3>], single: bool| fresnel_of(vff_of(local, single));
             // A dielectric seen from its dense side (pbrt-v3's plastic: FresnelDielectric(1.5,
@@ -1253,15 +1253,50 @@ impl ConvexLight {
     }
 }
 
-/// A delta light (point, spot, distant, goniometric, projection) at `si`: exact hard shadow by one
-/// ray, the real BSDF (`ltc` and `ratio`).
-pub(crate) fn delta_light(
-    si: &SurfaceInteraction,
-    bsdf: &Bsdf,
-    light: &Light,
+/// Adds to `l` every light `ltc` and `ratio` do not shade analytically, at `hit`: delta lights
+/// by [`delta_light`]; infinite lights, and area lights when the material has no LTC form
+/// (`ltc_form` false, with one warning), by directlighting's estimator (two 2D samples each).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn add_other_lights(
+    l: &mut Rgb,
+    integrator: &str,
+    hit: &SurfaceHit,
+    ltc_form: bool,
     scene: &Scene,
+    sampler: &mut dyn Sampler,
     stats: &mut ThreadStats,
-) -> Rgb {
+    warned: &AtomicBool,
+    warnings: &DiagSink,
+) {
+    let SurfaceHit { si, bsdf, .. } = hit;
+    for (k, light) in scene.light_list().iter().enumerate() {
+        match light {
+            Light::Area(_) if ltc_form => {} // shaded analytically
+            Light::Infinite(_) | Light::Area(_) => {
+                if !ltc_form {
+                    warn_no_ltc_form(integrator, warned, warnings);
+                }
+                let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
+                *l += estimate_direct(si, bsdf, u_scatter, k, light, u_light, scene, stats);
+            }
+            _ => *l += delta_light(si, bsdf, light, scene, stats),
+        }
+    }
+}
+
+/// The one warning `integrator` gives when the scene has infinite lights (they have no polygon).
+pub(crate) fn warn_infinite_lights(integrator: &str, scene: &Scene, warnings: &DiagSink) {
+    if scene.lights.as_ref().is_some_and(|l| l.lights.iter().any(|x| matches!(x, Light::Infinite(_)))) {
+        warnings.warn(
+            None,
+            format!("{integrator}: infinite lights have no polygon: they are rendered with directlighting's estimator"),
+        );
+    }
+}
+
+/// A delta light (point, spot, distant, goniometric, projection) at `si`: exact hard shadow by one
+/// ray, the real BSDF.
+fn delta_light(si: &SurfaceInteraction, bsdf: &Bsdf, light: &Light, scene: &Scene, stats: &mut ThreadStats) -> Rgb {
     let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
     let Some(ls) = light.sample_li(&ctx, Vec2::splat(0.5), &scene.meshes) else { return Rgb::ZERO };
     let f = bsdf.f(si.wo, ls.wi, BxdfFlags::NON_SPECULAR) * ls.wi.dot(si.shading.z).abs();
@@ -1278,7 +1313,7 @@ pub(crate) fn delta_light(
 
 /// The one warning `integrator` gives when a material without an LTC form is rendered with
 /// directlighting's estimator.
-pub(crate) fn warn_no_ltc_form(integrator: &str, warned: &AtomicBool, warnings: &DiagSink) {
+fn warn_no_ltc_form(integrator: &str, warned: &AtomicBool, warnings: &DiagSink) {
     if !warned.swap(true, Ordering::Relaxed) {
         warnings.warn(
             None,
@@ -1318,11 +1353,45 @@ fn fresnel_weight(f: &LtcFresnel, magnitude: f32, fresnel: f32) -> Rgb {
     magnitude * (f0 + (Rgb::ONE - f0) * fresnel)
 }
 
+/// A camera ray's first surface, or the radiance it escaped with ([`Scene::first_surface`]).
+type FirstSurface = Result<SurfaceHit, Rgb>;
+
 /// The samples of one pixel (shading `pixel`): their first surfaces and, for those with an
 /// LTC material, the analytic area lighting of their cluster (`(Σ L·form factor, glossy)`).
 pub(crate) struct SharedPixel {
-    pub(crate) hits: Vec<Result<SurfaceHit, Rgb>>,
-    pub(crate) area: Vec<Option<(Rgb, Rgb)>>,
+    hits: Vec<FirstSurface>,
+    area: Vec<Option<(Rgb, Rgb)>>,
+}
+
+impl SharedPixel {
+    /// Traces the pixel's camera `rays` and shades each surface they see once
+    /// ([`LtcShader::shade_pixel`], with or without `shadows`): `begin_pixel` of `ltc` and `ratio`.
+    pub(crate) fn trace(
+        shader: &LtcShader,
+        rays: &[Ray],
+        scene: &Scene,
+        shadows: bool,
+        stats: &mut ThreadStats,
+    ) -> SharedPixel {
+        let hits: Vec<FirstSurface> = rays
+            .iter()
+            .map(|r| {
+                let (first, queries) = scene.first_surface(r);
+                stats.rays += queries;
+                first
+            })
+            .collect();
+        let area = shader.shade_pixel(rays, &hits, scene, shadows);
+        SharedPixel { hits, area }
+    }
+
+    /// Sample `index` of the pixel: its first surface (or the radiance its ray escaped with) and
+    /// its cluster's analytic area lighting; `None` when `shared` is not a `SharedPixel` or has
+    /// no such sample.
+    pub(crate) fn sample(shared: &PixelShared, index: usize) -> Option<(&FirstSurface, Option<(Rgb, Rgb)>)> {
+        let sh = shared.downcast_ref::<SharedPixel>()?;
+        Some((sh.hits.get(index)?, sh.area.get(index).copied().flatten()))
+    }
 }
 
 /// A pixel cluster whose extent exceeds this fraction of its distance to the nearest light is
@@ -1345,7 +1414,7 @@ impl LtcShader<'_> {
     pub(crate) fn shade_pixel(
         &self,
         rays: &[Ray],
-        hits: &[Result<SurfaceHit, Rgb>],
+        hits: &[FirstSurface],
         scene: &Scene,
         shadows: bool,
     ) -> Vec<Option<(Rgb, Rgb)>> {
@@ -1407,8 +1476,7 @@ impl Estimator<'_> {
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
     ) -> Rgb {
-        let lights = scene.light_list();
-        let SurfaceHit { si, bsdf, le, .. } = hit;
+        let SurfaceHit { si, le, .. } = hit;
         let mut l = *le;
         let desc = LtcShader::lobes(scene, si);
         let mut scratch = Vec::new();
@@ -1418,19 +1486,7 @@ impl Estimator<'_> {
                 None => self.shader.area_lights(scene, si, d, self.shader.ltc.shadows, &mut scratch),
             };
         }
-        for (k, light) in lights.iter().enumerate() {
-            match (light, &desc) {
-                (Light::Area(_), Some(_)) => {} // all at once, below
-                (Light::Infinite(_), _) | (Light::Area(_), None) => {
-                    if desc.is_none() {
-                        warn_no_ltc_form("ltc", &self.warn_material, self.warnings);
-                    }
-                    let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
-                    l += estimate_direct(si, bsdf, u_scatter, k, light, u_light, scene, stats);
-                }
-                _ => l += delta_light(si, bsdf, light, scene, stats),
-            }
-        }
+        add_other_lights(&mut l, "ltc", hit, desc.is_some(), scene, sampler, stats, &self.warn_material, self.warnings);
         l
     }
 }
@@ -1457,16 +1513,7 @@ impl PixelEstimator for Estimator<'_> {
     }
 
     fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<PixelShared> {
-        let hits: Vec<Result<SurfaceHit, Rgb>> = rays
-            .iter()
-            .map(|r| {
-                let (first, queries) = scene.first_surface(r);
-                stats.rays += queries;
-                first
-            })
-            .collect();
-        let area = self.shader.shade_pixel(rays, &hits, scene, self.shader.ltc.shadows);
-        Some(Box::new(SharedPixel { hits, area }))
+        Some(Box::new(SharedPixel::trace(&self.shader, rays, scene, self.shader.ltc.shadows, stats)))
     }
 
     fn li_shared(
@@ -1479,10 +1526,9 @@ impl PixelEstimator for Estimator<'_> {
         shared: &PixelShared,
         index: usize,
     ) -> Rgb {
-        let Some(sh) = shared.downcast_ref::<SharedPixel>() else { return self.li(ray, scene, sampler, stats, aov) };
-        match sh.hits.get(index) {
-            Some(Ok(h)) => self.shade(h, sh.area.get(index).copied().flatten(), scene, sampler, stats),
-            Some(Err(escaped)) => *escaped,
+        match SharedPixel::sample(shared, index) {
+            Some((Ok(h), area)) => self.shade(h, area, scene, sampler, stats),
+            Some((Err(escaped), _)) => *escaped,
             None => self.li(ray, scene, sampler, stats, aov),
         }
     }
@@ -1496,10 +1542,7 @@ impl Integrator for LtcIntegrator {
         Requirements { accel: true, lights: true, materials: true, ..Default::default() }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
-        if scene.lights.as_ref().is_some_and(|l| l.lights.iter().any(|x| matches!(x, Light::Infinite(_)))) {
-            ctx.warnings
-                .warn(None, "ltc: infinite lights have no polygon: they are rendered with directlighting's estimator");
-        }
+        warn_infinite_lights("ltc", scene, ctx.warnings);
         let est = Estimator {
             shader: LtcShader::new(self, scene),
             warn_material: AtomicBool::new(false),

@@ -39,9 +39,9 @@
 //! reached the light) and the ratio is taken as 1 (the analytic `U` unchanged). The
 //! output is never NaN or infinite.
 
-use crate::directlighting::estimate_direct;
 use crate::ltc::{
-    delta_light, fresnel_at, parse_shading, warn_no_ltc_form, FresnelMode, LtcIntegrator, LtcShader, Mode, SharedPixel,
+    add_other_lights, fresnel_at, parse_shading, warn_infinite_lights, FresnelMode, LtcIntegrator, LtcShader, Mode,
+    SharedPixel,
 };
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
@@ -50,11 +50,10 @@ use penumbra_core::geometry::{gamma, Ray};
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, PixelShared, RenderContext, RenderError, RenderStats, ThreadStats,
 };
-use penumbra_core::light::{emitting_normal, AreaLight, DiffuseAreaLight, Light, LightContext};
+use penumbra_core::light::{emitting_normal, DiffuseAreaLight, Light, LightContext};
 use penumbra_core::ltc::{Ltc, ShadingFrame};
 use penumbra_core::material::LtcDescription;
 use penumbra_core::sampler::Sampler;
-use penumbra_core::sampling::Distribution1D;
 use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction};
 use penumbra_core::spectrum::luminance;
 use penumbra_core::{Rgb, Vec2, Vec3};
@@ -393,39 +392,28 @@ struct SampleGroup {
 }
 
 impl SampleGroup {
-    /// The groups of `shader`'s area lights (those with a positive area).
+    /// The groups of `shader`'s area lights (those with a positive area), bounded by the
+    /// groups' spheres.
     fn of(shader: &LtcShader, scene: &Scene) -> Vec<SampleGroup> {
-        let mut out = Vec::new();
-        for g in shader.light_groups() {
-            let Some(mesh) = scene.meshes.get(g.mesh) else { continue };
-            let tri_area = |t: u32| -> f32 {
-                if (t as usize) >= mesh.triangle_count() {
-                    return 0.0;
-                }
-                let [a, b, c] = mesh.vertices(t as usize);
-                0.5 * (b - a).cross(c - a).length()
-            };
-            let tris: Vec<u32> =
-                g.tris.iter().copied().filter(|&t| tri_area(t) > 0.0 && tri_area(t).is_finite()).collect();
-            let areas: Vec<f32> = tris.iter().map(|&t| tri_area(t)).collect();
-            let total: f64 = areas.iter().map(|&a| a as f64).sum();
-            if tris.is_empty() || !(total > 0.0) || !(total as f32).is_finite() {
-                continue;
-            }
-            let pts: Vec<DVec3> = tris.iter().flat_map(|&t| mesh.vertices(t as usize).map(d3)).collect();
-            let c = pts.iter().copied().sum::<DVec3>() / pts.len() as f64;
-            let r = pts.iter().map(|p| (*p - c).length()).fold(0.0, f64::max);
-            let tri_dist = (tris.len() > 1).then(|| Distribution1D::new(&areas));
-            out.push(SampleGroup {
-                light: Light::Area(DiffuseAreaLight {
-                    geom: AreaLight { mesh: g.mesh as u32, tris, l: g.l, two_sided: g.two_sided, area: total as f32 },
-                    tri_dist,
-                    n_samples: 1,
-                }),
-                bound: LightBound { c, r: r * (1.0 + 1e-6) + 1e-9 },
-            });
-        }
-        out
+        shader
+            .light_groups()
+            .iter()
+            .filter_map(|g| {
+                let mesh = scene.meshes.get(g.mesh)?;
+                let light = DiffuseAreaLight::over_triangles(
+                    g.mesh as u32,
+                    mesh,
+                    &mut g.tris.iter().copied(),
+                    g.l,
+                    g.two_sided,
+                    1,
+                )?;
+                Some(SampleGroup {
+                    light: Light::Area(light),
+                    bound: LightBound { c: g.center, r: g.radius * (1.0 + 1e-6) + 1e-9 },
+                })
+            })
+            .collect()
     }
 }
 
@@ -629,7 +617,6 @@ impl Estimator<'_> {
         stats: &mut ThreadStats,
         aov: &mut [f32],
     ) -> Rgb {
-        let lights = scene.light_list();
         let SurfaceHit { si, bsdf, le, .. } = hit;
         let mut rest = *le;
         let desc = LtcShader::lobes(scene, si);
@@ -658,19 +645,17 @@ impl Estimator<'_> {
                 un += uk;
             }
         }
-        for (k, light) in lights.iter().enumerate() {
-            match (light, &desc) {
-                (Light::Area(_), Some(_)) => {} // the groups above
-                (Light::Infinite(_), _) | (Light::Area(_), None) => {
-                    if desc.is_none() {
-                        warn_no_ltc_form("ratio", &self.warn_material, self.warnings);
-                    }
-                    let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
-                    rest += estimate_direct(si, bsdf, u_scatter, k, light, u_light, scene, stats);
-                }
-                _ => rest += delta_light(si, bsdf, light, scene, stats),
-            }
-        }
+        add_other_lights(
+            &mut rest,
+            "ratio",
+            hit,
+            desc.is_some(),
+            scene,
+            sampler,
+            stats,
+            &self.warn_material,
+            self.warnings,
+        );
         if aov.len() == CHANNELS.len() {
             let finite = |c: Rgb| if c.is_finite() { c.max(Rgb::ZERO) } else { Rgb::ZERO };
             let (u, s, un) = (finite(u), finite(s), finite(un));
@@ -721,16 +706,7 @@ impl PixelEstimator for Estimator<'_> {
     /// `U` once per surface seen in the pixel (as `ltc`'s pixel shading, unshadowed); the
     /// stochastic `S_N`, `U_N` stay per camera sample.
     fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<PixelShared> {
-        let hits: Vec<Result<SurfaceHit, Rgb>> = rays
-            .iter()
-            .map(|r| {
-                let (first, queries) = scene.first_surface(r);
-                stats.rays += queries;
-                first
-            })
-            .collect();
-        let area = self.shader.shade_pixel(rays, &hits, scene, false);
-        Some(Box::new(SharedPixel { hits, area }))
+        Some(Box::new(SharedPixel::trace(&self.shader, rays, scene, false, stats)))
     }
 
     fn li_shared(
@@ -743,13 +719,9 @@ impl PixelEstimator for Estimator<'_> {
         shared: &PixelShared,
         index: usize,
     ) -> Rgb {
-        let Some(sh) = shared.downcast_ref::<SharedPixel>() else { return self.li(ray, scene, sampler, stats, aov) };
-        match sh.hits.get(index) {
-            Some(Ok(h)) => {
-                let area = sh.area.get(index).copied().flatten();
-                self.shade(ray, h, area, scene, sampler, stats, aov)
-            }
-            Some(Err(escaped)) => *escaped,
+        match SharedPixel::sample(shared, index) {
+            Some((Ok(h), area)) => self.shade(ray, h, area, scene, sampler, stats, aov),
+            Some((Err(escaped), _)) => *escaped,
             None => self.li(ray, scene, sampler, stats, aov),
         }
     }
@@ -766,12 +738,7 @@ impl Integrator for RatioIntegrator {
         CHANNELS.iter().map(|c| format!("ratio.{c}")).collect()
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
-        if scene.lights.as_ref().is_some_and(|l| l.lights.iter().any(|x| matches!(x, Light::Infinite(_)))) {
-            ctx.warnings.warn(
-                None,
-                "ratio: infinite lights have no polygon: they are rendered with directlighting's estimator",
-            );
-        }
+        warn_infinite_lights("ratio", scene, ctx.warnings);
         let shader = LtcShader::new(&self.ltc, scene);
         let groups = SampleGroup::of(&shader, scene);
         let est = Estimator {

@@ -9,6 +9,18 @@ use penumbra_parser::DiagSink;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
+/// The suite's stiff scenes (`scenes/suite/stiff/NAME.pbrt`, references `stiff/NAME.exr`).
+pub const STIFF_SCENES: [&str; 8] = [
+    "coincident-geometry",
+    "grazing-light",
+    "intersecting-occluders",
+    "light-touching-floor",
+    "roughness-extremes",
+    "scaled-1e-4",
+    "scaled-1e4",
+    "tiny-far-light",
+];
+
 pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
