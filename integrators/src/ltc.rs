@@ -1286,7 +1286,7 @@ pub(crate) fn add_other_lights(
 
 /// The one warning `integrator` gives when the scene has infinite lights (they have no polygon).
 pub(crate) fn warn_infinite_lights(integrator: &str, scene: &Scene, warnings: &DiagSink) {
-    if scene.lights.as_ref().is_some_and(|l| l.lights.iter().any(|x| matches!(x, Light::Infinite(_)))) {
+    if scene.light_list().iter().any(Light::is_infinite) {
         warnings.warn(
             None,
             format!("{integrator}: infinite lights have no polygon: they are rendered with directlighting's estimator"),

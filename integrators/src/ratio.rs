@@ -794,11 +794,12 @@ impl RatioIntegrator {
             }
         }
         let at = |i: usize, c: usize| ch[i * nc + c];
+        let rgb_at = |i: usize, c: usize| Rgb::new(at(i, c), at(i, c + 1), at(i, c + 2));
         // Delta-method standard deviation of each pixel's ratio estimate (luminance).
         let sigma: Vec<f32> = (0..n)
             .map(|i| {
-                let s = luminance(Rgb::new(at(i, C_S), at(i, C_S + 1), at(i, C_S + 2))) as f64;
-                let u = luminance(Rgb::new(at(i, C_UN), at(i, C_UN + 1), at(i, C_UN + 2))) as f64;
+                let s = luminance(rgb_at(i, C_S)) as f64;
+                let u = luminance(rgb_at(i, C_UN)) as f64;
                 if !(u > 0.0) || count[i] < 1.0 {
                     return 0.0;
                 }
@@ -822,10 +823,10 @@ impl RatioIntegrator {
                 depth: at(i, C_DEPTH),
                 normal: Vec3::new(at(i, C_N), at(i, C_N + 1), at(i, C_N + 2)),
                 plane: at(i, C_PLANE),
-                u: luminance(Rgb::new(at(i, C_U), at(i, C_U + 1), at(i, C_U + 2))),
+                u: luminance(rgb_at(i, C_U)),
                 ratio: {
-                    let s = luminance(Rgb::new(at(i, C_S), at(i, C_S + 1), at(i, C_S + 2)));
-                    let u = luminance(Rgb::new(at(i, C_UN), at(i, C_UN + 1), at(i, C_UN + 2)));
+                    let s = luminance(rgb_at(i, C_S));
+                    let u = luminance(rgb_at(i, C_UN));
                     guarded_ratio(f32::NAN, 0.0, s, u)
                 },
                 ratio_sigma: sigma[i],
@@ -841,7 +842,7 @@ impl RatioIntegrator {
         let (d, reduction) = cross_bilateral(w, h, &guides, &radius, &su, 6, &self.filter);
         let (mut rsum, mut rcount) = (0.0f64, 0usize);
         for (i, p) in pb.iter().enumerate() {
-            let u = Rgb::new(at(i, C_U), at(i, C_U + 1), at(i, C_U + 2));
+            let u = rgb_at(i, C_U);
             let mut out = rest[i];
             let mut var = rest_var[i];
             if u != Rgb::ZERO {
