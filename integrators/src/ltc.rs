@@ -170,7 +170,33 @@ enum LightShape {
     Planar { outline: Vec<DVec3>, normal: DVec3, origin: DVec3 },
     /// A closed convex mesh emitting outwards: what a point outside sees of it is exactly
     /// its silhouette loop (the front faces tile it, none overlap), integrated once.
-    Convex { adj: EdgeAdjacency },
+    Convex(ConvexShape),
+}
+
+/// What a convex light mesh needs at every shading point, computed once.
+struct ConvexShape {
+    adj: EdgeAdjacency,
+    /// Edge-on tolerance of its faces: 1e-9 of the mesh's extent.
+    eps: f64,
+    /// (a point of the face, outward unit normal) of every non-degenerate face.
+    faces: Vec<(DVec3, DVec3)>,
+    vertices: Vec<DVec3>,
+    center: DVec3,
+}
+
+impl ConvexShape {
+    fn new(mesh: &TriangleMesh) -> ConvexShape {
+        let faces = (0..mesh.triangle_count())
+            .filter_map(|t| {
+                let [a, b, c] = mesh.vertices(t).map(d3);
+                let n = (b - a).cross(c - a).normalize_or_zero();
+                (n != DVec3::ZERO).then_some((a, n))
+            })
+            .collect();
+        let vertices: Vec<DVec3> = mesh.positions.iter().map(|q| d3(*q)).collect();
+        let center = vertices.iter().copied().sum::<DVec3>() / vertices.len().max(1) as f64;
+        ConvexShape { adj: mesh.build_adjacency(), eps: 1e-9 * mesh_extent(mesh), faces, vertices, center }
+    }
 }
 
 impl LightShape {
@@ -195,7 +221,7 @@ impl LightShape {
                 w == Vec3::ZERO || emitting_normal(mesh, t).dot(w) > 0.0
             });
             if outward {
-                return LightShape::Convex { adj: mesh.build_adjacency() };
+                return LightShape::Convex(ConvexShape::new(mesh));
             }
         }
         LightShape::Triangles
@@ -795,14 +821,13 @@ impl<'a> LtcShader<'a> {
                 }
                 true
             }
-            LightShape::Convex { adj } => {
-                let eps = 1e-9 * mesh_extent(mesh);
-                let sil = spherical::silhouette_loops(mesh, adj, p, eps);
+            LightShape::Convex(shape) => {
+                let sil = spherical::silhouette_loops(mesh, &shape.adj, p, shape.eps);
                 match sil.as_slice() {
                     [] => true, // p inside (or edge-on everywhere): no face emits towards it
                     [outline] => {
                         let occ = if shadows {
-                            let cl = ConvexLight::new(mesh, p, eps);
+                            let cl = ConvexLight::new(shape, p);
                             self.occluders(scene, p, Skip::Mesh(lm), outline, None, Some(&cl), receiver, scratch)
                         } else {
                             Some(Occluders::default())
@@ -1207,25 +1232,17 @@ fn mesh_extent(mesh: &TriangleMesh) -> f64 {
 
 /// A convex light seen from a point: its front faces' planes and its vertices, to prove an
 /// occluder lies in front of it.
-struct ConvexLight {
+struct ConvexLight<'a> {
     /// (a point of the face, outward unit normal) of every face turned towards the point.
     front: Vec<(DVec3, DVec3)>,
-    vertices: Vec<DVec3>,
+    vertices: &'a [DVec3],
     center: DVec3,
 }
 
-impl ConvexLight {
-    fn new(mesh: &TriangleMesh, p: DVec3, eps: f64) -> ConvexLight {
-        let front = (0..mesh.triangle_count())
-            .filter_map(|t| {
-                let [a, b, c] = mesh.vertices(t).map(d3);
-                let n = (b - a).cross(c - a).normalize_or_zero();
-                (n != DVec3::ZERO && n.dot(p - a) > eps).then_some((a, n))
-            })
-            .collect();
-        let vertices: Vec<DVec3> = mesh.positions.iter().map(|q| d3(*q)).collect();
-        let center = vertices.iter().copied().sum::<DVec3>() / vertices.len().max(1) as f64;
-        ConvexLight { front, vertices, center }
+impl<'a> ConvexLight<'a> {
+    fn new(shape: &'a ConvexShape, p: DVec3) -> ConvexLight<'a> {
+        let front = shape.faces.iter().copied().filter(|(a, n)| n.dot(p - *a) > shape.eps).collect();
+        ConvexLight { front, vertices: &shape.vertices, center: shape.center }
     }
 
     /// Whether a plane separates the box `b` (with the shading point `p` on its side) from the
