@@ -658,7 +658,9 @@ pub fn silhouette_loops(mesh: &TriangleMesh, adj: &EdgeAdjacency, p: DVec3, eps:
     let mut loops = Vec::new();
     let mut used = 0usize;
     while used < count {
-        let Some((&start, _)) = next.iter().find(|(_, v)| !v.is_empty()) else { break };
+        // The smallest vertex id with an unused edge: the same start on every run (a HashMap's
+        // order is not), so the loop's vertex order, and its integrals to the last bit, are too.
+        let Some(start) = next.iter().filter(|(_, v)| !v.is_empty()).map(|(&k, _)| k).min() else { break };
         let mut chain = vec![start];
         let mut cur = start;
         let mut closed = false;

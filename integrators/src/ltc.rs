@@ -270,7 +270,8 @@ impl LightShape {
                 return None; // a vertex where the boundary pinches
             }
         }
-        let &start = next.keys().next()?;
+        // The smallest id: the same outline start on every run (a HashMap's order is not).
+        let &start = next.keys().min()?;
         let mut outline = vec![pos[start as usize]];
         let mut cur = next[&start];
         while cur != start {
