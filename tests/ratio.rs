@@ -266,3 +266,22 @@ fn delta_lights_as_ltc() {
         assert!((a - b).abs() <= 1e-5 * b.abs() + 1e-7, "ratio {a} vs ltc {b}");
     }
 }
+
+/// Bit-identical with 1 and 2 threads and from render to render (the denoiser is a whole-image
+/// pass: crops are not the full image's pixels near their borders), on a planar and a convex light.
+#[test]
+fn threads_and_runs_are_bit_identical() {
+    for name in ["suite/stiff/coincident-geometry.pbrt", "suite/ltc/two-lights-metal.pbrt"] {
+        let path = scene(name);
+        let opts = |threads| Opts {
+            integrator: Some("ratio"),
+            spp: Some(2),
+            resolution: Some((40, 36)),
+            threads,
+            ..Default::default()
+        };
+        let one = render_path(&path, &opts(1));
+        assert_same(&one.image.data, &render_path(&path, &opts(2)).image.data, "1 vs 2 threads");
+        assert_same(&one.image.data, &render_path(&path, &opts(2)).image.data, "two renders");
+    }
+}
