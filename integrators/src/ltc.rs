@@ -630,6 +630,7 @@ impl<'a> LtcShader<'a> {
         let mut loops = Vec::new();
         let mut chains = Vec::new();
         let mut whole: Vec<usize> = Vec::new();
+        let mut candidates: Vec<usize> = Vec::new();
         let c = piece.iter().copied().sum::<DVec3>() / piece.len().max(1) as f64;
         let r = piece.iter().map(|v| (*v - c).length()).fold(0.0, f64::max);
         let cone = Cone::towards(p.as_vec3(), c.as_vec3(), r as f32 * 1.001 + 1e-6);
@@ -671,10 +672,9 @@ impl<'a> LtcShader<'a> {
                 }
                 continue;
             }
-            let mut candidates = Vec::new();
             info.tris.query(&cone, &mut candidates);
             whole.clear();
-            for t in candidates {
+            for &t in &candidates {
                 // The light triangle itself, and the receiver's own triangle (flat: it cannot
                 // shadow a point on it, and the point's rounding may put it a hair off its plane).
                 if (o == light_mesh && Some(t) == skip_tri) || (o == receiver && t == receiver_tri) {
