@@ -287,7 +287,12 @@ impl Schedule {
         Some(candidate)
     }
 
-    /// Records a finished render.
+    /// Passes over the next budget of an explicit list without rendering it.
+    pub fn skip(&mut self) {
+        self.index += 1;
+    }
+
+    /// Records a finished render (`budget`: what it rendered, which may exceed what was asked).
     pub fn record(&mut self, budget: u32, render_s: f64, total_s: f64) {
         self.index += 1;
         self.spent += total_s;
@@ -1087,7 +1092,15 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
             Some(b) => Schedule::explicit(b.clone(), args.time_limit),
             None => Schedule::doubling(Some(args.time_limit.unwrap_or(60.0)), args.max_budget),
         };
+        // Samples per pixel already rendered: an integrator may take more than the budget asks
+        // (ltc's coverage floor), and a budget below that would render the same image again.
+        let mut covered = 0u32;
         while let Some(budget) = schedule.next() {
+            if args.budget_param.is_none() && budget <= covered {
+                say(format!("{name:>16} {budget:>6}: skipped ({covered} spp already rendered)"));
+                schedule.skip();
+                continue;
+            }
             let mut params = s.params.clone();
             let spp = match &args.budget_param {
                 Some(p) => {
@@ -1121,16 +1134,19 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
                     break 'outer;
                 }
             };
-            let row = match compare_row(name, budget, &r, total_s, &reference, !args.no_flip) {
+            // The row's budget is what was rendered (more than asked when the integrator raises it).
+            let taken = if args.budget_param.is_none() { budget.max(r.stats.spp) } else { budget };
+            let row = match compare_row(name, taken, &r, total_s, &reference, !args.no_flip) {
                 Ok(row) => row,
                 Err(e) => {
                     error = Some(e);
                     break 'outer;
                 }
             };
-            schedule.record(budget, row.render_s, row.total_s);
+            covered = covered.max(taken);
+            schedule.record(taken, row.render_s, row.total_s);
             say(format!(
-                "{name:>16} {budget:>6}: build {:.3} s, render {:.3} s, total {:.3} s, {} {}",
+                "{name:>16} {taken:>6}: build {:.3} s, render {:.3} s, total {:.3} s, {} {}",
                 row.build_s,
                 row.render_s,
                 row.total_s,
@@ -1264,6 +1280,17 @@ mod tests {
         assert_eq!(s.next(), Some(4));
         s.record(4, 1.0, 1.0);
         assert_eq!(s.next(), None);
+        // A render that took more than asked (ltc's coverage floor: 1 asked, 16 taken): doubling
+        // goes on from what was taken, an explicit list's next budget can be skipped.
+        let mut s = Schedule::doubling(None, 64);
+        assert_eq!(s.next(), Some(1));
+        s.record(16, 1.0, 1.0);
+        assert_eq!(s.next(), Some(32));
+        let mut s = Schedule::explicit(vec![1, 4, 32], None);
+        s.record(16, 1.0, 1.0);
+        assert_eq!(s.next(), Some(4));
+        s.skip();
+        assert_eq!(s.next(), Some(32));
     }
 
     #[test]

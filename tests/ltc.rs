@@ -135,23 +135,30 @@ fn stiff_scenes_are_finite_and_never_brighter_than_unshadowed() {
 }
 
 /// `"shading" "pixel"` (the default: each surface seen in a pixel shaded once, the samples only
-/// resolving visibility) against `"sample"` (every sample shaded): identical at 1 spp; at 16 spp
-/// the same image up to the variation of the shading inside a pixel (measured at 64²: relative
-/// RMSE 0.7 % quad-cube, 1.4 % torus, 1.0 % two lights), with fewer shadings.
+/// resolving visibility) against `"sample"` (every sample shaded): identical at 1 spp (without
+/// the coverage floor); at 16 spp the same image up to the variation of the shading inside a
+/// pixel (measured at 64²: relative RMSE 0.7 % quad-cube, 1.4 % torus, 1.0 % two lights), with
+/// fewer shadings. Pixel shading takes at least `coveragesamples` (default 16) camera samples.
 #[test]
 fn pixel_shading_matches_sample_shading() {
     for name in ["quad-cube", "torus-nonconvex", "two-lights-metal"] {
         let path = scene(&format!("suite/ltc/{name}.pbrt"));
-        let o = |spp, shading| Opts {
+        let o = |spp, params: &'static [&'static str]| Opts {
             integrator: Some("ltc"),
-            params: if shading { &["shading=pixel"] } else { &["shading=sample"] },
+            params,
             spp: Some(spp),
             resolution: Some((64, 64)),
             ..Default::default()
         };
-        let (p1, s1) = (render_path(&path, &o(1, true)), render_path(&path, &o(1, false)));
+        let p1 = render_path(&path, &o(1, &["shading=pixel", "coveragesamples=1"]));
+        let s1 = render_path(&path, &o(1, &["shading=sample"]));
+        assert_eq!((p1.spp, s1.spp), (1, 1));
         assert_eq!(p1.image.data, s1.image.data, "{name}: 1 spp must be identical");
-        let (p, s) = (render_path(&path, &o(16, true)), render_path(&path, &o(16, false)));
+        let (p, s) = (render_path(&path, &o(16, &["shading=pixel"])), render_path(&path, &o(16, &["shading=sample"])));
+        // The floor: 1 spp asked, 16 taken, the 16-spp image.
+        let floor = render_path(&path, &o(1, &[]));
+        assert_eq!(floor.spp, 16, "{name}: the coverage floor");
+        assert_eq!(floor.image.data, p.image.data, "{name}: 1 spp raised to 16 is the 16-spp image");
         let e = rmse(&p.image, &s.image) / mean(&s.image);
         eprintln!("{name}: pixel vs sample shading, 16 spp, relative RMSE {e:.4}");
         assert!(e < 0.03, "{name}: relative RMSE {e}");

@@ -31,6 +31,9 @@ pub struct Requirements {
     pub adjacency: bool,
     /// Light geometry as polygons (analytic area-light methods).
     pub light_polygons: bool,
+    /// At least this many camera samples per pixel, and the integrator's reason (said in the
+    /// warning when the scene's or the command line's count is raised).
+    pub min_pixel_samples: Option<(u32, &'static str)>,
 }
 
 /// A crop given on the command line: fractions (pbrt-v3's `cropwindow`) or pixel bounds.
@@ -227,8 +230,21 @@ impl Scene {
         let filter =
             create_filter(&desc.filter).map_err(|e| Diagnostic::error(Some(desc.filter.loc.clone()), e.to_string()))?;
         warnings.extend(desc.filter.params.report_unused(&format!("filter \"{}\"", desc.filter.kind)));
-        let sampler = create_sampler(&desc.sampler, opts.spp, opts.seed, warnings)
-            .map_err(|e| Diagnostic::error(Some(desc.sampler.loc.clone()), e.to_string()))?;
+        let sampler_with = |spp: Option<u32>, warnings: &DiagSink| {
+            create_sampler(&desc.sampler, spp, opts.seed, warnings)
+                .map_err(|e| Diagnostic::error(Some(desc.sampler.loc.clone()), e.to_string()))
+        };
+        let mut sampler = sampler_with(opts.spp, warnings)?;
+        if let Some((min, why)) = req.min_pixel_samples {
+            let n = sampler.samples_per_pixel();
+            if n < min {
+                sampler = sampler_with(Some(min), warnings)?;
+                warnings.warn(
+                    Some(desc.sampler.loc.clone()),
+                    format!("{n} samples per pixel raised to {}: {why}", sampler.samples_per_pixel()),
+                );
+            }
+        }
         warnings.extend(desc.sampler.params.report_unused(&format!("sampler \"{}\"", desc.sampler.kind)));
         report.stages.push(("camera, film, sampler".into(), t0.elapsed().as_secs_f64(), String::new()));
 

@@ -50,7 +50,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 pub enum Mode {
     /// One silhouette loop per closed mesh.
     Silhouette,
-    /// Every occluder as its triangles.
+    /// Every light and every occluder as its triangles.
     PerTriangle,
     /// Silhouettes for objects proven closed and convex, triangles otherwise.
     Auto,
@@ -79,7 +79,15 @@ pub struct LtcIntegrator {
     /// Occluder triangles of one object that lie wholly in front of the light are subtracted as
     /// their outline (`"bool mergeoccluders"`, default true; false: triangle by triangle).
     pub merge_occluders: bool,
+    /// With pixel shading, at least this many camera samples per pixel (`"integer
+    /// coveragesamples"`, default 16; 1: the sampler's count as it is). They cost a camera ray
+    /// each, not a shading: below ~16 the image's error is the aliasing of edges, not noise.
+    pub coverage_samples: u32,
 }
+
+/// Why `ltc` raises the sampler's count (the scene build's warning says it).
+const COVERAGE_REASON: &str = "ltc shades each surface a pixel sees once, and the camera samples only resolve which \
+     surfaces those are and where their edges run (a camera ray each); \"integer coveragesamples\" sets this floor";
 
 impl LtcIntegrator {
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
@@ -112,7 +120,21 @@ impl LtcIntegrator {
         };
         let pixel_shading = parse_shading("ltc", params, warnings);
         let merge_occluders = params.get_one_bool("mergeoccluders", true);
-        Ok(Box::new(LtcIntegrator { mode, shadows, fresnel, pixel_shading, merge_occluders }))
+        let coverage = params.get_one_int("coveragesamples", 16);
+        if !(1..=1024).contains(&coverage) {
+            return Err(Diagnostic::error(
+                params.loc_of("coveragesamples").cloned(),
+                format!("ltc: \"coveragesamples\" must be in 1..=1024, got {coverage}"),
+            ));
+        }
+        Ok(Box::new(LtcIntegrator {
+            mode,
+            shadows,
+            fresnel,
+            pixel_shading,
+            merge_occluders,
+            coverage_samples: coverage as u32,
+        }))
     }
 }
 
@@ -568,7 +590,12 @@ impl<'a> LtcShader<'a> {
         }
         for g in &mut groups {
             let mesh = &scene.meshes[g.mesh];
-            g.shape = LightShape::of(mesh, &g.tris, g.two_sided);
+            // The paper's per-triangle method (its Sect. 4.4) takes every triangle of every
+            // light, as of every occluder, on its own.
+            g.shape = match settings.mode {
+                Mode::PerTriangle => LightShape::Triangles,
+                _ => LightShape::of(mesh, &g.tris, g.two_sided),
+            };
             let mut b = Bounds3::EMPTY;
             for &t in &g.tris {
                 if (t as usize) < mesh.triangle_count() {
@@ -1557,7 +1584,14 @@ impl Integrator for LtcIntegrator {
         "ltc"
     }
     fn requirements(&self) -> Requirements {
-        Requirements { accel: true, lights: true, materials: true, ..Default::default() }
+        Requirements {
+            accel: true,
+            lights: true,
+            materials: true,
+            min_pixel_samples: (self.pixel_shading && self.coverage_samples > 1)
+                .then_some((self.coverage_samples, COVERAGE_REASON)),
+            ..Default::default()
+        }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ltc", scene, ctx.warnings);

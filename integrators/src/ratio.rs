@@ -330,11 +330,12 @@ impl RatioIntegrator {
         };
         Ok(Box::new(RatioIntegrator {
             ltc: LtcIntegrator {
-                mode: Mode::PerTriangle,
+                mode: Mode::Auto, // shadows off: only the lights' shapes (one polygon where possible)
                 shadows: false,
                 fresnel,
                 pixel_shading: parse_shading("ratio", params, warnings),
                 merge_occluders: true,
+                coverage_samples: 1, // ratio's camera samples are its stochastic budget
             },
             nsamples: nsamples as u32,
             denoise: params.get_one_bool("denoise", true),

@@ -37,6 +37,8 @@ pub struct Render {
     pub image: Image,
     pub variance: Image,
     pub warnings: Vec<String>,
+    /// Camera samples per pixel taken.
+    pub spp: u32,
 }
 
 pub struct Opts<'a> {
@@ -98,7 +100,12 @@ pub fn render_desc(desc: &penumbra_parser::SceneDescription, o: &Opts) -> Render
     let rgb = r.image.select_channels(&["R", "G", "B"]).unwrap();
     let mut var = r.image.select_channels(&["variance.R", "variance.G", "variance.B"]).unwrap();
     var.channels = rgb.channels.clone();
-    Render { image: rgb, variance: var, warnings: warnings.take().iter().map(|d| d.message.clone()).collect() }
+    Render {
+        image: rgb,
+        variance: var,
+        warnings: warnings.take().iter().map(|d| d.message.clone()).collect(),
+        spp: r.stats.spp,
+    }
 }
 
 pub fn mean(img: &Image) -> f64 {
