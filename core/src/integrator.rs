@@ -211,7 +211,11 @@ pub fn render_pixels(
                     for s in 0..spp {
                         sampler.start_pixel_sample(p, s);
                         let cs = camera_sample(sampler.as_mut(), p);
-                        let ray = scene.camera.generate_ray(&cs);
+                        // (The shared pass generated this sample's ray already.)
+                        let ray = match rays.get(s as usize) {
+                            Some(r) if shared.is_some() => *r,
+                            _ => scene.camera.generate_ray(&cs),
+                        };
                         aov.iter_mut().for_each(|v| *v = 0.0);
                         let mut l = match &shared {
                             Some(sh) => {

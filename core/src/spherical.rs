@@ -623,67 +623,98 @@ pub fn triangle_chains(mesh: &TriangleMesh, tris: &[usize], weld: &[u32], p: DVe
 /// means no triangle faces `p` (p inside, or edge-on everywhere). A chain that
 /// does not close (non-convex or open mesh) is dropped.
 pub fn silhouette_loops(mesh: &TriangleMesh, adj: &EdgeAdjacency, p: DVec3, eps: f64) -> Vec<Vec<DVec3>> {
-    let pos: Vec<DVec3> = {
-        let mut v = vec![DVec3::ZERO; adj.welded_count];
+    SilhouetteMesh::new(mesh, adj).loops(p, eps)
+}
+
+/// What [`silhouette_loops`] needs of a mesh, computed once for the many points it is seen from:
+/// welded positions, each triangle's vertices and unit winding normal, and the manifold edges.
+#[derive(Clone, Debug, Default)]
+pub struct SilhouetteMesh {
+    positions: Vec<DVec3>,
+    /// (vertices, unit normal; zero for a degenerate triangle).
+    faces: Vec<([DVec3; 3], DVec3)>,
+    /// Edges shared by two triangles: (welded ends in the first triangle's winding, triangles).
+    edges: Vec<([u32; 2], [u32; 2])>,
+}
+
+impl SilhouetteMesh {
+    pub fn new(mesh: &TriangleMesh, adj: &EdgeAdjacency) -> SilhouetteMesh {
+        let mut positions = vec![DVec3::ZERO; adj.welded_count];
         for (i, w) in adj.weld.iter().enumerate() {
-            if let (Some(slot), Some(q)) = (v.get_mut(*w as usize), mesh.positions.get(i)) {
+            if let (Some(slot), Some(q)) = (positions.get_mut(*w as usize), mesh.positions.get(i)) {
                 *slot = q.as_dvec3();
             }
         }
-        v
-    };
-    let front: Vec<bool> = (0..mesh.triangle_count())
-        .map(|t| {
-            let [a, b, c] = mesh.vertices(t).map(|q| q.as_dvec3());
-            let n = (b - a).cross(c - a).normalize_or_zero();
-            n != DVec3::ZERO && n.dot(p - a) > eps && n.dot(p - b) > eps && n.dot(p - c) > eps
-        })
-        .collect();
-    // Directed silhouette edges: start -> end, following the front triangle's winding.
-    let mut next: std::collections::HashMap<u32, Vec<u32>> = std::collections::HashMap::new();
-    let mut count = 0usize;
-    for e in &adj.edges {
-        if e.count != 2 || e.tris[1] == BOUNDARY {
-            continue;
-        }
-        let f0 = front.get(e.tris[0] as usize).copied().unwrap_or(false);
-        let f1 = front.get(e.tris[1] as usize).copied().unwrap_or(false);
-        if f0 == f1 {
-            continue;
-        }
-        let (a, b) = if f0 { (e.v[0], e.v[1]) } else { (e.v[1], e.v[0]) };
-        next.entry(a).or_default().push(b);
-        count += 1;
+        let faces = (0..mesh.triangle_count())
+            .map(|t| {
+                let v = mesh.vertices(t).map(|q| q.as_dvec3());
+                (v, (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero())
+            })
+            .collect();
+        let edges = adj.edges.iter().filter(|e| e.count == 2 && e.tris[1] != BOUNDARY).map(|e| (e.v, e.tris)).collect();
+        SilhouetteMesh { positions, faces, edges }
     }
-    let mut loops = Vec::new();
-    let mut used = 0usize;
-    while used < count {
-        // The smallest vertex id with an unused edge: the same start on every run (a HashMap's
-        // order is not), so the loop's vertex order, and its integrals to the last bit, are too.
-        let Some(start) = next.iter().filter(|(_, v)| !v.is_empty()).map(|(&k, _)| k).min() else { break };
-        let mut chain = vec![start];
-        let mut cur = start;
-        let mut closed = false;
-        while let Some(nx) = next.get_mut(&cur).and_then(|v| v.pop()) {
-            used += 1;
-            if nx == start {
-                closed = true;
-                break;
-            }
-            chain.push(nx);
-            cur = nx;
-            if chain.len() > count + 1 {
-                break;
+
+    /// [`silhouette_loops`] from `p`.
+    pub fn loops(&self, p: DVec3, eps: f64) -> Vec<Vec<DVec3>> {
+        let front: Vec<bool> = self
+            .faces
+            .iter()
+            .map(|([a, b, c], n)| {
+                *n != DVec3::ZERO && n.dot(p - *a) > eps && n.dot(p - *b) > eps && n.dot(p - *c) > eps
+            })
+            .collect();
+        // Directed silhouette edges start -> end, following the front triangle's winding,
+        // sorted by start (stably: of several edges leaving one vertex, the last found is
+        // taken first).
+        let mut next: Vec<(u32, u32)> = Vec::new();
+        for (v, tris) in &self.edges {
+            let f0 = front.get(tris[0] as usize).copied().unwrap_or(false);
+            let f1 = front.get(tris[1] as usize).copied().unwrap_or(false);
+            if f0 != f1 {
+                next.push(if f0 { (v[0], v[1]) } else { (v[1], v[0]) });
             }
         }
-        if closed && chain.len() >= 3 {
-            let mut l: Vec<DVec3> =
-                chain.iter().map(|&i| pos.get(i as usize).copied().unwrap_or(DVec3::ZERO)).collect();
-            l.reverse();
-            loops.push(l);
+        next.sort_by_key(|e| e.0);
+        let mut used = vec![false; next.len()];
+        let mut left = next.len();
+        // The unused edge leaving `v` found last, if any.
+        let take = |v: u32, used: &mut [bool]| -> Option<u32> {
+            let hi = next.partition_point(|e| e.0 <= v);
+            let lo = next.partition_point(|e| e.0 < v);
+            let k = (lo..hi).rev().find(|&k| !used[k])?;
+            used[k] = true;
+            Some(next[k].1)
+        };
+        let mut loops = Vec::new();
+        while left > 0 {
+            // The smallest vertex id with an unused edge: the same start on every run, so the
+            // loop's vertex order, and its integrals to the last bit, are too.
+            let Some(start) = next.iter().zip(&used).find(|(_, u)| !**u).map(|(e, _)| e.0) else { break };
+            let mut chain = vec![start];
+            let mut cur = start;
+            let mut closed = false;
+            while let Some(nx) = take(cur, &mut used) {
+                left -= 1;
+                if nx == start {
+                    closed = true;
+                    break;
+                }
+                chain.push(nx);
+                cur = nx;
+                if chain.len() > next.len() + 1 {
+                    break;
+                }
+            }
+            if closed && chain.len() >= 3 {
+                let mut l: Vec<DVec3> =
+                    chain.iter().map(|&i| self.positions.get(i as usize).copied().unwrap_or(DVec3::ZERO)).collect();
+                l.reverse();
+                loops.push(l);
+            }
         }
+        loops
     }
-    loops
 }
 
 #[cfg(test)]

@@ -37,11 +37,11 @@ use penumbra_core::integrator::{
 use penumbra_core::light::{emitting_normal, Light, LightContext};
 use penumbra_core::ltc::{ltc_integrate, Ltc, LtcCoeffs, ShadingFrame};
 use penumbra_core::material::{LtcDescription, LtcFresnel, LtcSpecular};
-use penumbra_core::mesh::{EdgeAdjacency, TriangleMesh};
+use penumbra_core::mesh::TriangleMesh;
 use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction};
 use penumbra_core::spectrum::luminance;
-use penumbra_core::spherical;
+use penumbra_core::spherical::{self, SilhouetteMesh};
 use penumbra_core::{Rgb, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -159,7 +159,7 @@ struct ObjectInfo {
     bounds: Bounds3,
     occluder: bool,
     /// Closed and convex (proven by the builder), with its adjacency for silhouettes.
-    silhouette: Option<EdgeAdjacency>,
+    silhouette: Option<SilhouetteMesh>,
     /// A hierarchy over the object's triangles, for the per-triangle cone query.
     tris: ObjectBvh,
     /// All vertices in one plane: as a light, it cannot shadow itself.
@@ -197,7 +197,7 @@ enum LightShape {
 
 /// What a convex light mesh needs at every shading point, computed once.
 struct ConvexShape {
-    adj: EdgeAdjacency,
+    sil: SilhouetteMesh,
     /// Edge-on tolerance of its faces: 1e-9 of the mesh's extent.
     eps: f64,
     /// (a point of the face, outward unit normal) of every non-degenerate face.
@@ -217,7 +217,8 @@ impl ConvexShape {
             .collect();
         let vertices: Vec<DVec3> = mesh.positions.iter().map(|q| d3(*q)).collect();
         let center = vertices.iter().copied().sum::<DVec3>() / vertices.len().max(1) as f64;
-        ConvexShape { adj: mesh.build_adjacency(), eps: 1e-9 * mesh_extent(mesh), faces, vertices, center }
+        let sil = SilhouetteMesh::new(mesh, &mesh.build_adjacency());
+        ConvexShape { sil, eps: 1e-9 * mesh_extent(mesh), faces, vertices, center }
     }
 }
 
@@ -537,7 +538,11 @@ impl<'a> LtcShader<'a> {
                     let adj = mesh.build_adjacency();
                     adj.is_closed_manifold().then_some(adj)
                 }
-            };
+            }
+            .map(|adj| {
+                let sil = SilhouetteMesh::new(mesh, &adj);
+                (adj, sil)
+            });
             let tris = if occluder && settings.shadows {
                 let tb: Vec<(usize, Bounds3)> = (0..mesh.triangle_count())
                     .map(|t| {
@@ -558,12 +563,13 @@ impl<'a> LtcShader<'a> {
             let planar = is_planar(mesh, &b);
             let weld = if occluder && settings.shadows && settings.merge_occluders {
                 match &silhouette {
-                    Some(adj) => adj.weld.clone(),
+                    Some((adj, _)) => adj.weld.clone(),
                     None => mesh.build_adjacency().weld,
                 }
             } else {
                 Vec::new()
             };
+            let silhouette = silhouette.map(|(_, s)| s);
             objects.push(ObjectInfo { bounds: b, occluder, silhouette, tris, planar, weld });
         }
         let mut groups: Vec<LightGroup> = Vec::new();
@@ -692,9 +698,9 @@ impl<'a> LtcShader<'a> {
                     (d3(q) - plane_o).dot(ln) <= 0.0
                 })
             });
-            if let (Some(adj), false, false) = (&info.silhouette, straddles, o == light_mesh) {
+            if let (Some(sil), false, false) = (&info.silhouette, straddles, o == light_mesh) {
                 let eps = 1e-7 * (info.bounds.max - info.bounds.min).length() as f64;
-                for l in spherical::silhouette_loops(mesh, adj, p, eps) {
+                for l in sil.loops(p, eps) {
                     loops.push(spherical::project(p, &l));
                 }
                 continue;
@@ -850,7 +856,7 @@ impl<'a> LtcShader<'a> {
                 true
             }
             LightShape::Convex(shape) => {
-                let sil = spherical::silhouette_loops(mesh, &shape.adj, p, shape.eps);
+                let sil = shape.sil.loops(p, shape.eps);
                 match sil.as_slice() {
                     [] => true, // p inside (or edge-on everywhere): no face emits towards it
                     [outline] => {
