@@ -8,7 +8,7 @@ use crate::film::{Bounds2i, FilmSpec};
 use crate::filter::{create_filter, Filter};
 use crate::geometry::{face_forward, gamma, Bounds3, Frame, Ray};
 use crate::light::{Light, Lights};
-use crate::material::{BsdfOptions, Materials, ShadingGeometry};
+use crate::material::{BsdfOptions, Material, Materials, ShadingGeometry};
 use crate::mesh::TriangleMesh;
 use crate::sampler::{create_sampler, Sampler};
 use crate::shapes::{build_shape, ShapeContext, Tessellation};
@@ -69,6 +69,25 @@ pub struct SceneObject {
     /// `"bool occluder" false` on the shape: analytic visibility methods ignore it as an
     /// occluder (a penumbra extension; pbrt-v3 reports the parameter unused and renders).
     pub occluder: bool,
+}
+
+/// The first surface with a material along a ray, before its BSDF is built
+/// ([`Scene::first_point`]; [`SurfacePoint::with_bsdf`] builds it).
+#[derive(Clone, Debug)]
+pub struct SurfacePoint {
+    pub hit: Hit,
+    pub si: SurfaceInteraction,
+    /// Radiance emitted towards the ray's origin when the surface is an area light.
+    pub le: crate::Rgb,
+}
+
+impl SurfacePoint {
+    /// With its BSDF (`None` only when `scene` has no material for it, which
+    /// [`Scene::first_point`] never returns).
+    pub fn with_bsdf(&self, scene: &Scene) -> Option<SurfaceHit> {
+        let bsdf = scene.bsdf(&self.si)?;
+        Some(SurfaceHit { hit: self.hit, si: self.si, bsdf, le: self.le })
+    }
 }
 
 /// The first surface with a material along a ray ([`Scene::first_surface`]).
@@ -381,15 +400,23 @@ impl Scene {
     /// `Err` carries the radiance of the ray leaving the scene (the infinite lights'), or 0 after
     /// 64 pass-throughs. The second value is the number of intersection queries made.
     pub fn first_surface(&self, ray: &Ray) -> (Result<SurfaceHit, crate::Rgb>, u64) {
+        let (first, queries) = self.first_point(ray);
+        let first = first.and_then(|pt| pt.with_bsdf(self).ok_or(crate::Rgb::ZERO));
+        (first, queries)
+    }
+
+    /// [`first_surface`](Self::first_surface) without building the BSDF (for a method that
+    /// shades a pixel's surfaces once and may not need it for every sample).
+    pub fn first_point(&self, ray: &Ray) -> (Result<SurfacePoint, crate::Rgb>, u64) {
         let mut ray = *ray;
         for queries in 1..=65u64 {
             let Some(hit) = self.intersect(&ray) else {
                 return (Err(self.light_list().iter().map(|l| l.le(&ray)).sum()), queries);
             };
             let si = self.interaction(&ray, &hit);
-            if let Some(bsdf) = self.bsdf(&si) {
+            if self.material_of(&si).is_some() {
                 let le = self.area_light_at(&hit).map_or(crate::Rgb::ZERO, |k| self.light_list()[k].l(si.n, si.wo));
-                return (Ok(SurfaceHit { hit, si, bsdf, le }), queries);
+                return (Ok(SurfacePoint { hit, si, le }), queries);
             }
             ray = si.spawn_ray(ray.d);
         }
@@ -409,8 +436,7 @@ impl Scene {
     /// The BSDF at `si` (requires `Requirements::materials`); `None` when the object
     /// has no material (pbrt-v3's `Material "none"`) or materials were not built.
     pub fn bsdf(&self, si: &SurfaceInteraction) -> Option<Bsdf> {
-        let (materials, textures) = (self.materials.as_ref()?, self.textures.as_ref()?);
-        let mat = materials.get(self.objects.get(si.mesh as usize)?.material?)?;
+        let (mat, materials, textures) = self.material_of(si)?;
         let normals = self.meshes.get(si.mesh as usize).is_some_and(|m| m.normals.is_some());
         Some(mat.compute_bsdf_ext(
             si,
@@ -420,6 +446,12 @@ impl Scene {
             materials,
             textures,
         ))
+    }
+
+    /// The material at `si`, with the material and texture tables (`None` as for [`bsdf`](Self::bsdf)).
+    fn material_of(&self, si: &SurfaceInteraction) -> Option<(&Material, &Materials, &Textures)> {
+        let (materials, textures) = (self.materials.as_ref()?, self.textures.as_ref()?);
+        Some((materials.get(self.objects.get(si.mesh as usize)?.material?)?, materials, textures))
     }
 
     /// The surface geometry at a hit, as pbrt-v3's `Triangle::Intersect` computes it.

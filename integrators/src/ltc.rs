@@ -39,7 +39,7 @@ use penumbra_core::ltc::{ltc_integrate, Ltc, LtcCoeffs, ShadingFrame};
 use penumbra_core::material::{LtcDescription, LtcFresnel, LtcSpecular};
 use penumbra_core::mesh::TriangleMesh;
 use penumbra_core::sampler::Sampler;
-use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction};
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction, SurfacePoint};
 use penumbra_core::spectrum::luminance;
 use penumbra_core::spherical::{self, SilhouetteMesh};
 use penumbra_core::{Rgb, Vec2, Vec3};
@@ -464,6 +464,8 @@ struct Estimator<'a> {
     shader: LtcShader<'a>,
     warn_material: AtomicBool,
     warnings: &'a DiagSink,
+    /// The scene has lights other than area lights.
+    other_lights: bool,
 }
 
 /// A cone of directions containing a loop: unit `axis` and the half-angle's cosine.
@@ -1186,17 +1188,22 @@ fn clip_to_cap(region: &[Vec<DVec3>], axis: DVec3, t: f64, n: usize) -> Vec<Vec<
         return spherical::intersection(region, &[cap]);
     }
     let sign = if cap[0].cross(cap[1]).dot(axis) >= 0.0 { 1.0 } else { -1.0 };
+    let planes: Vec<DVec3> = (0..n).map(|i| cap[i].cross(cap[(i + 1) % n]) * sign).collect();
     region
         .iter()
         .filter_map(|l| {
             let mut c = l.clone();
-            for i in 0..n {
-                c = spherical::clip_to_halfspace(&c, cap[i].cross(cap[(i + 1) % n]) * sign);
+            for &pn in &planes {
+                // (A loop wholly inside the half-space comes back unchanged: not copied.)
+                if c.iter().all(|v| v.dot(pn) >= 0.0) {
+                    continue;
+                }
+                c = spherical::clip_to_halfspace(&c, pn);
                 if c.is_empty() {
                     return None;
                 }
             }
-            Some(c)
+            (c.len() >= 3).then_some(c)
         })
         .collect()
 }
@@ -1204,14 +1211,25 @@ fn clip_to_cap(region: &[Vec<DVec3>], axis: DVec3, t: f64, n: usize) -> Vec<Vec<
 /// The circle `{ω : ω·axis = t}` as an `n`-gon of unit directions (its arcs bow slightly
 /// towards `axis`; a 16-gon covers 97.5 % of the cap's area).
 fn cap_loop(axis: DVec3, t: f64, n: usize) -> Vec<DVec3> {
+    thread_local! {
+        /// (n, cos and sin of 2πk/n): the last polygon's angles.
+        static ANGLES: std::cell::RefCell<(usize, Vec<(f64, f64)>)> = const { std::cell::RefCell::new((0, Vec::new())) };
+    }
     let (u, v) = spherical::orthonormal_basis(axis);
     let r = (1.0 - t * t).max(0.0).sqrt();
-    (0..n)
-        .map(|k| {
-            let phi = std::f64::consts::TAU * k as f64 / n as f64;
-            axis * t + (u * phi.cos() + v * phi.sin()) * r
-        })
-        .collect()
+    ANGLES.with(|a| {
+        let mut a = a.borrow_mut();
+        if a.0 != n {
+            let angles = (0..n)
+                .map(|k| {
+                    let phi = std::f64::consts::TAU * k as f64 / n as f64;
+                    (phi.cos(), phi.sin())
+                })
+                .collect();
+            *a = (n, angles);
+        }
+        a.1.iter().map(|&(c, s)| axis * t + (u * c + v * s) * r).collect()
+    })
 }
 
 /// The area lights of one emitting mesh with one radiance.
@@ -1404,8 +1422,9 @@ fn fresnel_weight(f: &LtcFresnel, magnitude: f32, fresnel: f32) -> Rgb {
     magnitude * (f0 + (Rgb::ONE - f0) * fresnel)
 }
 
-/// A camera ray's first surface, or the radiance it escaped with ([`Scene::first_surface`]).
-type FirstSurface = Result<SurfaceHit, Rgb>;
+/// A camera ray's first surface (its BSDF not built), or the radiance it escaped with
+/// ([`Scene::first_point`]).
+type FirstSurface = Result<SurfacePoint, Rgb>;
 
 /// The samples of one pixel (shading `pixel`): their first surfaces and, for those with an
 /// LTC material, the analytic area lighting of their cluster (`(Σ L·form factor, glossy)`).
@@ -1427,7 +1446,7 @@ impl SharedPixel {
         let hits: Vec<FirstSurface> = rays
             .iter()
             .map(|r| {
-                let (first, queries) = scene.first_surface(r);
+                let (first, queries) = scene.first_point(r);
                 stats.rays += queries;
                 first
             })
@@ -1521,13 +1540,13 @@ impl Estimator<'_> {
     /// computed for the pixel.
     fn shade(
         &self,
-        hit: &SurfaceHit,
+        hit: &SurfacePoint,
         area: Option<(Rgb, Rgb)>,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
     ) -> Rgb {
-        let SurfaceHit { si, le, .. } = hit;
+        let SurfacePoint { si, le, .. } = hit;
         let mut l = *le;
         let desc = LtcShader::lobes(scene, si);
         let mut scratch = Vec::new();
@@ -1537,7 +1556,24 @@ impl Estimator<'_> {
                 None => self.shader.area_lights(scene, si, d, self.shader.ltc.shadows, &mut scratch),
             };
         }
-        add_other_lights(&mut l, "ltc", hit, desc.is_some(), scene, sampler, stats, &self.warn_material, self.warnings);
+        // The BSDF only for what the LTC does not shade (delta and infinite lights, materials
+        // without an LTC form).
+        if desc.is_none() || self.other_lights {
+            if let Some(hit) = hit.with_bsdf(scene) {
+                let ltc_form = desc.is_some();
+                add_other_lights(
+                    &mut l,
+                    "ltc",
+                    &hit,
+                    ltc_form,
+                    scene,
+                    sampler,
+                    stats,
+                    &self.warn_material,
+                    self.warnings,
+                );
+            }
+        }
         l
     }
 }
@@ -1551,7 +1587,7 @@ impl PixelEstimator for Estimator<'_> {
         stats: &mut ThreadStats,
         _aov: &mut [f32],
     ) -> Rgb {
-        let (first, queries) = scene.first_surface(ray);
+        let (first, queries) = scene.first_point(ray);
         stats.rays += queries;
         match first {
             Ok(h) => self.shade(&h, None, scene, sampler, stats),
@@ -1605,6 +1641,7 @@ impl Integrator for LtcIntegrator {
             shader: LtcShader::new(self, scene),
             warn_material: AtomicBool::new(false),
             warnings: ctx.warnings,
+            other_lights: scene.light_list().iter().any(|l| !matches!(l, Light::Area(_))),
         };
         render_pixels(&est, scene, ctx, film)
     }

@@ -721,7 +721,10 @@ impl PixelEstimator for Estimator<'_> {
         index: usize,
     ) -> Rgb {
         match SharedPixel::sample(shared, index) {
-            Some((Ok(h), area)) => self.shade(ray, h, area, scene, sampler, stats, aov),
+            Some((Ok(pt), area)) => match pt.with_bsdf(scene) {
+                Some(h) => self.shade(ray, &h, area, scene, sampler, stats, aov),
+                None => Rgb::ZERO, // (first_point returns only surfaces with a material)
+            },
             Some((Err(escaped), _)) => *escaped,
             None => self.li(ray, scene, sampler, stats, aov),
         }
