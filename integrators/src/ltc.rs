@@ -166,6 +166,29 @@ struct ObjectInfo {
     planar: bool,
     /// Mesh vertex index → id shared by vertices at the same position (for triangle outlines).
     weld: Vec<u32>,
+    /// A closed, consistently wound mesh (after welding; known for silhouette meshes, and for
+    /// others with `mergeoccluders`): +1 when its winding normals point out of the solid, −1
+    /// when in, 0 otherwise or unknown. From outside or inside, the triangles facing away from a
+    /// point cover exactly the directions in which a ray from it meets the solid (every such ray
+    /// leaves it through one): the others need not be subtracted.
+    closed: f64,
+}
+
+/// For a closed, consistently wound mesh: +1 when its winding normals point outwards (positive
+/// enclosed volume), −1 inwards, 0 when the volume is too small to tell.
+fn winding_sign(mesh: &TriangleMesh) -> f64 {
+    let (mut vol, mut scale) = (0.0f64, 0.0f64);
+    let c = mesh.positions.first().map(|q| d3(*q)).unwrap_or(DVec3::ZERO);
+    for t in 0..mesh.triangle_count() {
+        let [a, b, d] = mesh.vertices(t).map(|q| d3(q) - c);
+        vol += a.dot(b.cross(d));
+        scale += a.length() * b.length() * d.length();
+    }
+    if vol.abs() > 1e-9 * scale {
+        vol.signum()
+    } else {
+        0.0
+    }
 }
 
 /// Whether every vertex of `mesh` lies within 1e-6 of its extent from the plane of its
@@ -563,16 +586,22 @@ impl<'a> LtcShader<'a> {
                 boxes.push((i, b));
             }
             let planar = is_planar(mesh, &b);
-            let weld = if occluder && settings.shadows && settings.merge_occluders {
-                match &silhouette {
-                    Some((adj, _)) => adj.weld.clone(),
-                    None => mesh.build_adjacency().weld,
-                }
+            let (weld, closed) = if occluder && settings.shadows && settings.merge_occluders {
+                let built;
+                let adj = match &silhouette {
+                    Some((adj, _)) => adj,
+                    None => {
+                        built = mesh.build_adjacency();
+                        &built
+                    }
+                };
+                (adj.weld.clone(), if adj.is_closed_manifold() { winding_sign(mesh) } else { 0.0 })
             } else {
-                Vec::new()
+                // (Silhouette meshes are closed: their orientation says which side is inside.)
+                (Vec::new(), if silhouette.is_some() { winding_sign(mesh) } else { 0.0 })
             };
             let silhouette = silhouette.map(|(_, s)| s);
-            objects.push(ObjectInfo { bounds: b, occluder, silhouette, tris, planar, weld });
+            objects.push(ObjectInfo { bounds: b, occluder, silhouette, tris, planar, weld, closed });
         }
         let mut groups: Vec<LightGroup> = Vec::new();
         for l in scene.light_list() {
@@ -658,10 +687,10 @@ impl<'a> LtcShader<'a> {
         piece: &[DVec3],
         plane: Option<(DVec3, DVec3)>,
         separate: Option<&ConvexLight>,
-        receiver: (usize, usize),
+        receiver: Receiver,
         scratch: &mut Vec<usize>,
     ) -> Option<Occluders> {
-        let (receiver, receiver_tri) = receiver;
+        let Receiver { mesh: receiver, tri: receiver_tri, facing } = receiver;
         let mut loops = Vec::new();
         let mut chains = Vec::new();
         let mut whole: Vec<usize> = Vec::new();
@@ -683,8 +712,10 @@ impl<'a> LtcShader<'a> {
             if o == light_mesh && (skip_tri.is_none() || info.planar) {
                 continue;
             }
-            if o == receiver && (info.planar || info.silhouette.is_some()) {
-                // A plane through p subtends nothing; a convex object cannot shadow itself.
+            let inside = facing * info.closed < 0.0;
+            if o == receiver && (info.planar || (info.silhouette.is_some() && !inside)) {
+                // A plane through p subtends nothing; a convex object cannot shadow itself (seen
+                // from outside; from inside, its other faces enclose p: taken by triangles below).
                 continue;
             }
             if let Some(cl) = separate {
@@ -700,15 +731,20 @@ impl<'a> LtcShader<'a> {
                     (d3(q) - plane_o).dot(ln) <= 0.0
                 })
             });
-            if let (Some(sil), false, false) = (&info.silhouette, straddles, o == light_mesh) {
+            if let (Some(sil), false, false, false) = (&info.silhouette, straddles, o == light_mesh, o == receiver) {
                 let eps = 1e-7 * (info.bounds.max - info.bounds.min).length() as f64;
-                for l in sil.loops(p, eps) {
-                    loops.push(spherical::project(p, &l));
+                let sil_loops = sil.loops(p, eps);
+                // No face turned towards p: p is inside the solid (or on it), which hides all
+                // that lies outside it; its triangles below say exactly what (the light may be
+                // inside too).
+                if !sil_loops.is_empty() {
+                    loops.extend(sil_loops.iter().map(|l| spherical::project(p, l)));
+                    continue;
                 }
-                continue;
             }
             info.tris.query(&cone, &mut candidates);
             whole.clear();
+            let cull = self.ltc.merge_occluders && info.closed != 0.0 && !straddles && o != light_mesh;
             for &t in &candidates {
                 // The light triangle itself, and the receiver's own triangle (flat: it cannot
                 // shadow a point on it, and the point's rounding may put it a hair off its plane).
@@ -727,6 +763,11 @@ impl<'a> LtcShader<'a> {
                 let tn = (pv[1] - pv[0]).cross(pv[2] - pv[0]);
                 let tn_len = tn.length();
                 if !(tn_len > 0.0) || (tn.dot(p - pv[0]) / tn_len).abs() <= 1e-6 * (tr + (p - tc).length()) {
+                    continue;
+                }
+                // A closed solid wholly in front of the light: only the faces turned away from p
+                // (where rays leave it) are needed; they cover what the others do.
+                if cull && tn.dot(p - pv[0]) * info.closed > 0.0 {
                     continue;
                 }
                 // Chains are exact within an open hemisphere (the charts' clipping joins points
@@ -833,7 +874,8 @@ impl<'a> LtcShader<'a> {
         });
         let wo_local = frame.to_local(d3(si.wo));
         let mut acc = Accum { diffuse_ff: 0.0, spec_int: 0.0, spec_fresnel: Rgb::ZERO };
-        let receiver = (si.mesh as usize, si.tri as usize);
+        let facing = mesh_winding_normal(scene, si).dot(si.wo) as f64;
+        let receiver = Receiver { mesh: si.mesh as usize, tri: si.tri as usize, facing };
         let whole = match &geom.shape {
             LightShape::Triangles => false,
             LightShape::Planar { outline, normal, origin } => {
@@ -1255,6 +1297,23 @@ struct Occluders {
 impl Occluders {
     fn is_empty(&self) -> bool {
         self.loops.is_empty() && self.chains.is_empty()
+    }
+}
+
+/// The surface being shaded: its mesh and triangle, and `ωo` · its winding normal (with the
+/// orientation of a closed mesh: negative when seen from inside).
+#[derive(Clone, Copy)]
+struct Receiver {
+    mesh: usize,
+    tri: usize,
+    facing: f64,
+}
+
+/// The winding normal of the triangle `si` lies on (zero if there is none).
+fn mesh_winding_normal(scene: &Scene, si: &SurfaceInteraction) -> Vec3 {
+    match scene.meshes.get(si.mesh as usize) {
+        Some(m) if (si.tri as usize) < m.triangle_count() => m.winding_normal(si.tri as usize),
+        _ => Vec3::ZERO,
     }
 }
 
