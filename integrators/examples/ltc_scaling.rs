@@ -3,7 +3,7 @@
 //! Scenes are built in memory as pbrt-v3 text: a polygonal disk light (a triangle fan of
 //! `n_l` rim vertices plus its centre, facing down) above a matte ground plane, with a convex
 //! polygonal prism (`n_o` vertices: two rings of `n_o / 2`) in between. Each scene is rendered
-//! at a small resolution, 1 spp, on one thread, with `ltc` in modes `silhouette` and
+//! at a small resolution, 1 spp (no coverage floor), on one thread, with `ltc` in modes `silhouette` and
 //! `per-triangle`; only `Integrator::render` is timed (median of up to 3 runs). Prints a table,
 //! a least-squares fit `time = a + b·n` with R² per series, and the per-triangle/silhouette
 //! time ratio.
@@ -72,7 +72,7 @@ fn scene_text(n_light: usize, n_occ: usize, mode: &str) -> String {
         "LookAt 0 5 -3  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 50 ]\n\
          Film \"image\" \"integer xresolution\" [ 64 ] \"integer yresolution\" [ 64 ]\n\
          Sampler \"random\" \"integer pixelsamples\" [ 1 ]\nPixelFilter \"box\"\n\
-         Integrator \"ltc\" \"string mode\" [ \"{mode}\" ]\nWorldBegin\n{}{}\
+         Integrator \"ltc\" \"string mode\" [ \"{mode}\" ] \"integer coveragesamples\" [ 1 ]\nWorldBegin\n{}{}\
          AttributeBegin\n  Material \"matte\" \"rgb Kd\" [ 0.5 0.5 0.5 ]\n  Shape \"trianglemesh\" \
          \"integer indices\" [ 0 1 2 0 2 3 ] \"point P\" [ -4 0 -4 -4 0 4 4 0 4 4 0 -4 ]\nAttributeEnd\nWorldEnd\n",
         disk_light(n_light),

@@ -11,7 +11,8 @@
 //! queried with the cone from the shading point around the light triangle's
 //! bounding sphere (the paper's `GetBetween`). An occluder is represented by its
 //! silhouette loop when it is closed and convex (mode `silhouette`, or `auto` when
-//! the builder proves it convex) and by its triangles otherwise (`per-triangle`).
+//! the builder proves it convex) and by its triangles otherwise (`per-triangle`, which
+//! also takes every light triangle on its own: the paper's Sect. 4.4).
 //! Occluder geometry beyond the light triangle's plane cannot shadow it: triangles
 //! are clipped to the half-space of the shading point first, and a convex object
 //! straddling that plane is taken triangle by triangle. The triangles of one object
