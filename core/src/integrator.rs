@@ -83,8 +83,8 @@ pub trait PixelEstimator: Send + Sync {
     fn begin_pixel(&self, _rays: &[Ray], _scene: &Scene, _stats: &mut ThreadStats) -> Option<PixelShared> {
         None
     }
-    /// Whether [`begin_pixel`](Self::begin_pixel) should be called (it costs the camera rays
-    /// being generated twice).
+    /// Whether [`begin_pixel`](Self::begin_pixel) should be called (the pixel's camera rays are
+    /// then generated before its samples are estimated, and kept for them).
     fn shares_pixel_work(&self) -> bool {
         false
     }
@@ -196,13 +196,16 @@ pub fn render_pixels(
                     CameraSample { p_film, time, p_lens }
                 };
                 let shares = est.shares_pixel_work();
-                let mut rays = Vec::new();
+                let (mut cams, mut rays) = (Vec::new(), Vec::new());
                 for p in tb.iter() {
                     let shared = if shares {
+                        cams.clear();
                         rays.clear();
                         for s in 0..spp {
                             sampler.start_pixel_sample(p, s);
-                            rays.push(scene.camera.generate_ray(&camera_sample(sampler.as_mut(), p)));
+                            let cs = camera_sample(sampler.as_mut(), p);
+                            rays.push(scene.camera.generate_ray(&cs));
+                            cams.push(cs);
                         }
                         est.begin_pixel(&rays, scene, &mut stats)
                     } else {
@@ -210,11 +213,19 @@ pub fn render_pixels(
                     };
                     for s in 0..spp {
                         sampler.start_pixel_sample(p, s);
-                        let cs = camera_sample(sampler.as_mut(), p);
-                        // (The shared pass generated this sample's ray already.)
-                        let ray = match rays.get(s as usize) {
-                            Some(r) if shared.is_some() => *r,
-                            _ => scene.camera.generate_ray(&cs),
+                        // The shared pass drew this sample's camera sample and ray already: its
+                        // dimensions are only skipped (the estimator's come after them).
+                        let (cs, ray) = match (cams.get(s as usize), rays.get(s as usize)) {
+                            (Some(cs), Some(r)) if shared.is_some() => {
+                                sampler.skip_2d();
+                                sampler.skip_1d();
+                                sampler.skip_2d();
+                                (*cs, *r)
+                            }
+                            _ => {
+                                let cs = camera_sample(sampler.as_mut(), p);
+                                (cs, scene.camera.generate_ray(&cs))
+                            }
                         };
                         aov.iter_mut().for_each(|v| *v = 0.0);
                         let mut l = match &shared {
