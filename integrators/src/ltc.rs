@@ -275,10 +275,7 @@ impl LightShape {
     }
 
     fn planar(mesh: &TriangleMesh, two_sided: bool) -> Option<LightShape> {
-        let mut b = Bounds3::EMPTY;
-        for p in &mesh.positions {
-            b.extend(*p);
-        }
+        let b = mesh_bounds(mesh);
         if mesh.triangle_count() < 2 || !is_planar(mesh, &b) {
             return None;
         }
@@ -551,10 +548,7 @@ impl<'a> LtcShader<'a> {
         let mut objects = Vec::with_capacity(scene.meshes.len());
         let mut boxes = Vec::new();
         for (i, mesh) in scene.meshes.iter().enumerate() {
-            let mut b = Bounds3::EMPTY;
-            for p in &mesh.positions {
-                b.extend(*p);
-            }
+            let b = mesh_bounds(mesh);
             let occluder = scene.objects.get(i).is_none_or(|o| o.occluder);
             let silhouette = match settings.mode {
                 Mode::PerTriangle => None,
@@ -700,16 +694,16 @@ impl<'a> LtcShader<'a> {
         let r = piece.iter().map(|v| (*v - c).length()).fold(0.0, f64::max);
         let cone = Cone::towards(p.as_vec3(), c.as_vec3(), r as f32 * 1.001 + 1e-6);
         let axis = (c - p).normalize_or_zero();
+        let (light_mesh, skip_tri) = match skip {
+            Skip::Mesh(m) => (m, None),
+            Skip::Triangle(m, t) => (m, Some(t)),
+        };
         self.bvh.query(&cone, scratch);
         for &o in scratch.iter() {
             let info = &self.objects[o];
             if !info.occluder {
                 continue;
             }
-            let (light_mesh, skip_tri) = match skip {
-                Skip::Mesh(m) => (m, None),
-                Skip::Triangle(m, t) => (m, Some(t)),
-            };
             if o == light_mesh && (skip_tri.is_none() || info.planar) {
                 continue;
             }
@@ -839,8 +833,10 @@ impl<'a> LtcShader<'a> {
         scratch: &mut Vec<usize>,
     ) -> (Rgb, Rgb) {
         let (mut d, mut s) = (Rgb::ZERO, Rgb::ZERO);
+        let facing = mesh_winding_normal(scene, si).dot(si.wo) as f64;
+        let receiver = Receiver { mesh: si.mesh as usize, tri: si.tri as usize, facing };
         for g in &self.groups {
-            let (gd, gs) = self.area_group(scene, si, desc, g, shadows, scratch);
+            let (gd, gs) = self.area_group(scene, si, receiver, desc, g, shadows, scratch);
             d += gd;
             s += gs;
         }
@@ -848,10 +844,12 @@ impl<'a> LtcShader<'a> {
     }
 
     /// The same for the lights of one mesh.
+    #[allow(clippy::too_many_arguments)]
     fn area_group(
         &self,
         scene: &Scene,
         si: &SurfaceInteraction,
+        receiver: Receiver,
         desc: &LtcDescription,
         geom: &LightGroup,
         shadows: bool,
@@ -875,8 +873,6 @@ impl<'a> LtcShader<'a> {
         });
         let wo_local = frame.to_local(d3(si.wo));
         let mut acc = Accum { diffuse_ff: 0.0, spec_int: 0.0, spec_fresnel: Rgb::ZERO };
-        let facing = mesh_winding_normal(scene, si).dot(si.wo) as f64;
-        let receiver = Receiver { mesh: si.mesh as usize, tri: si.tri as usize, facing };
         let whole = match &geom.shape {
             LightShape::Triangles => false,
             LightShape::Planar { outline, normal, origin } => {
@@ -1334,11 +1330,17 @@ struct Accum {
     spec_fresnel: Rgb,
 }
 
-fn mesh_extent(mesh: &TriangleMesh) -> f64 {
+/// The bounds of all of `mesh`'s vertices.
+fn mesh_bounds(mesh: &TriangleMesh) -> Bounds3 {
     let mut b = Bounds3::EMPTY;
     for q in &mesh.positions {
         b.extend(*q);
     }
+    b
+}
+
+fn mesh_extent(mesh: &TriangleMesh) -> f64 {
+    let b = mesh_bounds(mesh);
     (b.max - b.min).length() as f64
 }
 
