@@ -17,10 +17,9 @@ pub use params::{Param, ParamSet, ParamValue, SpectrumValue, TextureRef};
 pub use scene::*;
 pub use transform::{AnimatedTransform, Matrix4, Transform};
 
-use std::collections::HashMap;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, Weak};
 
 /// Deepest `Include` nesting accepted.
 pub const MAX_INCLUDE_DEPTH: usize = interp::MAX_INCLUDE_DEPTH;
@@ -65,45 +64,51 @@ pub fn parse_file_with_window(path: &Path, window: usize) -> Result<ParseOutput,
 /// Parse scene text held in memory. `name` is used in diagnostics; relative
 /// `Include` and asset paths resolve against `base_dir` (the current directory if `None`).
 pub fn parse_str(text: &str, name: &str, base_dir: Option<&Path>) -> Result<ParseOutput, Diagnostic> {
-    register_source(name, text);
     let base_dir = base_dir.map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
-    let lex = lexer::Lexer::from_bytes(text.as_bytes().to_vec(), Arc::from(name));
+    let name: Arc<str> = Arc::from(name);
+    register_source(&name, text);
+    let lex = lexer::Lexer::from_bytes(text.as_bytes().to_vec(), name);
     let (scene, warnings) = interp::Interp::new(lex, None, base_dir, None).run()?;
     Ok(ParseOutput { scene, warnings })
 }
 
-/// Texts given to [`parse_str`], by name, so that later diagnostics can quote them.
-static SOURCES: Mutex<Option<HashMap<String, Arc<str>>>> = Mutex::new(None);
-const MAX_REGISTERED_SOURCES: usize = 64;
+/// The texts given to [`parse_str`], so that diagnostics raised later (unused parameters…)
+/// can quote them. Each is keyed by the identity of its name's `Arc`, which every [`FileLoc`]
+/// of that parse shares, not by the name: two parses under one name (tests in parallel, a
+/// server) each quote their own text. An entry lives while any location of its parse does.
+static SOURCES: Mutex<Vec<(Weak<str>, Arc<str>)>> = Mutex::new(Vec::new());
 
-fn register_source(name: &str, text: &str) {
+fn register_source(name: &Arc<str>, text: &str) {
     let mut g = SOURCES.lock().unwrap_or_else(|e| e.into_inner());
-    let m = g.get_or_insert_with(HashMap::new);
-    if m.len() >= MAX_REGISTERED_SOURCES && !m.contains_key(name) {
-        m.clear();
-    }
-    m.insert(name.to_string(), Arc::from(text));
+    g.retain(|(n, _)| n.strong_count() > 0);
+    g.push((Arc::downgrade(name), Arc::from(text)));
 }
 
-/// The text of the line at `loc` (without its line terminator): from the text of
-/// a [`parse_str`] call of that name if there was one, otherwise read from the file.
+fn registered_source(file: &Arc<str>) -> Option<Arc<str>> {
+    let g = SOURCES.lock().unwrap_or_else(|e| e.into_inner());
+    // A live `Weak` keeps its allocation, so an address match is the same `Arc`.
+    g.iter().find(|(n, _)| std::ptr::addr_eq(n.as_ptr(), Arc::as_ptr(file))).map(|(_, t)| t.clone())
+}
+
+/// Very long lines are cut a little after the column.
+fn cut_line(line: &str, loc: &FileLoc) -> String {
+    let cut = loc.column as usize + 200;
+    let mut s: String = line.chars().take(cut).collect();
+    if s.ends_with('\r') {
+        s.pop();
+    }
+    s
+}
+
+/// The text of the line at `loc` (without its line terminator): from the text given to the
+/// [`parse_str`] call `loc` came from, otherwise read from the file.
 /// Very long lines are cut a little after the column.
 pub fn source_line(loc: &FileLoc) -> Option<String> {
-    if loc.is_builtin() {
+    if loc.is_builtin() || loc.line == 0 {
         return None;
     }
-    let keep = |line: &str| -> String {
-        let cut = loc.column as usize + 200;
-        let mut s: String = line.chars().take(cut).collect();
-        if s.ends_with('\r') {
-            s.pop();
-        }
-        s
-    };
-    let registered =
-        SOURCES.lock().unwrap_or_else(|e| e.into_inner()).as_ref().and_then(|m| m.get(&*loc.file).cloned());
-    if let Some(text) = registered {
-        return text.split('\n').nth(loc.line as usize - 1).map(keep);
+    if let Some(text) = registered_source(&loc.file) {
+        return text.split('\n').nth(loc.line as usize - 1).map(|l| cut_line(l, loc));
     }
     let f = std::fs::File::open(&*loc.file).ok()?;
     let mut r = BufReader::new(f);
@@ -121,7 +126,7 @@ pub fn source_line(loc: &FileLoc) -> Option<String> {
     if buf.last() == Some(&b'\n') {
         buf.pop();
     }
-    Some(keep(&String::from_utf8_lossy(&buf)))
+    Some(cut_line(&String::from_utf8_lossy(&buf), loc))
 }
 
 #[cfg(test)]

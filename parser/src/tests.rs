@@ -114,9 +114,6 @@ fn every_parameter_type() {
 #[test]
 fn parameter_locations_and_unused_report() {
     let text = world("Shape \"sphere\"\n    \"float radus\" [ 2 ]");
-    // Its own source name: the registry of `parse_str` texts is keyed by name and shared by the
-    // tests running in parallel, which all use "test.pbrt" (another test's text under that name
-    // made this snippet flaky).
     let out = parse_str(&text, "unused-report.pbrt", None).unwrap();
     let shape = &out.scene.shapes[0];
     assert_eq!(shape.entity.params.get_one_float("radius", 1.0), 1.0);
@@ -562,4 +559,24 @@ fn bad_inputs_never_panic() {
     ] {
         let _ = parse_str(text, "x.pbrt", None);
     }
+}
+
+/// Diagnostics quote the text they were parsed from, even while other threads parse other
+/// text under the same name (tests run in parallel; the quoted line once came from a global
+/// table keyed by name, and a concurrent parse could replace it).
+#[test]
+fn concurrent_parses_of_one_name_quote_their_own_text() {
+    std::thread::scope(|s| {
+        for t in 0..4 {
+            s.spawn(move || {
+                for i in 0..300 {
+                    let pad = "#\n".repeat((t + i) % 3);
+                    let text =
+                        format!("{pad}WorldBegin\nMakeNamedMaterial \"m{t}_{i}\" \"float roughness\" 1\nWorldEnd\n");
+                    let line = 2 + ((t + i) % 3) as u32;
+                    assert_err(&text, line, 1, "string type");
+                }
+            });
+        }
+    });
 }
