@@ -159,11 +159,18 @@ impl LtcCoeffs {
 /// and integrated with Lambert's edge formula. Signed by orientation (positive
 /// loops positive); multiply by the magnitude for `∫ f cos`.
 pub fn ltc_integrate(minv: &DMat3, frame: &ShadingFrame, loops: &[Vec<DVec3>]) -> f64 {
-    let mut sum = 0.0;
+    ltc_integrate_vector(minv, frame, loops).z
+}
+
+/// The vector form factor, in the LTC's cosine space, of the region [`ltc_integrate`]
+/// integrates: its `z` is that integral (bit for bit), and `M` times it points along the
+/// region's LTC-weighted mean direction (Heitz et al.'s proxy for Fresnel and horizon
+/// handling). Signed by orientation, as is the integral; nothing is allocated.
+pub fn ltc_integrate_vector(minv: &DMat3, frame: &ShadingFrame, loops: &[Vec<DVec3>]) -> DVec3 {
+    let mut sum = DVec3::ZERO;
     let flip = minv.determinant() < 0.0;
     for l in loops {
-        let t: Vec<DVec3> = l.iter().map(|d| *minv * frame.to_local(*d)).collect();
-        let f = spherical::form_factor(&t);
+        let f = spherical::horizon_vector_form_factor(l.len(), |i| *minv * frame.to_local(l[i]));
         sum += if flip { -f } else { f };
     }
     sum

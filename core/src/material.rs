@@ -718,18 +718,35 @@ impl Material {
         geom: &ShadingGeometry,
         tx: &Textures,
     ) -> Option<LtcDescription> {
+        let (diffuse, specular) = self.ltc_parts(ctx, tx, true)?;
+        let (n, _) = self.frame(si, ctx, geom, tx);
+        Some(LtcDescription { n, diffuse, specular })
+    }
+
+    /// The diffuse albedo of [`Self::ltc_lobes`] alone (`None` exactly when it is `None`):
+    /// neither the shading frame nor the glossy lobe's Fresnel and remapped roughness are
+    /// evaluated — what a pixel sample needs when its surface's lighting was integrated once
+    /// for the pixel.
+    pub fn ltc_diffuse(&self, si: &SurfaceInteraction, tx: &Textures) -> Option<Rgb> {
+        self.ltc_parts(&TextureEvalContext::from_si(si), tx, false).map(|(d, _)| d)
+    }
+
+    /// The diffuse albedo and, with `specular`, the glossy lobe of [`Self::ltc_lobes`]
+    /// (without it, only what decides whether there is an LTC form is evaluated).
+    fn ltc_parts(&self, ctx: &TextureEvalContext, tx: &Textures, specular: bool) -> Option<(Rgb, Option<LtcSpecular>)> {
         let alpha = |r: f32, remap: bool| if remap { roughness_to_alpha(r) } else { r };
         let iso = |ur: f32, vr: f32, remap: bool| {
             let (a, b) = (alpha(ur, remap), alpha(vr, remap));
             (a == b).then(|| MicrofacetDistribution::trowbridge_reitz(a, a).alphas().0)
         };
-        let (diffuse, specular) = match *self {
+        Some(match *self {
             Material::Matte { kd, sigma, .. } => {
                 if eval_f(tx, sigma, ctx).clamp(0.0, 90.0) != 0.0 {
                     return None;
                 }
                 (eval_s(tx, kd, ctx), None)
             }
+            Material::Plastic { kd, .. } if !specular => (eval_s(tx, kd, ctx), None),
             Material::Plastic { kd, ks, roughness, remap, .. } => {
                 let ks = eval_s(tx, ks, ctx);
                 let r = eval_f(tx, roughness, ctx);
@@ -744,18 +761,23 @@ impl Material {
                 let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
                 let vr = eval_f(tx, vroughness.unwrap_or(roughness), ctx);
                 let a = iso(ur, vr, remap)?;
-                let fresnel = LtcFresnel::Conductor { eta: tx.eval_spectrum(eta, ctx), k: tx.eval_spectrum(k, ctx) };
-                (Rgb::ZERO, Some(LtcSpecular { alpha: a, fresnel, scale: Rgb::ONE }))
+                let spec = specular.then(|| LtcSpecular {
+                    alpha: a,
+                    fresnel: LtcFresnel::Conductor { eta: tx.eval_spectrum(eta, ctx), k: tx.eval_spectrum(k, ctx) },
+                    scale: Rgb::ONE,
+                });
+                (Rgb::ZERO, spec)
             }
             Material::Substrate { kd, ks, uroughness, vroughness, remap, .. } => {
                 let ur = eval_f(tx, uroughness, ctx);
                 let vr = eval_f(tx, vroughness, ctx);
                 let a = iso(ur, vr, remap)?;
-                let f0 = eval_s(tx, ks, ctx);
-                (
-                    eval_s(tx, kd, ctx),
-                    Some(LtcSpecular { alpha: a, fresnel: LtcFresnel::Schlick { f0 }, scale: Rgb::ONE }),
-                )
+                let spec = specular.then(|| LtcSpecular {
+                    alpha: a,
+                    fresnel: LtcFresnel::Schlick { f0: eval_s(tx, ks, ctx) },
+                    scale: Rgb::ONE,
+                });
+                (eval_s(tx, kd, ctx), spec)
             }
             Material::Uber { kd, ks, roughness, uroughness, vroughness, eta, opacity, remap, .. } => {
                 let op = eval_s(tx, opacity, ctx);
@@ -768,19 +790,17 @@ impl Material {
                         Some(v) => eval_f(tx, v, ctx),
                         None => ur,
                     };
-                    let e = eval_f(tx, eta, ctx);
-                    Some(LtcSpecular {
-                        alpha: iso(ur, vr, remap)?,
-                        fresnel: LtcFresnel::Dielectric { eta_i: 1.0, eta_t: e },
+                    let a = iso(ur, vr, remap)?;
+                    specular.then(|| LtcSpecular {
+                        alpha: a,
+                        fresnel: LtcFresnel::Dielectric { eta_i: 1.0, eta_t: eval_f(tx, eta, ctx) },
                         scale: ks,
                     })
                 };
                 (op * eval_s(tx, kd, ctx), spec)
             }
             _ => return None,
-        };
-        let (n, _) = self.frame(si, ctx, geom, tx);
-        Some(LtcDescription { n, diffuse, specular })
+        })
     }
 }
 

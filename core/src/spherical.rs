@@ -108,34 +108,68 @@ pub fn project(p: DVec3, points: &[DVec3]) -> Vec<DVec3> {
 /// circle; they are exact in every additive integral. Returns an empty vector
 /// when fewer than three vertices survive.
 pub fn clip_to_halfspace(poly: &[DVec3], n: DVec3) -> Vec<DVec3> {
-    let len = poly.len();
-    if len < 3 {
-        return Vec::new();
+    let mut out = Vec::with_capacity(poly.len() + 4);
+    clip_stream(poly.len(), |i| poly[i], n, |v| out.push(v));
+    if out.len() < 3 {
+        out.clear();
     }
-    let mut out = Vec::with_capacity(len + 4);
+    out
+}
+
+/// The Sutherland–Hodgman step of [`clip_to_halfspace`] without a buffer: calls `emit` with
+/// each output vertex in order, for the loop of `len` vertices `vertex(0..len)` (each
+/// evaluated once). The caller decides what fewer than three outputs mean.
+fn clip_stream(len: usize, vertex: impl Fn(usize) -> DVec3, n: DVec3, mut emit: impl FnMut(DVec3)) {
+    if len < 3 {
+        return;
+    }
+    let nn = n.length_squared();
+    let first = vertex(0);
+    let mut a = first;
     for i in 0..len {
-        let a = poly[i];
-        let b = poly[(i + 1) % len];
+        let b = if i + 1 < len { vertex(i + 1) } else { first };
         let (da, db) = (a.dot(n), b.dot(n));
         if da >= 0.0 {
-            out.push(a);
+            emit(a);
         }
         if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
             let t = da / (da - db);
             let mut c = a + (b - a) * t;
             // Remove the residual component along n so that the point is exactly on the plane
             // (to rounding), which keeps a following clip against the same plane idempotent.
-            let nn = n.length_squared();
             if nn > 0.0 {
                 c -= n * (c.dot(n) / nn);
             }
-            out.push(c);
+            emit(c);
         }
+        a = b;
     }
-    if out.len() < 3 {
-        out.clear();
+}
+
+/// The vector form factor (`(1/2π) Σ edge_vector`) of the loop `vertex(0..len)` clipped to
+/// the horizon `z ≥ 0`: [`vector_form_factor`] of [`clip_to_horizon`], without building
+/// either loop. Its `z` is [`form_factor`] (bit for bit: the same edges summed in the same
+/// order). `vertex` maps each corner once (e.g. into a local or LTC frame).
+pub fn horizon_vector_form_factor(len: usize, vertex: impl Fn(usize) -> DVec3) -> DVec3 {
+    let (mut first, mut prev, mut count) = (DVec3::ZERO, DVec3::ZERO, 0usize);
+    let mut sum = DVec3::ZERO;
+    clip_stream(len, vertex, DVec3::Z, |mut v| {
+        if v.z < 0.0 {
+            v.z = 0.0;
+        }
+        if count == 0 {
+            first = v;
+        } else {
+            sum += edge_vector(prev, v);
+        }
+        prev = v;
+        count += 1;
+    });
+    if count < 3 {
+        return DVec3::ZERO;
     }
-    out
+    sum += edge_vector(prev, first);
+    sum / std::f64::consts::TAU
 }
 
 /// Clips a loop to the upper hemisphere `z ≥ 0` of its local frame (keeps the
@@ -206,13 +240,7 @@ pub fn vector_form_factor(poly: &[DVec3]) -> DVec3 {
 /// region (positive for a positive loop): the loop is clipped to the horizon,
 /// then `(1/2π) Σ edge_integral`.
 pub fn form_factor(poly: &[DVec3]) -> f64 {
-    let c = clip_to_horizon(poly);
-    let n = c.len();
-    let mut sum = 0.0;
-    for i in 0..n {
-        sum += edge_integral(c[i], c[(i + 1) % n]);
-    }
-    sum / std::f64::consts::TAU
+    horizon_vector_form_factor(poly.len(), |i| poly[i]).z
 }
 
 /// Sum of the signed form factors of a set of loops (a region with holes).
@@ -410,6 +438,66 @@ fn loop_is_usable(l: &[DVec3]) -> bool {
 /// misses the light's are dropped before the sweep.
 pub fn difference(light: &[Vec<DVec3>], occluders: &[Vec<DVec3>]) -> Vec<Vec<DVec3>> {
     chart_overlay(light, occluders, &[], OverlayRule::Difference)
+}
+
+/// [`difference`] for one occluder whose loop is convex (the silhouette of a convex object
+/// seen from outside, a triangle): the light minus its part inside the occluder, as the loops
+/// `[light⁺, −(light⁺ ∩ occluder)]` — exact in every additive integral (the module's winding
+/// convention), with `light⁺ ∩ occluder` clipped by Sutherland–Hodgman against the
+/// occluder's edge planes instead of a planar Boolean over the cube-map charts. `light` is a
+/// loop of either orientation; `occluder` a simple loop of either orientation.
+///
+/// Returns `[]` when the occluder covers the light, `[light⁺]` when it misses it, and `None`
+/// (use [`difference`]) when it does not apply: a loop unusable, or the occluder's not convex
+/// (turns of both signs) or not in an open hemisphere around its mean direction.
+pub fn difference_convex(light: &[DVec3], occluder: &[DVec3]) -> Option<Vec<Vec<DVec3>>> {
+    if !loop_is_usable(light) || !loop_is_usable(occluder) {
+        return None;
+    }
+    let n = occluder.len();
+    let unit: Vec<DVec3> = occluder.iter().map(|d| d.normalize()).collect();
+    let mean: DVec3 = unit.iter().sum();
+    if unit.iter().any(|d| d.dot(mean) <= 0.0) {
+        return None;
+    }
+    // Turns det[v₋, v, v₊]: all ≥ 0 for a positive convex loop (zero where vertices are
+    // collinear, to rounding), all ≤ 0 for a negative one.
+    const COLLINEAR: f64 = 1e-12;
+    let (mut left, mut right) = (false, false);
+    for i in 0..n {
+        let t = unit[(i + n - 1) % n].dot(unit[i].cross(unit[(i + 1) % n]));
+        left |= t > COLLINEAR;
+        right |= t < -COLLINEAR;
+    }
+    let mut light = light.to_vec();
+    if solid_angle(&light) < 0.0 {
+        light.reverse();
+    }
+    match (left, right) {
+        (true, true) => return None,
+        (false, false) => return Some(vec![light]), // zero area
+        _ => {}
+    }
+    let mut inside = light.clone();
+    let mut clipped = false;
+    for i in 0..n {
+        let (a, b) = (unit[i], unit[(i + 1) % n]);
+        // The occluder's side of this edge's great circle.
+        let normal = if left { a.cross(b) } else { b.cross(a) };
+        if normal == DVec3::ZERO || inside.iter().all(|d| d.dot(normal) >= 0.0) {
+            continue;
+        }
+        inside = clip_to_halfspace(&inside, normal);
+        clipped = true;
+        if inside.is_empty() {
+            return Some(vec![light]);
+        }
+    }
+    if !clipped {
+        return Some(Vec::new()); // the light lies within every edge's half-space
+    }
+    inside.reverse();
+    Some(vec![light, inside])
 }
 
 /// [`difference`] with two kinds of occluders: `loops`, each a region of its own (either

@@ -36,7 +36,7 @@ use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, PixelShared, RenderContext, RenderError, RenderStats, ThreadStats,
 };
 use penumbra_core::light::{emitting_normal, Light, LightContext};
-use penumbra_core::ltc::{ltc_integrate, Ltc, LtcCoeffs, ShadingFrame};
+use penumbra_core::ltc::{ltc_integrate_vector, Ltc, LtcCoeffs, ShadingFrame};
 use penumbra_core::material::{LtcDescription, LtcFresnel, LtcSpecular};
 use penumbra_core::mesh::TriangleMesh;
 use penumbra_core::sampler::Sampler;
@@ -490,6 +490,7 @@ struct Estimator<'a> {
 }
 
 /// A cone of directions containing a loop: unit `axis` and the half-angle's cosine.
+#[derive(Clone, Copy)]
 struct BoundingCone {
     axis: DVec3,
     cos: f64,
@@ -657,12 +658,22 @@ impl<'a> LtcShader<'a> {
 
     /// The LTC description of the material at `si` (`None`: no LTC form, or no material).
     pub fn lobes(scene: &Scene, si: &SurfaceInteraction) -> Option<LtcDescription> {
-        scene
-            .objects
-            .get(si.mesh as usize)
-            .and_then(|o| o.material)
-            .and_then(|m| scene.materials.as_ref()?.get(m))
-            .and_then(|m| m.ltc_lobes(si, scene.textures.as_ref()?))
+        let (m, tx) = Self::material(scene, si)?;
+        m.ltc_lobes(si, tx)
+    }
+
+    /// The diffuse albedo of [`Self::lobes`] alone (`None` exactly when it is `None`).
+    fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Option<Rgb> {
+        let (m, tx) = Self::material(scene, si)?;
+        m.ltc_diffuse(si, tx)
+    }
+
+    fn material<'s>(
+        scene: &'s Scene,
+        si: &SurfaceInteraction,
+    ) -> Option<(&'s penumbra_core::material::Material, &'s penumbra_core::texture::Textures)> {
+        let m = scene.objects.get(si.mesh as usize)?.material?;
+        Some((scene.materials.as_ref()?.get(m)?, scene.textures.as_ref()?))
     }
 
     /// Occluder loops (world-space directions from `p`) for the light piece `piece` (world
@@ -757,7 +768,14 @@ impl<'a> LtcShader<'a> {
                 // great circle, which would read as a whole hemisphere: skip it.
                 let tn = (pv[1] - pv[0]).cross(pv[2] - pv[0]);
                 let tn_len = tn.length();
-                if !(tn_len > 0.0) || (tn.dot(p - pv[0]) / tn_len).abs() <= 1e-6 * (tr + (p - tc).length()) {
+                let side = tn.dot(p - pv[0]);
+                if !(tn_len > 0.0) || (side / tn_len).abs() <= 1e-6 * (tr + (p - tc).length()) {
+                    continue;
+                }
+                // The light wholly on p's side of the triangle's plane (or on it): no segment from
+                // p to the light crosses the plane, so none meets the triangle (e.g. a floor
+                // below both the point and the light).
+                if piece.iter().all(|q| tn.dot(*q - pv[0]) * side >= 0.0) {
                     continue;
                 }
                 // A closed solid wholly in front of the light: only the faces turned away from p
@@ -977,49 +995,58 @@ impl<'a> LtcShader<'a> {
         acc: &mut Accum,
     ) {
         let light_loop = spherical::project(p, piece);
+        // (Needed for occluders and for the Fresnel split: computed once, when first needed.)
+        let light_cone_cell = std::cell::OnceCell::new();
+        let light_cone = || *light_cone_cell.get_or_init(|| BoundingCone::of(&light_loop));
         // Keep only occluder loops whose bounding cone meets the light's: most shading
         // points see most lights unoccluded and then need no polygon clipping at all.
         // (A chain's covered region lies within its vertices' cone too: dropping one of its
         // loops changes the winding only outside the light.)
         if !occ.is_empty() {
-            if let Some(lc) = BoundingCone::of(&light_loop) {
+            if let Some(lc) = light_cone() {
                 occ.loops.retain(|o| BoundingCone::of(o).is_none_or(|oc| oc.overlaps(&lc)));
                 occ.chains.retain(|o| BoundingCone::of(o).is_none_or(|oc| oc.overlaps(&lc)));
             }
         }
         // Without occluders the piece's single loop may have either orientation: its
         // integrals are taken by magnitude. `difference` returns oriented loops.
-        let (visible, single) = if occ.is_empty() {
-            (vec![light_loop.clone()], true)
+        // `cut`: `visible` is `[light⁺, −(light⁺ ∩ occluder)]` (one convex occluder).
+        let (visible, single, cut) = if occ.is_empty() {
+            (vec![light_loop.clone()], true, false)
         } else {
-            (spherical::difference_chains(std::slice::from_ref(&light_loop), &occ.loops, &occ.chains), false)
+            // One convex occluder loop (a convex object's silhouette, a triangle) — most occluded
+            // points of most scenes — is clipped against directly; anything else goes through the
+            // planar Boolean.
+            match (&occ.loops[..], occ.chains.is_empty()) {
+                ([o], true) => match spherical::difference_convex(&light_loop, o) {
+                    // Missed after all (the cones overlapped): the light's own loop, as unoccluded.
+                    Some(v) if v.len() == 1 => (vec![light_loop.clone()], true, false),
+                    Some(v) => {
+                        let cut = v.len() == 2;
+                        (v, false, cut)
+                    }
+                    None => (spherical::difference(std::slice::from_ref(&light_loop), &occ.loops), false, false),
+                },
+                _ => {
+                    let v = spherical::difference_chains(std::slice::from_ref(&light_loop), &occ.loops, &occ.chains);
+                    (v, false, false)
+                }
+            }
         };
-        let to_local = |loops: &[Vec<DVec3>]| -> Vec<Vec<DVec3>> {
-            loops.iter().map(|l| l.iter().map(|d| frame.to_local(*d)).collect()).collect()
-        };
-        let local = to_local(&visible);
-        let ff = spherical::form_factor_loops(&local);
+        // The diffuse form factor in the shading frame, then the LTC integral together with
+        // its vector form factor (one pass over the edges for both).
+        let ff: f64 =
+            visible.iter().map(|l| spherical::horizon_vector_form_factor(l.len(), |i| frame.to_local(l[i])).z).sum();
         acc.diffuse_ff += if single { ff.abs() } else { ff };
         let Some((s, coeffs)) = spec else { return };
-        let v = ltc_integrate(&coeffs.minv, frame, &visible);
-        let v = if single { v.abs() } else { v };
+        let ltc_of = |loops: &[Vec<DVec3>]| ltc_integrate_vector(&coeffs.minv, frame, loops);
+        let lv = ltc_of(&visible);
+        let v = if single { lv.z.abs() } else { lv.z };
         acc.spec_int += v;
         if self.ltc.fresnel == FresnelMode::Average && v != 0.0 {
-            // The LTC-space vector form factor of a region (additive over regions).
-            let vff_of = |local: &[Vec<DVec3>], single: bool| {
-                let mut vff = DVec3::ZERO;
-                for l in local {
-                    let t: Vec<DVec3> = l.iter().map(|d| coeffs.minv * *d).collect();
-                    let c = spherical::clip_to_horizon(&t);
-                    if c.len() >= 3 {
-                        vff += spherical::vector_form_factor(&c);
-                    }
-                }
-                if single && vff.z < 0.0 {
-                    vff = -vff;
-                }
-                vff
-            };
+            // The region's LTC-space vector form factor (additive over regions), oriented as
+            // its integral is taken.
+            let vff = if single && lv.z < 0.0 { -lv } else { lv };
             // The material's exact Fresnel at the half-vector between ωo and the LTC-weighted
             // mean direction of a region (its vector form factor in the cosine space, mapped
             // back by M: Heitz et al.'s proxy direction).
@@ -1029,7 +1056,6 @@ impl<'a> LtcShader<'a> {
                 let cos_d = if h == DVec3::ZERO { 1.0 } else { wo_local.dot(h).clamp(0.0, 1.0) };
                 fresnel_at(&s.fresnel, cos_d as f32)
             };
-            let mean_fresnel = |local: &[Vec<DVec3>], single: bool| fresnel_of(vff_of(local, single));
             // A dielectric seen from its dense side (pbrt-v3's plastic: FresnelDielectric(1.5,
             // 1)) reflects totally beyond the critical angle: F = 1 wherever ωo·ωi < t_c, a
             // kink no single mean direction captures. The region is split along that circle
@@ -1040,7 +1066,7 @@ impl<'a> LtcShader<'a> {
             // unshadowed one is: the same Fresnel treatment, never brighter.)
             let split = tir_threshold(&s.fresnel).map(|tc| {
                 let rho = tc.clamp(-1.0, 1.0).acos();
-                match BoundingCone::of(&light_loop) {
+                match light_cone() {
                     Some(c) => {
                         let gamma = c.axis.dot(wo_world).clamp(-1.0, 1.0).acos();
                         let beta = c.cos.clamp(-1.0, 1.0).acos();
@@ -1056,7 +1082,7 @@ impl<'a> LtcShader<'a> {
                 }
             });
             match split {
-                None | Some(TirSplit::Inside) => acc.spec_fresnel += mean_fresnel(&local, single) * v as f32,
+                None | Some(TirSplit::Inside) => acc.spec_fresnel += fresnel_of(vff) * v as f32,
                 Some(TirSplit::Outside) => acc.spec_fresnel += Rgb::splat(v as f32),
                 Some(TirSplit::Straddles(tc)) => {
                     // Outside the critical circle F = 1. Inside, F climbs steeply towards it
@@ -1100,7 +1126,8 @@ impl<'a> LtcShader<'a> {
                             let inner_total = if inner.is_empty() {
                                 (0.0, DVec3::ZERO)
                             } else {
-                                (ltc_integrate(&coeffs.minv, frame, &inner), vff_of(&to_local(&inner), false))
+                                let w = ltc_of(&inner);
+                                (w.z, w)
                             };
                             out.push(((outer.0 - inner_total.0).max(0.0), outer.1 - inner_total.1));
                             outer = inner_total;
@@ -1119,8 +1146,6 @@ impl<'a> LtcShader<'a> {
                         }
                         vec![l]
                     };
-                    let visible = if single { positive(&visible[0]) } else { visible.clone() };
-                    let visible_rings = rings(&visible, (v, vff_of(&local, single)));
                     // With occluders, each ring's Fresnel is the whole light's in that ring, so that
                     // a shadowed value never exceeds the unshadowed one (the mean direction of a
                     // thin ring's visible part swings with the shadow).
@@ -1128,8 +1153,24 @@ impl<'a> LtcShader<'a> {
                         None
                     } else {
                         let l = positive(&light_loop);
-                        let ll = to_local(&l);
-                        Some(rings(&l, (ltc_integrate(&coeffs.minv, frame, &l).abs(), vff_of(&ll, true))))
+                        let w = ltc_of(&l);
+                        Some(rings(&l, (w.z.abs(), if w.z < 0.0 { -w } else { w })))
+                    };
+                    let visible_rings = match &light_rings {
+                        // The light minus its part behind the occluder: ring by ring, the light's
+                        // rings (just taken) minus that part's, instead of the light's again.
+                        Some(lr) if cut => {
+                            let mut behind = visible[1].clone();
+                            behind.reverse();
+                            let behind = [behind];
+                            let w = ltc_of(&behind);
+                            let br = rings(&behind, (w.z, w));
+                            lr.iter().zip(&br).map(|(l, b)| ((l.0 - b.0).max(0.0), l.1 - b.1)).collect()
+                        }
+                        _ => {
+                            let visible = if single { positive(&visible[0]) } else { visible.clone() };
+                            rings(&visible, (v, vff))
+                        }
                     };
                     for (k, &(vk, vffk)) in visible_rings.iter().enumerate() {
                         if vk == 0.0 {
@@ -1610,19 +1651,20 @@ impl Estimator<'_> {
     ) -> Rgb {
         let SurfacePoint { si, le, .. } = hit;
         let mut l = *le;
-        let desc = LtcShader::lobes(scene, si);
-        let mut scratch = Vec::new();
-        if let Some(d) = &desc {
-            l += match area {
-                Some((diffuse, specular)) => d.diffuse * diffuse + specular,
-                None => self.shader.area_lights(scene, si, d, self.shader.ltc.shadows, &mut scratch),
-            };
+        // With the pixel's lighting integrated already, only the sample's albedo is needed.
+        let lit = match area {
+            Some((diffuse, specular)) => LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular),
+            None => LtcShader::lobes(scene, si)
+                .map(|d| self.shader.area_lights(scene, si, &d, self.shader.ltc.shadows, &mut Vec::new())),
+        };
+        let ltc_form = lit.is_some();
+        if let Some(v) = lit {
+            l += v;
         }
         // The BSDF only for what the LTC does not shade (delta and infinite lights, materials
         // without an LTC form).
-        if desc.is_none() || self.other_lights {
+        if !ltc_form || self.other_lights {
             if let Some(hit) = hit.with_bsdf(scene) {
-                let ltc_form = desc.is_some();
                 add_other_lights(
                     &mut l,
                     "ltc",

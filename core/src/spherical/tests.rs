@@ -917,3 +917,111 @@ fn difference_chains_equals_difference_of_the_triangles() {
         assert!(sb < solid_angle(&light[0]) - 1e-3, "case {case}: the torus must hide part of the light");
     }
 }
+
+// --- difference with one convex occluder -------------------------------------------------------
+
+/// Solid angle and form factor of a set of loops.
+fn measures(loops: &[Vec<DVec3>]) -> (f64, f64) {
+    (loops.iter().map(|l| solid_angle(l)).sum(), form_factor_loops(loops))
+}
+
+fn assert_same_region(got: &[Vec<DVec3>], want: &[Vec<DVec3>], what: &str) {
+    let (g, w) = (measures(got), measures(want));
+    // `difference` snaps to a ~1e-9 rad grid; the clip is exact to rounding.
+    assert!((g.0 - w.0).abs() < 1e-7 && (g.1 - w.1).abs() < 1e-7, "{what}: {g:?} vs {w:?}");
+}
+
+#[test]
+fn difference_convex_matches_difference_for_triangles_and_silhouettes() {
+    let mut rng = Rng::new(77);
+    let cube = cube_mesh(Vec3::new(0.1, 0.2, 1.4), 0.35);
+    let ico = icosphere(Vec3::new(-0.2, 0.1, 1.3), 0.4);
+    let (cube_adj, ico_adj) = (cube.build_adjacency(), ico.build_adjacency());
+    let mut partial = 0;
+    for case in 0..300 {
+        let lc = DVec3::new(rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5, 2.0 + rng.uniform_f64());
+        let (lx, ly) = (0.3 + rng.uniform_f64(), 0.3 + rng.uniform_f64());
+        let lw = rect(lc.x - lx, lc.x + lx, lc.y - ly, lc.y + ly, lc.z);
+        let mut light = project(DVec3::ZERO, &lw);
+        let occ = match case % 3 {
+            0 => {
+                let c = lc * (0.3 + 0.5 * rng.uniform_f64())
+                    + DVec3::new(rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5, 0.0);
+                project(DVec3::ZERO, &random_triangle(&mut rng, c, 1.2))
+            }
+            k => {
+                // A convex mesh's silhouette and the light, both seen from a point below.
+                let p = DVec3::new(rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5, 0.5 * rng.uniform_f64() - 0.25);
+                let (mesh, adj) = if k == 1 { (&cube, &cube_adj) } else { (&ico, &ico_adj) };
+                let loops = silhouette_loops(mesh, adj, p, 1e-9);
+                light = project(p, &lw);
+                let mut l: Vec<DVec3> = project(p, &loops[0]);
+                if case % 4 == 0 {
+                    l.reverse();
+                }
+                l
+            }
+        };
+        if case % 2 == 1 {
+            light.reverse();
+        }
+        let want = difference(std::slice::from_ref(&light), std::slice::from_ref(&occ));
+        let got = difference_convex(&light, &occ).expect("convex occluder");
+        partial += usize::from(got.len() == 2);
+        assert_same_region(&got, &want, &format!("case {case}"));
+        // Rotating the loops' vertex order changes nothing.
+        let mut lr = light.clone();
+        lr.rotate_left(1);
+        let mut or = occ.clone();
+        or.rotate_left(2);
+        assert_same_region(&difference_convex(&lr, &or).unwrap(), &want, &format!("case {case} rotated"));
+    }
+    // Most cases cut the light (neither miss nor cover it).
+    assert!(partial > 200, "{partial} of 300 partly occluded");
+}
+
+#[test]
+fn difference_convex_edge_cases() {
+    let light = project(DVec3::ZERO, &rect(-1.0, 1.0, -1.0, 1.0, 2.0));
+    let full = measures(std::slice::from_ref(&light));
+    // Covering the light (larger, and identical: shared edges and vertices): nothing left.
+    let big = project(DVec3::ZERO, &rect(-2.0, 2.0, -2.0, 2.0, 1.5));
+    assert!(difference_convex(&light, &big).unwrap().is_empty());
+    assert!(difference_convex(&light, &light).unwrap().is_empty());
+    let mut rev = light.clone();
+    rev.reverse();
+    assert!(difference_convex(&rev, &light).unwrap().is_empty());
+    // Missing it: the light, positive.
+    let away = project(DVec3::ZERO, &rect(3.0, 4.0, -1.0, 1.0, 2.0));
+    let r = difference_convex(&rev, &away).unwrap();
+    assert_eq!(r.len(), 1);
+    assert!((measures(&r).0 - full.0).abs() < 1e-12 && solid_angle(&r[0]) > 0.0);
+    // Half covered along a shared, collinear edge: half the light (by symmetry of the rect).
+    let half = project(DVec3::ZERO, &rect(0.0, 1.0, -1.0, 1.0, 2.0));
+    let r = difference_convex(&light, &half).unwrap();
+    let want = measures(&project_rect_half());
+    assert!((measures(&r).0 - want.0).abs() < 1e-12, "{:?} vs {want:?}", measures(&r));
+    // A hole: outer positive, hole negative.
+    let small = project(DVec3::ZERO, &rect(-0.2, 0.2, -0.2, 0.2, 1.0));
+    let r = difference_convex(&light, &small).unwrap();
+    let want = difference(std::slice::from_ref(&light), std::slice::from_ref(&small));
+    assert_same_region(&r, &want, "hole");
+    // Zero-area occluder: the light. A non-convex occluder (an L): not applicable.
+    let flat = vec![DVec3::new(0.0, 0.0, 1.0), DVec3::new(0.1, 0.0, 1.0), DVec3::new(0.2, 0.0, 1.0)];
+    assert!((measures(&difference_convex(&light, &flat).unwrap()).0 - full.0).abs() < 1e-12);
+    let ell: Vec<DVec3> = [(0.0, 0.0), (1.0, 0.0), (1.0, 0.5), (0.5, 0.5), (0.5, 1.0), (0.0, 1.0)]
+        .iter()
+        .map(|&(x, y)| DVec3::new(x, y, 1.0).normalize())
+        .collect();
+    assert!(difference_convex(&light, &ell).is_none());
+    // Unusable loops: not applicable (difference ignores them).
+    assert!(difference_convex(&light, &[DVec3::ZERO, DVec3::X, DVec3::Y]).is_none());
+    // Wider than a hemisphere about its mean: not applicable.
+    let wide = vec![DVec3::X, DVec3::Y, -DVec3::X, DVec3::new(0.0, -1.0, 1e-3)];
+    assert!(difference_convex(&light, &wide).is_none());
+}
+
+/// The left half of the light of `difference_convex_edge_cases`.
+fn project_rect_half() -> Vec<Vec<DVec3>> {
+    vec![project(DVec3::ZERO, &rect(-1.0, 0.0, -1.0, 1.0, 2.0))]
+}
