@@ -449,7 +449,7 @@ impl Scene {
     }
 
     /// The material at `si`, with the material and texture tables (`None` as for [`bsdf`](Self::bsdf)).
-    fn material_of(&self, si: &SurfaceInteraction) -> Option<(&Material, &Materials, &Textures)> {
+    pub fn material_of(&self, si: &SurfaceInteraction) -> Option<(&Material, &Materials, &Textures)> {
         let (materials, textures) = (self.materials.as_ref()?, self.textures.as_ref()?);
         Some((materials.get(self.objects.get(si.mesh as usize)?.material?)?, materials, textures))
     }

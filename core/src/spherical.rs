@@ -172,6 +172,26 @@ pub fn horizon_vector_form_factor(len: usize, vertex: impl Fn(usize) -> DVec3) -
     sum / std::f64::consts::TAU
 }
 
+/// Clips a loop to the intersection of the half-spaces `d·n ≥ 0` of `planes` (a convex region),
+/// one [`clip_to_halfspace`] after another, skipping (without copying) the planes it lies wholly
+/// inside. Returns the clipped loop (empty when nothing is left) and whether any plane cut it
+/// (`false`: the loop, unchanged, is inside them all).
+pub fn clip_to_halfspaces(poly: &[DVec3], planes: impl IntoIterator<Item = DVec3>) -> (Vec<DVec3>, bool) {
+    let mut out = poly.to_vec();
+    let mut clipped = false;
+    for n in planes {
+        if out.iter().all(|d| d.dot(n) >= 0.0) {
+            continue;
+        }
+        out = clip_to_halfspace(&out, n);
+        clipped = true;
+        if out.is_empty() {
+            break;
+        }
+    }
+    (out, clipped)
+}
+
 /// Clips a loop to the upper hemisphere `z ≥ 0` of its local frame (keeps the
 /// part above the horizon); see [`clip_to_halfspace`]. Vertices exactly on the
 /// horizon are kept; crossing points get `z = 0` exactly.
@@ -478,23 +498,21 @@ pub fn difference_convex(light: &[DVec3], occluder: &[DVec3]) -> Option<Vec<Vec<
         (false, false) => return Some(vec![light]), // zero area
         _ => {}
     }
-    let mut inside = light.clone();
-    let mut clipped = false;
-    for i in 0..n {
+    // Each edge's plane, turned towards the occluder's side of its great circle.
+    let planes = (0..n).map(|i| {
         let (a, b) = (unit[i], unit[(i + 1) % n]);
-        // The occluder's side of this edge's great circle.
-        let normal = if left { a.cross(b) } else { b.cross(a) };
-        if normal == DVec3::ZERO || inside.iter().all(|d| d.dot(normal) >= 0.0) {
-            continue;
+        if left {
+            a.cross(b)
+        } else {
+            b.cross(a)
         }
-        inside = clip_to_halfspace(&inside, normal);
-        clipped = true;
-        if inside.is_empty() {
-            return Some(vec![light]);
-        }
-    }
+    });
+    let (mut inside, clipped) = clip_to_halfspaces(&light, planes);
     if !clipped {
         return Some(Vec::new()); // the light lies within every edge's half-space
+    }
+    if inside.is_empty() {
+        return Some(vec![light]);
     }
     inside.reverse();
     Some(vec![light, inside])

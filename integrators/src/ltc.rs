@@ -658,22 +658,14 @@ impl<'a> LtcShader<'a> {
 
     /// The LTC description of the material at `si` (`None`: no LTC form, or no material).
     pub fn lobes(scene: &Scene, si: &SurfaceInteraction) -> Option<LtcDescription> {
-        let (m, tx) = Self::material(scene, si)?;
+        let (m, _, tx) = scene.material_of(si)?;
         m.ltc_lobes(si, tx)
     }
 
     /// The diffuse albedo of [`Self::lobes`] alone (`None` exactly when it is `None`).
     fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Option<Rgb> {
-        let (m, tx) = Self::material(scene, si)?;
+        let (m, _, tx) = scene.material_of(si)?;
         m.ltc_diffuse(si, tx)
-    }
-
-    fn material<'s>(
-        scene: &'s Scene,
-        si: &SurfaceInteraction,
-    ) -> Option<(&'s penumbra_core::material::Material, &'s penumbra_core::texture::Textures)> {
-        let m = scene.objects.get(si.mesh as usize)?.material?;
-        Some((scene.materials.as_ref()?.get(m)?, scene.textures.as_ref()?))
     }
 
     /// Occluder loops (world-space directions from `p`) for the light piece `piece` (world
@@ -1272,17 +1264,7 @@ fn clip_to_cap(region: &[Vec<DVec3>], axis: DVec3, t: f64, n: usize) -> Vec<Vec<
     region
         .iter()
         .filter_map(|l| {
-            let mut c = l.clone();
-            for &pn in &planes {
-                // (A loop wholly inside the half-space comes back unchanged: not copied.)
-                if c.iter().all(|v| v.dot(pn) >= 0.0) {
-                    continue;
-                }
-                c = spherical::clip_to_halfspace(&c, pn);
-                if c.is_empty() {
-                    return None;
-                }
-            }
+            let (c, _) = spherical::clip_to_halfspaces(l, planes.iter().copied());
             (c.len() >= 3).then_some(c)
         })
         .collect()
