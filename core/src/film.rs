@@ -13,6 +13,15 @@ use crate::image::Image;
 use crate::Rgb;
 use glam::{IVec2, Vec2};
 
+/// `⌊x⌋` as an `i32` (saturating; NaN gives 0, as `x.floor() as i32`), without the library
+/// `floorf` call that `f32::floor` compiles to on baseline x86-64.
+#[inline]
+pub fn floor_i32(x: f32) -> i32 {
+    let i = x as i32;
+    // The truncation rounds towards zero: one less for a negative non-integer.
+    i.saturating_sub(((i as f32) > x) as i32)
+}
+
 /// Half-open integer rectangle `[min, max)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Bounds2i {
@@ -122,8 +131,9 @@ impl FilmTile {
         // assumes, and crops reproduce the full image bit for bit. (pbrt-v3's closed interval
         // gives such a sample to both neighbours under the box filter; the other filters are 0
         // at their radius.)
-        let lo = ((pd - r).floor().as_ivec2() + IVec2::ONE).max(self.bounds.min);
-        let hi = ((pd + r).floor().as_ivec2() + IVec2::ONE).min(self.bounds.max);
+        let floor = |v: Vec2| IVec2::new(floor_i32(v.x), floor_i32(v.y));
+        let lo = floor(pd - r).saturating_add(IVec2::ONE).max(self.bounds.min);
+        let hi = floor(pd + r).saturating_add(IVec2::ONE).min(self.bounds.max);
         let w = self.bounds.width();
         for y in lo.y..hi.y {
             for x in lo.x..hi.x {
@@ -144,7 +154,7 @@ impl FilmTile {
                 }
             }
         }
-        let own = p_film.floor().as_ivec2();
+        let own = floor(p_film);
         if self.bounds.contains(own) {
             let i = ((own.y - self.bounds.min.y) * w + (own.x - self.bounds.min.x)) as usize;
             let px = &mut self.pixels[i];
@@ -288,6 +298,19 @@ impl Film {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_i32_is_floor() {
+        let special = [0.0, -0.0, 0.5, -0.5, 1.0, -1.0, 1e-30, -1e-30, 2.5, -2.5, 8388607.5, -8388607.5, 1e20, -1e20];
+        let mut rng = crate::rng::Rng::new(7);
+        let random = (0..10_000).map(|_| (rng.uniform_f32() - 0.5) * 1e4);
+        for x in special.into_iter().chain(random) {
+            assert_eq!(floor_i32(x), x.floor() as i32, "{x}");
+        }
+        assert_eq!(floor_i32(f32::NAN), 0);
+        assert_eq!(floor_i32(f32::INFINITY), i32::MAX);
+        assert_eq!(floor_i32(f32::NEG_INFINITY), i32::MIN);
+    }
     use crate::filter::{BoxFilter, Filter};
 
     fn tile_weights(filter: &dyn Filter, p: Vec2) -> Vec<f64> {
