@@ -131,12 +131,14 @@ impl FilmTile {
         // assumes, and crops reproduce the full image bit for bit. (pbrt-v3's closed interval
         // gives such a sample to both neighbours under the box filter; the other filters are 0
         // at their radius.)
-        let floor = |v: Vec2| IVec2::new(floor_i32(v.x), floor_i32(v.y));
-        let lo = floor(pd - r).saturating_add(IVec2::ONE).max(self.bounds.min);
-        let hi = floor(pd + r).saturating_add(IVec2::ONE).min(self.bounds.max);
+        let (b0, b1) = (self.bounds.min, self.bounds.max);
+        let (x0, x1) =
+            (floor_i32(pd.x - r.x).saturating_add(1).max(b0.x), floor_i32(pd.x + r.x).saturating_add(1).min(b1.x));
+        let (y0, y1) =
+            (floor_i32(pd.y - r.y).saturating_add(1).max(b0.y), floor_i32(pd.y + r.y).saturating_add(1).min(b1.y));
         let w = self.bounds.width();
-        for y in lo.y..hi.y {
-            for x in lo.x..hi.x {
+        for y in y0..y1 {
+            for x in x0..x1 {
                 let wt = filter.evaluate(Vec2::new(x as f32 - pd.x, y as f32 - pd.y));
                 if wt == 0.0 {
                     continue;
@@ -154,7 +156,7 @@ impl FilmTile {
                 }
             }
         }
-        let own = floor(p_film);
+        let own = IVec2::new(floor_i32(p_film.x), floor_i32(p_film.y));
         if self.bounds.contains(own) {
             let i = ((own.y - self.bounds.min.y) * w + (own.x - self.bounds.min.x)) as usize;
             let px = &mut self.pixels[i];

@@ -1528,10 +1528,12 @@ impl SharedPixel {
         shadows: bool,
         stats: &mut ThreadStats,
     ) -> SharedPixel {
+        // One traversal for the pixel's bundle of rays when it meets few triangles.
+        let candidates = scene.bundle_candidates(rays);
         let hits: Vec<FirstSurface> = rays
             .iter()
             .map(|r| {
-                let (first, queries) = scene.first_point(r);
+                let (first, queries) = scene.first_point_among(r, candidates.as_deref());
                 stats.rays += queries;
                 first
             })
@@ -1553,13 +1555,13 @@ impl SharedPixel {
 /// shaded sample by sample.
 const NEAR_FIELD: f64 = 0.05;
 
-/// Samples of a pixel that see the same smooth piece of surface.
+/// Samples of a pixel that see the same smooth piece of surface (its members are the samples
+/// whose `cluster` entry is its index).
 struct Cluster {
     mesh: u32,
     n: Vec3,
     depth: f32,
     dir_sum: Vec3,
-    members: Vec<usize>,
 }
 
 impl LtcShader<'_> {
@@ -1574,19 +1576,24 @@ impl LtcShader<'_> {
         shadows: bool,
     ) -> Vec<Option<(Rgb, Rgb)>> {
         let mut clusters: Vec<Cluster> = Vec::new();
+        // Each sample's cluster (`usize::MAX`: none, the ray escaped).
+        let mut cluster = vec![usize::MAX; hits.len()];
         for (i, h) in hits.iter().enumerate() {
             let Ok(h) = h else { continue };
             let n = h.si.shading.z;
             let depth = (h.si.p - rays[i].o).length();
             let d = rays[i].d.normalize_or_zero();
-            match clusters.iter_mut().find(|c| {
+            match clusters.iter().position(|c| {
                 c.mesh == h.si.mesh && c.n.dot(n) > 0.98 && (c.depth - depth).abs() <= 0.05 * c.depth.max(depth)
             }) {
-                Some(c) => {
-                    c.members.push(i);
-                    c.dir_sum += d;
+                Some(k) => {
+                    cluster[i] = k;
+                    clusters[k].dir_sum += d;
                 }
-                None => clusters.push(Cluster { mesh: h.si.mesh, n, depth, dir_sum: d, members: vec![i] }),
+                None => {
+                    cluster[i] = clusters.len();
+                    clusters.push(Cluster { mesh: h.si.mesh, n, depth, dir_sum: d });
+                }
             }
         }
         let mut area = vec![None; hits.len()];
@@ -1598,21 +1605,20 @@ impl LtcShader<'_> {
         };
         let dir = |i: usize| rays[i].d.normalize_or_zero();
         let pos = |i: usize| hits[i].as_ref().map(|h| d3(h.si.p)).unwrap_or(DVec3::ZERO);
-        for c in &clusters {
+        let cluster = &cluster[..];
+        for (k, c) in clusters.iter().enumerate() {
+            let members = || (0..hits.len()).filter(move |&m| cluster[m] == k);
             let mean = c.dir_sum.normalize_or_zero();
-            let rep = c
-                .members
-                .iter()
-                .copied()
-                .max_by(|a, b| dir(*a).dot(mean).total_cmp(&dir(*b).dot(mean)))
-                .unwrap_or(c.members[0]);
+            let Some(rep) = members().max_by(|a, b| dir(*a).dot(mean).total_cmp(&dir(*b).dot(mean))) else {
+                continue;
+            };
             // Near field: when the cluster's extent is not small against the distance to the
             // nearest light, the lighting varies across the pixel (a light grazing the floor):
             // every member is shaded.
-            let extent = c.members.iter().map(|&m| (pos(m) - pos(rep)).length()).fold(0.0, f64::max);
+            let extent = members().map(|m| (pos(m) - pos(rep)).length()).fold(0.0, f64::max);
             let near = extent > NEAR_FIELD * self.nearest_light_distance(pos(rep));
             let v = shade_one(rep);
-            for &m in &c.members {
+            for m in members() {
                 area[m] = if m == rep || !near { v } else { shade_one(m) };
             }
         }
