@@ -245,6 +245,93 @@ impl Accel {
         Some(Hit { t: (hit.t - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b: best_b })
     }
 
+    /// The triangles (BVH slots) that rays of a bundle sharing one origin — a pixel's camera
+    /// rays — can hit: one traversal of the hierarchy against the bundle's bounding pyramid
+    /// (apex at the origin, four planes bounding the directions, with a margin), instead of one
+    /// traversal per ray. `None` when the rays do not share an origin, spread over more than
+    /// ~75° from their mean, or more than `limit` triangles remain (the caller then traverses
+    /// per ray). Use with [`intersect_among`](Self::intersect_among).
+    pub fn bundle_candidates(&self, rays: &[Ray], limit: usize) -> Option<Vec<u32>> {
+        let first = rays.first()?;
+        if self.tris.is_empty() || !first.o.is_finite() || self.bvh.nodes.is_empty() {
+            return None;
+        }
+        // The directions as `prepare` gives them to the triangle test, bounded by their slopes
+        // against the first one's frame.
+        let dir = |r: &Ray| {
+            let d = Vec3A::from(r.d);
+            d / d.length() + Vec3A::ZERO
+        };
+        let a = dir(first);
+        let (u, v) = a.any_orthonormal_pair();
+        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+        for r in rays {
+            if r.o != first.o || !r.d.is_finite() || r.d == Vec3::ZERO {
+                return None;
+            }
+            let d = dir(r);
+            let da = d.dot(a);
+            if !(da >= 0.25) {
+                return None;
+            }
+            let q = Vec2::new(d.dot(u), d.dot(v)) / da;
+            lo = lo.min(q);
+            hi = hi.max(q);
+        }
+        // Slopes widened by far more than their rounding; the apex's rounding (the query's
+        // backed-up origin is a few ulps off it) and the boxes' (tested relative to the apex)
+        // are covered by an absolute slack.
+        let m = 1e-5 + 1e-3 * (hi - lo).max_element();
+        let (lo, hi) = (lo - m, hi + m);
+        let planes = [u - lo.x * a, hi.x * a - u, v - lo.y * a, hi.y * a - v, a].map(|n| n.normalize());
+        let apex = Vec3A::from(first.o * self.scale);
+        let slack = 1e-5 * (1.0 + apex.abs().max_element()) + 2.0 * BACKUP;
+        // Each plane's farthest box corner along its normal, chosen by the normal's signs.
+        let positive = planes.map(|n| n.cmpge(Vec3A::ZERO));
+        let outside = |b: &Aabb| {
+            let (bmin, bmax) = (b.min - apex, b.max - apex);
+            planes.iter().zip(&positive).any(|(n, pos)| n.dot(Vec3A::select(*pos, bmax, bmin)) < -slack)
+        };
+        let mut out = Vec::new();
+        let mut stack = vec![0u32];
+        while let Some(ni) = stack.pop() {
+            let node = self.bvh.nodes.get(ni as usize)?;
+            for c in 0..8 {
+                if node.is_child_empty(c) || outside(&node.child_aabb(c)) {
+                    continue;
+                }
+                if node.is_leaf(c) {
+                    let (start, count) = node.child_primitives(c);
+                    out.extend(start..start + count);
+                    if out.len() > limit {
+                        return None;
+                    }
+                } else {
+                    stack.push(node.child_node_index(c));
+                }
+            }
+        }
+        Some(out)
+    }
+
+    /// [`intersect`](Self::intersect) testing only the triangles `slots` (from
+    /// [`bundle_candidates`](Self::bundle_candidates) for a bundle holding `ray`): the same hit.
+    pub fn intersect_among(&self, ray: &Ray, slots: &[u32]) -> Option<Hit> {
+        let (bray, pre, to_bvh) = self.prepare(ray)?;
+        let mut t_max = bray.tmax;
+        let mut best = None;
+        for &slot in slots {
+            let Some(tri) = self.tris.get(slot as usize) else { continue };
+            if let Some((t, b)) = pre.intersect(tri, BACKUP, t_max) {
+                t_max = t;
+                best = Some((slot, b));
+            }
+        }
+        let (slot, b) = best?;
+        let r = self.refs[slot as usize];
+        Some(Hit { t: (t_max - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b })
+    }
+
     /// Whether anything blocks `ray` for `0 < t < ray.t_max` (early exit).
     pub fn occluded(&self, ray: &Ray) -> bool {
         let Some((bray, pre, _)) = self.prepare(ray) else { return false };
@@ -320,6 +407,63 @@ mod tests {
             }
         }
         assert_eq!(misses, 0, "misses");
+    }
+
+    #[test]
+    fn bundle_candidates_give_the_same_hits() {
+        // A soup of random triangles (some large, some tiny) and bundles of rays from one
+        // origin through small random windows: every ray's hit among the bundle's candidates
+        // is its hit by traversal, bit for bit.
+        let mut rng = crate::rng::Rng::new(11);
+        let mut u = || rng.uniform_f32();
+        let mut positions = Vec::new();
+        let mut indices = Vec::new();
+        for k in 0..4000u32 {
+            let c = Vec3::new(u(), u(), u()) * 20.0 - 10.0;
+            let size = if k % 100 == 0 { 8.0 } else { 0.3 };
+            for _ in 0..3 {
+                positions.push(c + (Vec3::new(u(), u(), u()) - 0.5) * size);
+            }
+            indices.push([3 * k, 3 * k + 1, 3 * k + 2]);
+        }
+        let accel = Accel::build(&[TriangleMesh { positions, indices, ..Default::default() }]);
+        let (mut bundles, mut hits) = (0, 0);
+        for _ in 0..300 {
+            let o = Vec3::new(u(), u(), u()) * 30.0 - 15.0;
+            // Aimed into the soup half of the time.
+            let target =
+                if u() < 0.5 { Vec3::new(u(), u(), u()) * 16.0 - 8.0 } else { o + Vec3::new(u(), u(), u()) - 0.5 };
+            let axis = (target - o).normalize();
+            let (bu, bv) = axis.any_orthonormal_pair();
+            let width = 0.002 + 0.1 * u();
+            let rays: Vec<Ray> = (0..16)
+                .map(|_| {
+                    let d = axis + (bu * (u() - 0.5) + bv * (u() - 0.5)) * width;
+                    Ray::new(o, d * (0.5 + u()), f32::INFINITY)
+                })
+                .collect();
+            let Some(c) = accel.bundle_candidates(&rays, usize::MAX) else { continue };
+            bundles += 1;
+            assert!(c.len() < accel.triangle_count(), "the bundle should cull something");
+            for r in &rays {
+                let (a, b) = (accel.intersect(r), accel.intersect_among(r, &c));
+                assert_eq!(a, b, "ray {r:?}");
+                hits += a.is_some() as usize;
+            }
+        }
+        assert!(bundles == 300 && hits > 1000, "{bundles} bundles, {hits} hits");
+        // Rays from different origins, or spread too wide, are not bundled; a limit is kept.
+        let o = Vec3::ZERO;
+        let apart = [Ray::new(o, Vec3::X, f32::INFINITY), Ray::new(Vec3::Y, Vec3::X, f32::INFINITY)];
+        assert!(accel.bundle_candidates(&apart, usize::MAX).is_none());
+        let wide = [Ray::new(o, Vec3::X, f32::INFINITY), Ray::new(o, Vec3::Y, f32::INFINITY)];
+        assert!(accel.bundle_candidates(&wide, usize::MAX).is_none());
+        let all = [
+            Ray::new(Vec3::new(-40.0, 0.0, 0.0), Vec3::X, f32::INFINITY),
+            Ray::new(Vec3::new(-40.0, 0.0, 0.0), Vec3::new(1.0, 0.2, 0.2), f32::INFINITY),
+        ];
+        assert!(accel.bundle_candidates(&all, 3).is_none());
+        assert!(accel.bundle_candidates(&all, usize::MAX).is_some_and(|c| c.len() > 3));
     }
 
     #[test]

@@ -174,6 +174,10 @@ impl SurfaceInteraction {
 /// pbrt-v3's `ShadowEpsilon`.
 pub const SHADOW_EPSILON: f32 = 0.0001;
 
+/// A ray bundle with more candidate triangles than this is traversed ray by ray: testing each
+/// candidate would cost more than a traversal.
+const BUNDLE_LIMIT: usize = 12;
+
 fn film_spec(desc: &SceneDescription, opts: &BuildOptions, warnings: &DiagSink) -> Result<FilmSpec, Diagnostic> {
     let e = &desc.film;
     let p = &e.params;
@@ -408,9 +412,27 @@ impl Scene {
     /// [`first_surface`](Self::first_surface) without building the BSDF (for a method that
     /// shades a pixel's surfaces once and may not need it for every sample).
     pub fn first_point(&self, ray: &Ray) -> (Result<SurfacePoint, crate::Rgb>, u64) {
+        self.first_point_among(ray, None)
+    }
+
+    /// The triangles that a bundle of rays from one origin (a pixel's camera rays) can hit,
+    /// for [`first_point_among`](Self::first_point_among); `None` when a per-ray traversal is
+    /// the better (or the only) way ([`Accel::bundle_candidates`](crate::accel::Accel::bundle_candidates)).
+    pub fn bundle_candidates(&self, rays: &[Ray]) -> Option<Vec<u32>> {
+        self.accel.as_ref()?.bundle_candidates(rays, BUNDLE_LIMIT)
+    }
+
+    /// [`first_point`](Self::first_point) for a ray of a bundle whose
+    /// [`bundle_candidates`](Self::bundle_candidates) are `candidates`: its first query tests
+    /// only those (the same hit); pass-throughs of material-less surfaces traverse.
+    pub fn first_point_among(&self, ray: &Ray, candidates: Option<&[u32]>) -> (Result<SurfacePoint, crate::Rgb>, u64) {
         let mut ray = *ray;
         for queries in 1..=65u64 {
-            let Some(hit) = self.intersect(&ray) else {
+            let hit = match (candidates, &self.accel) {
+                (Some(c), Some(a)) if queries == 1 => a.intersect_among(&ray, c),
+                _ => self.intersect(&ray),
+            };
+            let Some(hit) = hit else {
                 return (Err(self.light_list().iter().map(|l| l.le(&ray)).sum()), queries);
             };
             let si = self.interaction(&ray, &hit);
