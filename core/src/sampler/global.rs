@@ -6,7 +6,7 @@
 //! being global sample `s * n + k` of the pixel (as pbrt-v3).
 
 use super::lowdiscrepancy::{
-    inverse_radical_inverse, radical_inverse, sobol_column, sobol_sample_bits, ScrambledRadicalInverses,
+    inverse_radical_inverse, radical_inverse, sobol_column, sobol_sample_bits, FastDiv, ScrambledRadicalInverses,
     NUM_SOBOL_DIMENSIONS, PRIME_TABLE_SIZE,
 };
 use super::Sampler;
@@ -196,6 +196,8 @@ const HALTON_MAX_RESOLUTION: i32 = 128;
 pub struct HaltonPattern {
     radical_inverses: ScrambledRadicalInverses,
     base_scales: [u64; 2],
+    /// Division by `base_scales[1]` (every camera sample's second dimension).
+    scale_div: FastDiv,
     base_exponents: [u32; 2],
     sample_stride: u64,
     mult_inverse: [u64; 2],
@@ -221,6 +223,7 @@ impl HaltonPattern {
         let mut p = HaltonPattern {
             radical_inverses: ScrambledRadicalInverses::new(&mut rng),
             base_scales: [1, 1],
+            scale_div: FastDiv::new(1),
             base_exponents: [0, 0],
             sample_stride: 1,
             mult_inverse: [0, 0],
@@ -251,6 +254,7 @@ impl GlobalPattern for HaltonPattern {
             self.base_exponents[i] = exp;
         }
         self.sample_stride = self.base_scales[0] * self.base_scales[1];
+        self.scale_div = FastDiv::new(self.base_scales[1] as u32);
         self.mult_inverse = [
             multiplicative_inverse(self.base_scales[1] as i64, self.base_scales[0] as i64),
             multiplicative_inverse(self.base_scales[0] as i64, self.base_scales[1] as i64),
@@ -280,7 +284,7 @@ impl GlobalPattern for HaltonPattern {
         }
         match dim {
             0 => radical_inverse(0, index >> self.base_exponents[0]),
-            1 => radical_inverse(1, index / self.base_scales[1]),
+            1 => radical_inverse(1, if self.base_scales[1] > 1 { self.scale_div.div_rem(index).0 } else { index }),
             d if (d as usize) < PRIME_TABLE_SIZE => self.radical_inverses.eval(d as usize, index),
             d => hashed_uniform(self.seed ^ 0x4841_4c54, index, d),
         }

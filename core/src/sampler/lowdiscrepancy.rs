@@ -153,6 +153,9 @@ pub fn radical_inverse(base_index: usize, a: u64) -> f32 {
         return ((a.reverse_bits() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)).min(ONE_MINUS_EPSILON_F32 as f64)
             as f32;
     }
+    if base_index == 1 && a < POW3_40 {
+        return radical_inverse_3(a);
+    }
     let pb = PRIME_BASES[base_index.min(PRIME_TABLE_SIZE - 1)];
     let (mut a, mut inv_base_n, mut result) = (a, 1.0f64, 0.0f64);
     while a > 0 {
@@ -162,6 +165,40 @@ pub fn radical_inverse(base_index: usize, a: u64) -> f32 {
         a = next;
     }
     (result as f32).min(ONE_MINUS_EPSILON_F32)
+}
+
+/// 3⁴⁰: below it, [`radical_inverse_3`]'s reversed digits fit in a `u64`.
+const POW3_40: u64 = 12_157_665_459_056_928_801;
+
+/// The five base-3 digits of each value below 3⁵, reversed.
+static REVERSED_3_5: [u8; 243] = {
+    let mut t = [0u8; 243];
+    let mut i = 0;
+    while i < 243 {
+        let (mut a, mut r, mut k) = (i, 0, 0);
+        while k < 5 {
+            r = r * 3 + a % 3;
+            a /= 3;
+            k += 1;
+        }
+        t[i] = r as u8;
+        i += 1;
+    }
+    t
+};
+
+/// The base-3 radical inverse of `a < 3⁴⁰` (the Halton sampler's second dimension, drawn for
+/// every camera sample), five digits at a time: the reversed digits as an exact integer, scaled
+/// once (a leading zero digit of `a` is a trailing zero of the inverse, so whole chunks of five
+/// give the same value).
+fn radical_inverse_3(a: u64) -> f32 {
+    let (mut a, mut reversed, mut scale) = (a, 0u64, 1.0f64);
+    while a > 0 {
+        reversed = reversed * 243 + REVERSED_3_5[(a % 243) as usize] as u64;
+        a /= 243;
+        scale *= 243.0;
+    }
+    ((reversed as f64 / scale) as f32).min(ONE_MINUS_EPSILON_F32)
 }
 
 /// The radical inverse with each digit (including the infinitely many trailing zeros) mapped by `perm`.
@@ -345,6 +382,25 @@ mod tests {
             assert!((radical_inverse(b, a) as f64 - e).abs() < 1e-7, "base {b} a {a}");
         }
         assert!(radical_inverse(0, u64::MAX) < 1.0);
+        // Base 3 five digits at a time: the digit-by-digit value within one f32 rounding, for
+        // small values, chunk boundaries and the largest below 3⁴⁰ (and the digit loop past it).
+        let by_digits = |mut a: u64| {
+            let (mut r, mut f) = (0.0f64, 1.0f64);
+            while a > 0 {
+                f /= 3.0;
+                r += (a % 3) as f64 * f;
+                a /= 3;
+            }
+            r
+        };
+        let mut rng = crate::rng::Rng::new(3);
+        let samples = (0..2000u64)
+            .chain([242, 243, 244, 59_048, 59_049, POW3_40 - 1, POW3_40, u64::MAX])
+            .chain((0..2000).map(|_| ((rng.uniform_u32() as u64) << 32 | rng.uniform_u32() as u64) % POW3_40));
+        for a in samples {
+            let (got, want) = (radical_inverse(1, a) as f64, by_digits(a));
+            assert!((got - want).abs() <= 6e-8 * want.max(1e-30) + 1e-300 && got < 1.0, "{a}: {got} vs {want}");
+        }
         // Identity permutation = plain radical inverse (the zero tail adds nothing).
         let id: Vec<u16> = (0..5).collect();
         assert_eq!(scrambled_radical_inverse(2, 123, &id), radical_inverse(2, 123));
