@@ -205,15 +205,6 @@ pub fn clip_to_horizon(poly: &[DVec3]) -> Vec<DVec3> {
     out
 }
 
-/// `θ / sin θ`, stable for small `θ`.
-fn theta_over_sin(theta: f64) -> f64 {
-    if theta < 1e-4 {
-        1.0 + theta * theta / 6.0
-    } else {
-        theta / theta.sin()
-    }
-}
-
 /// The vector edge integral of the arc `v1 → v2`: `θ · normalize(v1 × v2)`
 /// with `θ = ∠(v1, v2)` computed as `atan2(|v1×v2|, v1·v2)`. Zero for a
 /// degenerate edge (coincident or zero vectors); for exactly antipodal
@@ -224,14 +215,9 @@ pub fn edge_vector(v1: DVec3, v2: DVec3) -> DVec3 {
     if s == 0.0 || !s.is_finite() {
         return DVec3::ZERO;
     }
-    let theta = s.atan2(v1.dot(v2));
-    if theta < std::f64::consts::FRAC_PI_2 {
-        // |c| = |v1||v2| sin θ: use θ/sin θ (series near 0) to avoid dividing by a tiny |c|.
-        let l = v1.length() * v2.length();
-        c * (theta_over_sin(theta) / l)
-    } else {
-        c * (theta / s)
-    }
+    // θ / |c| is well conditioned even for a tiny |c|: atan2 gives θ ≈ |c| / (v1·v2) to full
+    // relative precision, whatever error the cross product's cancellation put in |c|.
+    c * (s.atan2(v1.dot(v2)) / s)
 }
 
 /// Lambert/Arvo edge integral of the arc `v1 → v2` against the `z` axis:

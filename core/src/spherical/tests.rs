@@ -69,11 +69,13 @@ fn edge_integral_matches_naive_formula_and_is_stable() {
     assert!(e.is_finite() && e.abs() <= PI + 1e-9);
     // exactly antipodal: undefined arc -> 0
     assert_eq!(edge_integral(a, -a), 0.0);
-    // small angle series branch agrees with the direct formula at the switch point
+    // small angles, unit or not: θ to full relative precision
     let c = DVec3::new(1.0, 0.0, 0.0);
-    for t in [0.9e-4f64, 1.1e-4] {
+    for t in [0.9e-4f64, 1.1e-4, 1e-6, 1e-9, 1e-12, 0.5, 1.5] {
         let d = DVec3::new(t.cos(), t.sin(), 0.0);
-        assert!((edge_integral(c, d) - t).abs() < 1e-15, "t={t}: {}", edge_integral(c, d));
+        assert!((edge_integral(c, d) - t).abs() < 1e-15 * t.max(1.0), "t={t}: {}", edge_integral(c, d));
+        let e = edge_integral(c * 1e-6, d * 1e5);
+        assert!((e - t).abs() < 1e-14 * t, "t={t}, scaled: {e}");
     }
 }
 
