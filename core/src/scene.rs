@@ -412,7 +412,7 @@ impl Scene {
     /// [`first_surface`](Self::first_surface) without building the BSDF (for a method that
     /// shades a pixel's surfaces once and may not need it for every sample).
     pub fn first_point(&self, ray: &Ray) -> (Result<SurfacePoint, crate::Rgb>, u64) {
-        self.first_point_among(ray, None)
+        self.first_point_among(ray, None, None)
     }
 
     /// The triangles that a bundle of rays from one origin (a pixel's camera rays) can hit,
@@ -425,7 +425,14 @@ impl Scene {
     /// [`first_point`](Self::first_point) for a ray of a bundle whose
     /// [`bundle_candidates`](Self::bundle_candidates) are `candidates`: its first query tests
     /// only those (the same hit); pass-throughs of material-less surfaces traverse.
-    pub fn first_point_among(&self, ray: &Ray, candidates: Option<&[u32]>) -> (Result<SurfacePoint, crate::Rgb>, u64) {
+    /// `prev`, the bundle's previous first surface, may lend its per-triangle geometry
+    /// ([`interaction_after`](Self::interaction_after)).
+    pub fn first_point_among(
+        &self,
+        ray: &Ray,
+        candidates: Option<&[u32]>,
+        prev: Option<&SurfaceInteraction>,
+    ) -> (Result<SurfacePoint, crate::Rgb>, u64) {
         let mut ray = *ray;
         for queries in 1..=65u64 {
             let hit = match (candidates, &self.accel) {
@@ -435,7 +442,7 @@ impl Scene {
             let Some(hit) = hit else {
                 return (Err(self.light_list().iter().map(|l| l.le(&ray)).sum()), queries);
             };
-            let si = self.interaction(&ray, &hit);
+            let si = self.interaction_after(&ray, &hit, prev);
             if self.material_of(&si).is_some() {
                 let le = self.area_light_at(&hit).map_or(crate::Rgb::ZERO, |k| self.light_list()[k].l(si.n, si.wo));
                 return (Ok(SurfacePoint { hit, si, le }), queries);
@@ -478,6 +485,14 @@ impl Scene {
 
     /// The surface geometry at a hit, as pbrt-v3's `Triangle::Intersect` computes it.
     pub fn interaction(&self, ray: &Ray, hit: &Hit) -> SurfaceInteraction {
+        self.interaction_after(ray, hit, None)
+    }
+
+    /// [`interaction`](Self::interaction), taking the per-triangle part (normal, ∂p/∂u, ∂p/∂v,
+    /// shading frame) from `prev` when it is on the same triangle of a mesh without per-vertex
+    /// normals — where that part is the triangle's alone: the same result, for the samples of a
+    /// pixel that mostly see one triangle.
+    pub fn interaction_after(&self, ray: &Ray, hit: &Hit, prev: Option<&SurfaceInteraction>) -> SurfaceInteraction {
         let mesh = &self.meshes[hit.mesh as usize];
         let tri = hit.tri as usize;
         let idx = mesh.indices[tri];
@@ -491,6 +506,10 @@ impl Scene {
             None => DEFAULT_UV,
         };
         let uv = interpolate(uvv, b);
+        let wo = -ray.d.normalize_or_zero();
+        if let Some(q) = prev.filter(|q| q.mesh == hit.mesh && q.tri == hit.tri && mesh.normals.is_none()) {
+            return SurfaceInteraction { p, p_error, uv, wo, ..*q };
+        }
         let duv02 = uvv[0] - uvv[2];
         let duv12 = uvv[1] - uvv[2];
         let dp02 = pv[0] - pv[2];
@@ -528,17 +547,6 @@ impl Scene {
             }
             _ => Frame::from_zx(n, dpdu),
         };
-        SurfaceInteraction {
-            p,
-            p_error,
-            n,
-            uv,
-            dpdu,
-            dpdv,
-            shading,
-            wo: -ray.d.normalize_or_zero(),
-            mesh: hit.mesh,
-            tri: hit.tri,
-        }
+        SurfaceInteraction { p, p_error, n, uv, dpdu, dpdv, shading, wo, mesh: hit.mesh, tri: hit.tri }
     }
 }

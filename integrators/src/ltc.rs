@@ -1530,14 +1530,13 @@ impl SharedPixel {
     ) -> SharedPixel {
         // One traversal for the pixel's bundle of rays when it meets few triangles.
         let candidates = scene.bundle_candidates(rays);
-        let hits: Vec<FirstSurface> = rays
-            .iter()
-            .map(|r| {
-                let (first, queries) = scene.first_point_among(r, candidates.as_deref());
-                stats.rays += queries;
-                first
-            })
-            .collect();
+        let mut hits: Vec<FirstSurface> = Vec::with_capacity(rays.len());
+        for r in rays {
+            let prev = hits.last().and_then(|h| h.as_ref().ok()).map(|h| &h.si);
+            let (first, queries) = scene.first_point_among(r, candidates.as_deref(), prev);
+            stats.rays += queries;
+            hits.push(first);
+        }
         let area = shader.shade_pixel(rays, &hits, scene, shadows);
         SharedPixel { hits, area }
     }
