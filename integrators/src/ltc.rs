@@ -1577,11 +1577,12 @@ impl LtcShader<'_> {
         let mut clusters: Vec<Cluster> = Vec::new();
         // Each sample's cluster (`usize::MAX`: none, the ray escaped).
         let mut cluster = vec![usize::MAX; hits.len()];
+        let dirs: Vec<Vec3> = rays.iter().map(|r| r.d.normalize_or_zero()).collect();
         for (i, h) in hits.iter().enumerate() {
             let Ok(h) = h else { continue };
             let n = h.si.shading.z;
             let depth = (h.si.p - rays[i].o).length();
-            let d = rays[i].d.normalize_or_zero();
+            let d = dirs[i];
             match clusters.iter().position(|c| {
                 c.mesh == h.si.mesh && c.n.dot(n) > 0.98 && (c.depth - depth).abs() <= 0.05 * c.depth.max(depth)
             }) {
@@ -1602,7 +1603,7 @@ impl LtcShader<'_> {
             let desc = LtcShader::lobes(scene, &h.si)?;
             Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
         };
-        let dir = |i: usize| rays[i].d.normalize_or_zero();
+        let dir = |i: usize| dirs[i];
         let pos = |i: usize| hits[i].as_ref().map(|h| d3(h.si.p)).unwrap_or(DVec3::ZERO);
         let cluster = &cluster[..];
         for (k, c) in clusters.iter().enumerate() {
