@@ -402,6 +402,7 @@ fn scale_and_mix_compose_textures() {
 
 #[test]
 fn textures_are_built_lazily_and_unused_broken_ones_are_harmless() {
+    let dir = temp_dir("lazy");
     let desc = scene(
         vec![
             tex(
@@ -413,7 +414,7 @@ fn textures_are_built_lazily_and_unused_broken_ones_are_harmless() {
             tex("ok", TextureKind::Spectrum, "constant", params(vec![])),
         ],
         vec![],
-        temp_dir("lazy"),
+        dir.clone(),
     );
     let mut t = Textures::new(&desc);
     let w = DiagSink::new();
@@ -428,6 +429,7 @@ fn textures_are_built_lazily_and_unused_broken_ones_are_harmless() {
     assert!(e.is_error());
     assert!(e.message.contains("does-not-exist.pfm"), "{}", e.message);
     assert_eq!(e.loc, Some(loc(100)));
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
