@@ -146,18 +146,17 @@ impl Camera {
 
     pub fn generate_ray(&self, s: &CameraSample) -> Ray {
         let (w, h) = (self.resolution.0 as f32, self.resolution.1 as f32);
-        let t = &self.world_from_camera;
         let (o, d) = match self.projection {
             Projection::Environment => {
                 let theta = std::f32::consts::PI * s.p_film.y / h;
                 let phi = 2.0 * std::f32::consts::PI * s.p_film.x / w;
                 (Vec3::ZERO, Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()))
             }
-            projection => {
+            _ => {
                 let [x0, x1, y0, y1] = self.screen_window;
                 let sx = x0 + (s.p_film.x / w) * (x1 - x0);
                 let sy = y1 - (s.p_film.y / h) * (y1 - y0);
-                let (mut o, mut d) = match projection {
+                let (mut o, mut d) = match self.projection {
                     // Not normalised here: the world direction is normalised once, below.
                     Projection::Perspective { tan_half_fov } => {
                         (Vec3::ZERO, Vec3::new(sx * tan_half_fov, sy * tan_half_fov, 1.0))
@@ -171,19 +170,10 @@ impl Camera {
                     o = Vec3::new(o.x + lens.x, o.y + lens.y, 0.0);
                     d = focus - o;
                 }
-                if o == Vec3::ZERO {
-                    // The pinhole: the transform's translation is the origin (no general
-                    // point transform per ray).
-                    let m = &t.m;
-                    let ow = DVec3::new(m[0][3], m[1][3], m[2][3]) / m[3][3];
-                    let d = d.as_dvec3();
-                    let row = |i: usize| DVec3::new(m[i][0], m[i][1], m[i][2]).dot(d);
-                    let dw = DVec3::new(row(0), row(1), row(2)).normalize_or_zero();
-                    return Ray::new(ow.as_vec3(), dw.as_vec3(), f32::INFINITY);
-                }
                 (o, d)
             }
         };
+        let t = &self.world_from_camera;
         let ow = t.apply_point([o.x as f64, o.y as f64, o.z as f64]);
         let dw = t.apply_vector([d.x as f64, d.y as f64, d.z as f64]);
         let dw = DVec3::from(dw).normalize_or_zero();

@@ -158,6 +158,9 @@ impl Transform {
         }
         Transform::from_matrix(world_from_camera).map(|t| t.inverse())
     }
+    // (`#[inline]`, and no `array::map`, which is not inlined: these run per camera ray, from
+    // other crates.)
+    #[inline]
     pub fn apply_point(&self, p: [f64; 3]) -> [f64; 3] {
         let m = &self.m;
         let mut r = [0.0; 4];
@@ -170,14 +173,18 @@ impl Transform {
             [r[0] / r[3], r[1] / r[3], r[2] / r[3]]
         }
     }
+    #[inline]
     pub fn apply_vector(&self, v: [f64; 3]) -> [f64; 3] {
         let m = &self.m;
-        [0, 1, 2].map(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
+        let row = |i: usize| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2];
+        [row(0), row(1), row(2)]
     }
     /// Normals transform by the inverse transpose.
+    #[inline]
     pub fn apply_normal(&self, n: [f64; 3]) -> [f64; 3] {
         let mi = &self.m_inv;
-        [0, 1, 2].map(|i| mi[0][i] * n[0] + mi[1][i] * n[1] + mi[2][i] * n[2])
+        let col = |i: usize| mi[0][i] * n[0] + mi[1][i] * n[1] + mi[2][i] * n[2];
+        [col(0), col(1), col(2)]
     }
     /// Whether this transform flips handedness (negative determinant of the 3×3 part).
     pub fn swaps_handedness(&self) -> bool {
