@@ -215,10 +215,7 @@ impl Accel {
             return None;
         }
         // Normalise the direction in BVH space so BACKUP is a distance.
-        let d = Vec3A::from(ray.d);
-        let len = d.length();
-        // `+ 0.0` turns -0.0 into +0.0: obvhs's octant logic misroutes signed zeros.
-        let dn = d / len + Vec3A::ZERO;
+        let (dn, len) = unit_direction(ray.d);
         let o = Vec3A::from(ray.o * self.scale) - dn * BACKUP;
         // A parameter along the world ray maps to (t * len * scale) + BACKUP along the BVH ray.
         let t_max = if ray.t_max.is_finite() { ray.t_max * len * self.scale + BACKUP } else { f32::INFINITY };
@@ -258,10 +255,7 @@ impl Accel {
         }
         // The directions as `prepare` gives them to the triangle test, bounded by their slopes
         // against the first one's frame.
-        let dir = |r: &Ray| {
-            let d = Vec3A::from(r.d);
-            d / d.length() + Vec3A::ZERO
-        };
+        let dir = |r: &Ray| unit_direction(r.d).0;
         let a = dir(first);
         let (u, v) = a.any_orthonormal_pair();
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
@@ -340,6 +334,14 @@ impl Accel {
             None => f32::INFINITY,
         })
     }
+}
+
+/// A query's unit direction (as the triangle test and the traversal see it) and the length of
+/// `d`. `+ 0.0` turns -0.0 into +0.0: obvhs's octant logic misroutes signed zeros.
+fn unit_direction(d: Vec3) -> (Vec3A, f32) {
+    let d = Vec3A::from(d);
+    let len = d.length();
+    (d / len + Vec3A::ZERO, len)
 }
 
 /// Interpolates a per-vertex attribute with barycentrics.

@@ -300,6 +300,7 @@ impl Film {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::filter::{BoxFilter, Filter};
 
     #[test]
     fn floor_i32_is_floor() {
@@ -313,7 +314,6 @@ mod tests {
         assert_eq!(floor_i32(f32::INFINITY), i32::MAX);
         assert_eq!(floor_i32(f32::NEG_INFINITY), i32::MIN);
     }
-    use crate::filter::{BoxFilter, Filter};
 
     fn tile_weights(filter: &dyn Filter, p: Vec2) -> Vec<f64> {
         let mut t = FilmTile {
