@@ -26,6 +26,7 @@ pub mod rng;
 pub mod sampler;
 pub mod sampling;
 pub mod scene;
+pub mod sh;
 pub mod shapes;
 pub mod spectrum;
 pub mod spherical;
