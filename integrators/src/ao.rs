@@ -4,15 +4,26 @@
 //! hemisphere around the *geometric* normal (π × the cosine-weighted
 //! unoccluded fraction), skips surfaces without a material, and takes
 //! `nsamples` directions per camera sample from one 2D sample array.
+//!
+//! With `"bool sh" "true"` it also writes SH transfer channels (`core::sh`'s convention) at
+//! order `"integer shorder"` (3): the Monte Carlo estimate of `∫ V max(0, n·ω) Y_i(ω) dω`
+//! from the same occlusion rays and weights as the AO value (cosine sampling: `π·mean(V·Y_i)`;
+//! uniform: `2π·mean(V·cos·Y_i)`), with `n` the AO's face-forwarded geometric normal and
+//! `Y_i` in world space, plus the diffuse albedo of the first surface with a material (matte's
+//! `Kd` — Oren–Nayar too —, plastic's, substrate's and uber's diffuse part; 0 for materials
+//! without a diffuse lobe). The AO image itself is unchanged, bit for bit.
 
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, Frame, Ray};
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
+use penumbra_core::material::Material;
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::{cosine_sample_hemisphere, uniform_sample_hemisphere};
-use penumbra_core::scene::{Requirements, Scene};
+use penumbra_core::scene::{Requirements, Scene, SurfaceInteraction};
+use penumbra_core::sh::{basis, transfer::TransferChannels, ShOrder, MAX_ORDER};
+use penumbra_core::texture::TextureEvalContext;
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use std::f32::consts::FRAC_1_PI;
@@ -21,6 +32,8 @@ pub struct AmbientOcclusion {
     pub nsamples: u32,
     pub cos_sample: bool,
     pub max_distance: f32,
+    /// The order of the SH transfer channels, when they are written (`"bool sh"`).
+    pub sh: Option<ShOrder>,
 }
 
 impl AmbientOcclusion {
@@ -36,10 +49,20 @@ impl AmbientOcclusion {
         if !(max_distance > 0.0) {
             return Err(Diagnostic::error(params.loc_of("maxdistance").cloned(), "\"maxdistance\" must be positive"));
         }
+        let sh = if params.get_one_bool("sh", false) {
+            let order = params.get_one_int("shorder", 3);
+            Some(
+                ShOrder::new(order.max(0) as usize)
+                    .map_err(|e| Diagnostic::error(params.loc_of("shorder").cloned(), format!("\"shorder\": {e}")))?,
+            )
+        } else {
+            None
+        };
         Ok(Box::new(AmbientOcclusion {
             nsamples: n as u32,
             cos_sample: params.get_one_bool("cossample", true),
             max_distance,
+            sh,
         }))
     }
 }
@@ -54,14 +77,7 @@ impl PixelEstimator for Estimator<'_> {
         sampler.request_2d_array(self.n);
     }
 
-    fn li(
-        &self,
-        ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
         let mut ray = *ray;
         // Pass through surfaces without a material, as pbrt-v3 does (bounded, in case of a degenerate loop).
         for _ in 0..64 {
@@ -76,6 +92,8 @@ impl PixelEstimator for Estimator<'_> {
             let frame = Frame::from_zx(n, si.dpdu);
             let Some(us) = sampler.get_2d_array(self.n) else { return Rgb::ZERO };
             let mut sum = 0.0f32;
+            let k = self.ao.sh.map_or(0, |o| o.coeffs());
+            let (mut transfer, mut y) = ([0.0f64; MAX_ORDER * MAX_ORDER], [0.0f64; MAX_ORDER * MAX_ORDER]);
             for &u in us {
                 let (w, pdf) = if self.ao.cos_sample {
                     let w = cosine_sample_hemisphere(u);
@@ -91,12 +109,29 @@ impl PixelEstimator for Estimator<'_> {
                 r.t_max = self.ao.max_distance;
                 stats.shadow_rays += 1;
                 if !scene.occluded(&r) {
-                    sum += wi.dot(n) / (pdf * self.n as f32);
+                    let weight = wi.dot(n) / (pdf * self.n as f32);
+                    sum += weight;
+                    if let Some(order) = self.ao.sh {
+                        basis::eval(order, wi.as_dvec3(), &mut y[..k]);
+                        transfer[..k].iter_mut().zip(&y[..k]).for_each(|(t, yi)| *t += weight as f64 * yi);
+                    }
                 }
+            }
+            if let Some(order) = self.ao.sh {
+                TransferChannels::new(order, 0).write(aov, &transfer[..k], diffuse_albedo(scene, &si));
             }
             return Rgb::splat(sum);
         }
         Rgb::ZERO
+    }
+}
+
+/// The diffuse reflectance at `si` (0 where the material has none, or none was built).
+fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Rgb {
+    let Some((material, _, textures)) = scene.material_of(si) else { return Rgb::ZERO };
+    match material {
+        Material::Matte { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
+        m => m.ltc_diffuse(si, textures).unwrap_or(Rgb::ZERO),
     }
 }
 
@@ -105,7 +140,10 @@ impl Integrator for AmbientOcclusion {
         "ambientocclusion"
     }
     fn requirements(&self) -> Requirements {
-        Requirements { accel: true, ..Default::default() }
+        Requirements { accel: true, materials: self.sh.is_some(), ..Default::default() }
+    }
+    fn extra_channels(&self) -> Vec<String> {
+        self.sh.map(|o| TransferChannels::new(o, 0).names()).unwrap_or_default()
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         let n = scene.sampler.round_count(self.nsamples);
