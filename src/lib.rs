@@ -4,3 +4,4 @@
 
 pub mod cli_params;
 pub mod pipeline;
+pub mod relight;

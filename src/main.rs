@@ -29,6 +29,8 @@ enum Command {
     Diff(diff::DiffArgs),
     /// Error versus time: render with several integrators at growing budgets against a reference.
     Sweep(sweep::SweepArgs),
+    /// Re-shade an image's SH transfer channels (sh.*, albedo.*) under new distant lighting.
+    Relight(penumbra::relight::RelightArgs),
 }
 
 fn main() -> ExitCode {
@@ -38,6 +40,7 @@ fn main() -> ExitCode {
         Some(Command::Diff(a)) => diff::run(a),
         Some(Command::Render(a)) => render::run(a),
         Some(Command::Sweep(a)) => sweep::run(a),
+        Some(Command::Relight(a)) => penumbra::relight::run(a),
         None => render::run(render::RenderArgs::default()),
     }
 }
