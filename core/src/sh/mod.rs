@@ -125,7 +125,7 @@ pub(crate) fn check_len(what: &'static str, got: usize, expected: usize) -> Resu
 /// The flat index `l(l+1) + m` of `Y_l^m` (`|m| ≤ l`).
 #[inline]
 pub const fn index(l: usize, m: i32) -> usize {
-    (l * (l + 1)) as usize + m as isize as usize
+    ((l * (l + 1)) as isize + m as isize) as usize
 }
 
 /// The band `l` and `m` of flat index `i`.

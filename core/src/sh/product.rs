@@ -37,7 +37,7 @@ fn selection_rules(a: usize, b: usize, c: usize) -> bool {
     }
     let (x, y, z) = (ma.abs(), mb.abs(), mc.abs());
     let negatives = (ma < 0) as u8 + (mb < 0) as u8 + (mc < 0) as u8;
-    (x == y + z || y == x + z || z == x + y) && negatives % 2 == 0
+    (x == y + z || y == x + z || z == x + y) && negatives.is_multiple_of(2)
 }
 
 impl TripleProduct {
@@ -80,7 +80,7 @@ impl TripleProduct {
                 }
             }
         }
-        ordered.sort_by(|x, y| (x.0, x.1, x.2).cmp(&(y.0, y.1, y.2)));
+        ordered.sort_by_key(|x| (x.0, x.1, x.2));
         let mut row_start = vec![0u32; k + 1];
         for &(i, ..) in &ordered {
             row_start[i + 1] += 1;

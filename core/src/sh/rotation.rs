@@ -72,35 +72,34 @@ impl ShRotation {
 
     /// `out = D(R) f` for the first `n²` coefficients (`f` and `out` at least that long).
     pub fn apply(&self, f: &[f64], out: &mut [f64]) -> Result<(), ShError> {
-        let k = self.order.coeffs();
-        check_len("SH input", f.len(), k)?;
-        check_len("SH output", out.len(), k)?;
-        for (l, b) in self.blocks.iter().enumerate() {
-            let w = 2 * l + 1;
-            let base = l * l;
-            for r in 0..w {
-                let row = &b[r * w..(r + 1) * w];
-                out[base + r] = row.iter().zip(&f[base..base + w]).map(|(a, x)| a * x).sum();
-            }
-        }
-        Ok(())
+        self.apply_with(f, out, |acc, a, x| *acc += a * x)
     }
 
     /// [`apply`](Self::apply) to each of three colour channels stored per coefficient.
     pub fn apply_rgb(&self, f: &[[f64; 3]], out: &mut [[f64; 3]]) -> Result<(), ShError> {
+        self.apply_with(f, out, |acc, a, x| {
+            for ch in 0..3 {
+                acc[ch] += a * x[ch];
+            }
+        })
+    }
+
+    /// `out_r = Σ_c D_rc f_c` band by band, with `mac(acc, D_rc, f_c)` accumulating.
+    fn apply_with<T: Copy + Default>(
+        &self,
+        f: &[T],
+        out: &mut [T],
+        mac: impl Fn(&mut T, f64, T),
+    ) -> Result<(), ShError> {
         let k = self.order.coeffs();
         check_len("SH input", f.len(), k)?;
         check_len("SH output", out.len(), k)?;
         for (l, b) in self.blocks.iter().enumerate() {
-            let w = 2 * l + 1;
-            let base = l * l;
+            let (w, base) = (2 * l + 1, l * l);
             for r in 0..w {
-                let mut acc = [0.0; 3];
-                for c in 0..w {
-                    let a = b[r * w + c];
-                    for ch in 0..3 {
-                        acc[ch] += a * f[base + c][ch];
-                    }
+                let mut acc = T::default();
+                for (a, x) in b[r * w..(r + 1) * w].iter().zip(&f[base..base + w]) {
+                    mac(&mut acc, *a, *x);
                 }
                 out[base + r] = acc;
             }
@@ -185,7 +184,7 @@ mod tests {
             for k in 0..4 {
                 let mut r = random_rotation(&mut rng);
                 if k == 3 {
-                    r = r * DMat3::from_diagonal(DVec3::new(-1.0, 1.0, 1.0));
+                    r *= DMat3::from_diagonal(DVec3::new(-1.0, 1.0, 1.0));
                 }
                 let inv = r.transpose();
                 let direct = project(o, |d| reconstruct(&c, inv * d), &q);

@@ -165,12 +165,10 @@ mod tests {
         for (a, b) in c.iter().zip(&[0.8148, 1.0869, 0.7581, 0.1908]) {
             assert!((a - b).abs() < 6e-5, "{a} vs {b}");
         }
-        let mut p = vec![0.0; 12];
         for theta in [1e-3, 0.1, 0.5, 1.0, 2.0, 3.0] {
             let cf = cap(o(12), theta);
             // The (P_{l−1} − P_{l+1})/(2l+1) form, for l ≥ 1.
-            legendre(theta.cos(), &mut p);
-            let mut p13 = vec![0.0; 14];
+            let mut p13 = [0.0; 14];
             legendre(theta.cos(), &mut p13);
             for l in 1..12 {
                 let direct = 2.0 * PI * y_l0_at_pole(l) * (p13[l - 1] - p13[l + 1]) / (2 * l + 1) as f64;
@@ -179,8 +177,8 @@ mod tests {
             // Midpoint quadrature in z over the cap with 2M points.
             let (z0, nq) = (theta.cos(), 2_000_000);
             let dz = (1.0 - z0) / nq as f64;
-            let mut q = vec![0.0; 12];
-            let mut pl = vec![0.0; 12];
+            let mut q = [0.0; 12];
+            let mut pl = [0.0; 12];
             for k in 0..nq {
                 legendre(z0 + (k as f64 + 0.5) * dz, &mut pl);
                 for l in 0..12 {
