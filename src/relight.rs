@@ -29,6 +29,9 @@ pub struct RelightArgs {
     /// Output image (.exr, .png or .pfm): R, G, B.
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
+    /// ZIP-compress an EXR output (default: uncompressed, 10× faster to write; the same values).
+    #[arg(long)]
+    pub compress: bool,
     /// Multiply the result by 2^S.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
@@ -128,7 +131,13 @@ pub fn relight_files(args: &RelightArgs, warnings: &DiagSink) -> Result<RelightT
     let out = relight(&img, &light, args.exposure.exp2())?;
     let shade = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    image::write(&out, &args.output).map_err(|e| e.to_string())?;
+    let exr = image::Format::from_extension(&args.output) == Some(image::Format::Exr);
+    if exr && !args.compress {
+        image::write_exr_uncompressed(&out, &args.output)
+    } else {
+        image::write(&out, &args.output)
+    }
+    .map_err(|e| e.to_string())?;
     Ok(RelightTimes { order: layout.order.n(), read, lighting, shade, write: t.elapsed().as_secs_f64() })
 }
 
