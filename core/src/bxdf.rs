@@ -357,7 +357,7 @@ impl Bxdf {
                     return Rgb::ZERO;
                 }
                 let wh = wh.normalize();
-                let f = fresnel.evaluate(wi.dot(wh));
+                let f = fresnel.evaluate(wi.dot(toward_normal(wh)));
                 r * distribution.d(wh) * distribution.g(wo, wi) * f / (4.0 * cos_i * cos_o)
             }
             Bxdf::MicrofacetTransmission { t, distribution, eta_a, eta_b, mode } => {
@@ -431,7 +431,7 @@ impl Bxdf {
                 let lambda_o = distribution.lambda(wo);
                 let f = if has_f {
                     let g = 1.0 / (1.0 + lambda_o + distribution.lambda(wi));
-                    let fr = fresnel.evaluate(wi.dot(wh));
+                    let fr = fresnel.evaluate(wi.dot(toward_normal(wh)));
                     finite_or_zero(r * d * g * fr / (4.0 * cos_i * cos_o))
                 } else {
                     Rgb::ZERO
@@ -641,6 +641,18 @@ impl Bxdf {
     }
 }
 
+/// `w` turned into the shading normal's hemisphere (pbrt-v3's `Faceforward(w, (0, 0, 1))`):
+/// the microfacet Fresnel term sees the half vector on the normal's side, so that a dielectric's
+/// total internal reflection depends on the side the light is on, not on the sign of `wh`.
+#[inline]
+fn toward_normal(w: Vec3) -> Vec3 {
+    if w.z < 0.0 {
+        -w
+    } else {
+        w
+    }
+}
+
 #[inline]
 fn clamp_u(x: f32) -> f32 {
     if x.is_nan() {
@@ -827,6 +839,11 @@ impl Bsdf {
         let mut pdf = s.pdf;
         let mut f = s.f;
         let specular = bxdf.flags().is_specular();
+        if !specular && matching == 1 && !lobe_counts(bxdf.flags(), self.reflects(wo_w, wi_w)) {
+            // As pbrt-v3, `f` counts a lobe only on its side of the *geometric* normal: a
+            // direction sampled about a tilted shading normal may cross the surface.
+            f = Rgb::ZERO;
+        }
         if !specular && matching > 1 {
             // pdf: the sampled lobe's, then the others' in order; f: every matching lobe that
             // the geometric normal selects, in order (the sampled lobe's value is `s.f`).
