@@ -10,17 +10,16 @@
 //! light per depth, requested up front — so that halton/sobol keep their
 //! stratification across the per-light samples.
 
+use crate::common::direct::{estimate_direct, sample_one_light, specular};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::Ray;
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
-use penumbra_core::light::{Light, LightContext};
 use penumbra_core::sampler::Sampler;
-use penumbra_core::sampling::power_heuristic;
 use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction};
-use penumbra_core::{Rgb, Vec2};
+use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -81,36 +80,17 @@ impl Estimator<'_> {
         if !lights.is_empty() {
             l += match self.dl.strategy {
                 Strategy::All => self.sample_all_lights(&si, &bsdf, scene, sampler, stats),
-                Strategy::One => self.sample_one_light(&si, &bsdf, scene, sampler, stats),
+                Strategy::One => sample_one_light(&si, &bsdf, scene, sampler, stats, None),
             };
         }
         if depth + 1 < self.dl.max_depth {
-            l += self.specular(&si, &bsdf, scene, sampler, stats, depth, BxdfFlags::REFLECTION);
-            l += self.specular(&si, &bsdf, scene, sampler, stats, depth, BxdfFlags::TRANSMISSION);
+            for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
+                l += specular(&si, &bsdf, sampler, stats, kind, |r, sampler, stats| {
+                    self.li(r, scene, sampler, stats, depth + 1)
+                });
+            }
         }
         l
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn specular(
-        &self,
-        si: &SurfaceInteraction,
-        bsdf: &Bsdf,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        depth: u32,
-        kind: BxdfFlags,
-    ) -> Rgb {
-        let u = sampler.get_2d();
-        let Some(s) = bsdf.sample_f(si.wo, u, kind | BxdfFlags::SPECULAR) else { return Rgb::ZERO };
-        let cos = s.wi.dot(si.shading.z).abs();
-        if !(s.pdf > 0.0) || s.f == Rgb::ZERO || cos == 0.0 {
-            return Rgb::ZERO;
-        }
-        stats.rays += 1;
-        let r = si.spawn_ray(s.wi);
-        s.f * self.li(&r, scene, sampler, stats, depth + 1) * (cos / s.pdf)
     }
 
     fn sample_all_lights(
@@ -148,99 +128,6 @@ impl Estimator<'_> {
         }
         l
     }
-
-    fn sample_one_light(
-        &self,
-        si: &SurfaceInteraction,
-        bsdf: &Bsdf,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-    ) -> Rgb {
-        let lights = scene.light_list();
-        let n = lights.len();
-        let k = ((sampler.get_1d() * n as f32) as usize).min(n - 1);
-        let ul = sampler.get_2d();
-        let us = sampler.get_2d();
-        estimate_direct(si, bsdf, us, k, &lights[k], ul, scene, stats) * n as f32
-    }
-}
-
-/// pbrt-v3's `EstimateDirect`: one light sample and one BSDF sample, MIS-weighted.
-/// `light_index` is `light`'s index in `scene.lights` (to recognise its surface).
-#[allow(clippy::too_many_arguments)]
-pub fn estimate_direct(
-    si: &SurfaceInteraction,
-    bsdf: &Bsdf,
-    u_scatter: Vec2,
-    light_index: usize,
-    light: &Light,
-    u_light: Vec2,
-    scene: &Scene,
-    stats: &mut ThreadStats,
-) -> Rgb {
-    let flags = BxdfFlags::NON_SPECULAR;
-    let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
-    let mut ld = Rgb::ZERO;
-    if let Some(ls) = light.sample_li(&ctx, u_light, &scene.meshes) {
-        if ls.pdf > 0.0 && ls.li != Rgb::ZERO {
-            let (f, scatter_pdf) = bsdf.f_pdf(si.wo, ls.wi, flags);
-            let f = f * ls.wi.dot(si.shading.z).abs();
-            if f != Rgb::ZERO {
-                let shadow = if ls.n_light == penumbra_core::Vec3::ZERO {
-                    si.spawn_ray_to(ls.p_light)
-                } else {
-                    si.spawn_ray_to_surface(ls.p_light, ls.p_light_error, ls.n_light)
-                };
-                stats.shadow_rays += 1;
-                if !scene.occluded(&shadow) {
-                    if ls.delta {
-                        ld += f * ls.li / ls.pdf;
-                    } else {
-                        let w = power_heuristic(1, ls.pdf, 1, scatter_pdf);
-                        ld += f * ls.li * (w / ls.pdf);
-                    }
-                }
-            }
-        }
-    }
-    if !light.is_delta() {
-        if let Some(bs) = bsdf.sample_f(si.wo, u_scatter, flags) {
-            let f = bs.f * bs.wi.dot(si.shading.z).abs();
-            if f != Rgb::ZERO && bs.pdf > 0.0 {
-                let specular = bs.flags.contains(BxdfFlags::SPECULAR);
-                let ray = si.spawn_ray(bs.wi);
-                stats.rays += 1;
-                let hit = scene.intersect(&ray);
-                let mut light_hit = None;
-                let li = match &hit {
-                    Some(h) => {
-                        if scene.area_light_at(h) == Some(light_index) {
-                            let lsi = scene.interaction(&ray, h);
-                            light_hit = Some((lsi.p, lsi.n));
-                            light.l(lsi.n, -bs.wi)
-                        } else {
-                            Rgb::ZERO
-                        }
-                    }
-                    None => light.le(&ray),
-                };
-                if li != Rgb::ZERO {
-                    let weight = if specular {
-                        1.0
-                    } else {
-                        let light_pdf = light.pdf_li(&ctx, bs.wi, light_hit);
-                        if light_pdf == 0.0 {
-                            return ld;
-                        }
-                        power_heuristic(1, bs.pdf, 1, light_pdf)
-                    };
-                    ld += f * li * (weight / bs.pdf);
-                }
-            }
-        }
-    }
-    ld
 }
 
 impl PixelEstimator for Estimator<'_> {

@@ -1,6 +1,7 @@
 //! One module per integrator, plus the registry.
 
 pub mod ao;
+pub mod common;
 pub mod directlighting;
 pub mod ltc;
 pub mod ratio;

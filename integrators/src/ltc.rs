@@ -27,7 +27,7 @@
 //! to a Lambertian plus a GGX lobe, fall back to `directlighting`'s estimator for
 //! that light or that point, with one warning each.
 
-use crate::directlighting::estimate_direct;
+use crate::common::direct::estimate_direct;
 use glam::DVec3;
 use penumbra_core::bxdf::{Bsdf, BxdfFlags, Fresnel};
 use penumbra_core::film::Film;

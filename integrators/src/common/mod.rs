@@ -1,0 +1,3 @@
+//! Machinery several integrators share.
+
+pub mod direct;
