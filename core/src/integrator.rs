@@ -88,6 +88,11 @@ pub trait PixelEstimator: Send + Sync {
     fn shares_pixel_work(&self) -> bool {
         false
     }
+    /// Pixels outside these bounds take no samples (pbrt-v3's integrator `"pixelbounds"`: the
+    /// image keeps its size, with nothing in those pixels but their neighbours' filter tails).
+    fn pixel_bounds(&self) -> Option<Bounds2i> {
+        None
+    }
     /// `li` for sample `index` of a pixel whose shared work is `shared`.
     #[allow(clippy::too_many_arguments)]
     fn li_shared(
@@ -197,7 +202,11 @@ pub fn render_pixels(
                 };
                 let shares = est.shares_pixel_work();
                 let (mut cams, mut rays) = (Vec::new(), Vec::new());
+                let pixel_bounds = est.pixel_bounds();
                 for p in tb.iter() {
+                    if pixel_bounds.is_some_and(|b| !b.contains(p)) {
+                        continue;
+                    }
                     let shared = if shares {
                         cams.clear();
                         rays.clear();

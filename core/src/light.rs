@@ -92,6 +92,13 @@ impl RgbMap {
         self.texels.get(t * self.width + s).copied().unwrap_or(Rgb::ZERO)
     }
 
+    /// The mean texel.
+    pub fn mean(&self) -> Rgb {
+        let n = self.texels.len().max(1) as f64;
+        let sum = self.texels.iter().fold(glam::DVec3::ZERO, |acc, t| acc + t.as_dvec3());
+        (sum / n).as_vec3()
+    }
+
     /// Bilinear lookup at `st` ∈ [0,1]² (zero for non-finite coordinates).
     pub fn lookup(&self, st: Vec2) -> Rgb {
         if !st.is_finite() || self.width == 0 || self.height == 0 {
@@ -498,6 +505,28 @@ impl Light {
             self,
             Light::Point(_) | Light::Spot(_) | Light::Distant(_) | Light::Goniometric(_) | Light::Projection(_)
         )
+    }
+
+    /// Emitted power (pbrt-v3's `Light::Power`), for choosing lights in proportion to it. Maps
+    /// enter by their mean texel, where pbrt-v3 takes a coarse MIP-map level's lookup at the
+    /// centre (an approximation of the same mean).
+    pub fn power(&self) -> Rgb {
+        let mean = |m: &Option<RgbMap>| m.as_ref().map_or(Rgb::ONE, RgbMap::mean);
+        match self {
+            Light::Point(l) => 4.0 * PI * l.i,
+            Light::Spot(l) => l.i * 2.0 * PI * (1.0 - 0.5 * (l.cos_falloff_start + l.cos_total_width)),
+            Light::Distant(l) => l.l * PI * l.scene_radius * l.scene_radius,
+            Light::Area(a) => (if a.geom.two_sided { 2.0 } else { 1.0 }) * a.geom.l * a.geom.area * PI,
+            Light::Infinite(l) => PI * l.scene_radius * l.scene_radius * l.map.mean(),
+            Light::Goniometric(l) => 4.0 * PI * l.i * mean(&l.map),
+            Light::Projection(l) => {
+                let [x0, x1, y0, y1] = l.screen;
+                let aspect = (x1 - x0) / (y1 - y0);
+                let tan_diag = (1.0 + 1.0 / (aspect * aspect)).sqrt() / l.inv_tan_half_fov;
+                let cos_total_width = 1.0 / (1.0 + tan_diag * tan_diag).sqrt();
+                mean(&l.map) * l.i * 2.0 * PI * (1.0 - cos_total_width)
+            }
+        }
     }
 
     pub fn is_infinite(&self) -> bool {

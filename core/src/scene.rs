@@ -465,13 +465,18 @@ impl Scene {
     /// The BSDF at `si` (requires `Requirements::materials`); `None` when the object
     /// has no material (pbrt-v3's `Material "none"`) or materials were not built.
     pub fn bsdf(&self, si: &SurfaceInteraction) -> Option<Bsdf> {
+        self.bsdf_with(si, BsdfOptions::default())
+    }
+
+    /// [`bsdf`](Self::bsdf) with explicit options (`path` asks for pbrt-v3's multiple-lobe glass).
+    pub fn bsdf_with(&self, si: &SurfaceInteraction, opts: BsdfOptions) -> Option<Bsdf> {
         let (mat, materials, textures) = self.material_of(si)?;
         let normals = self.meshes.get(si.mesh as usize).is_some_and(|m| m.normals.is_some());
         Some(mat.compute_bsdf_ext(
             si,
             &TextureEvalContext::from_si(si),
             &ShadingGeometry::of(si, normals),
-            BsdfOptions::default(),
+            opts,
             materials,
             textures,
         ))

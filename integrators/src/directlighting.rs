@@ -11,8 +11,9 @@
 //! stratification across the per-light samples.
 
 use crate::common::direct::{estimate_direct, sample_one_light, specular};
+use crate::common::pixel_bounds_param;
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
-use penumbra_core::film::Film;
+use penumbra_core::film::{Bounds2i, Film};
 use penumbra_core::geometry::Ray;
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
@@ -31,6 +32,8 @@ pub enum Strategy {
 pub struct DirectLighting {
     pub strategy: Strategy,
     pub max_depth: u32,
+    /// pbrt-v3's `"pixelbounds"`: only these pixels are sampled.
+    pub pixel_bounds: Option<Bounds2i>,
 }
 
 impl DirectLighting {
@@ -54,9 +57,8 @@ impl DirectLighting {
                 Strategy::All
             }
         };
-        // pbrt-v3 reads "pixelbounds" here; penumbra takes crops from the film or --crop.
-        params.get_ints("pixelbounds");
-        Ok(Box::new(DirectLighting { strategy, max_depth: max_depth as u32 }))
+        let pixel_bounds = pixel_bounds_param(params, warnings);
+        Ok(Box::new(DirectLighting { strategy, max_depth: max_depth as u32, pixel_bounds }))
     }
 }
 
@@ -150,6 +152,9 @@ impl PixelEstimator for Estimator<'_> {
         _aov: &mut [f32],
     ) -> Rgb {
         self.li(ray, scene, sampler, stats, 0)
+    }
+    fn pixel_bounds(&self) -> Option<Bounds2i> {
+        self.dl.pixel_bounds
     }
 }
 

@@ -1,3 +1,26 @@
 //! Machinery several integrators share.
 
 pub mod direct;
+
+use penumbra_core::film::Bounds2i;
+use penumbra_core::IVec2;
+use penumbra_parser::{DiagSink, ParamSet};
+
+/// pbrt-v3's integrator parameter `"integer pixelbounds" [x0 x1 y0 y1]` (read by
+/// `directlighting`, `path` and `whitted`): the pixels to sample. Not four values: a warning
+/// and every pixel, as pbrt-v3.
+pub fn pixel_bounds_param(params: &ParamSet, warnings: &DiagSink) -> Option<Bounds2i> {
+    let pb = params.get_ints("pixelbounds")?;
+    if pb.len() != 4 {
+        warnings.warn(
+            params.loc_of("pixelbounds").cloned(),
+            format!("expected four values for \"pixelbounds\", got {}: ignored", pb.len()),
+        );
+        return None;
+    }
+    let b = Bounds2i::new(IVec2::new(pb[0], pb[2]), IVec2::new(pb[1], pb[3]));
+    if b.is_empty() {
+        warnings.warn(params.loc_of("pixelbounds").cloned(), "degenerate \"pixelbounds\": no pixel is sampled");
+    }
+    Some(b)
+}
