@@ -13,8 +13,10 @@ use std::sync::atomic::AtomicBool;
 pub const DEFAULT_SCENE: &str = include_str!("../scenes/default.pbrt");
 pub const DEFAULT_SCENE_NAME: &str = "<embedded default scene>";
 
-/// The integrator used for scenes that name one penumbra does not implement.
-pub const FALLBACK_INTEGRATOR: &str = "directlighting";
+/// The integrator used for scenes that name one penumbra does not implement (pbrt-v3's
+/// `volpath`, `bdpt`, `mlt` and `sppm` all estimate the light transport `path` does; their
+/// `maxdepth` keeps its meaning).
+pub const FALLBACK_INTEGRATOR: &str = "path";
 
 /// Parses `path`, or the embedded default scene when `None`.
 pub fn load_scene(path: Option<&Path>) -> Result<ParseOutput, Diagnostic> {

@@ -4,7 +4,9 @@ pub mod ao;
 pub mod common;
 pub mod directlighting;
 pub mod ltc;
+pub mod path;
 pub mod ratio;
+pub mod whitted;
 
 use penumbra_core::integrator::Integrator;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
@@ -25,6 +27,16 @@ pub const REGISTRY: &[Entry] = &[
         create: directlighting::DirectLighting::create,
     },
     Entry {
+        name: "path",
+        method: "pbrt-v3 path tracing: one light per vertex (spatial/uniform/power) with MIS, Russian roulette",
+        create: path::PathIntegrator::create,
+    },
+    Entry {
+        name: "whitted",
+        method: "pbrt-v3 Whitted ray tracing: every light one sample, perfect specular reflection and transmission",
+        create: whitted::Whitted::create,
+    },
+    Entry {
         name: "ltc",
         method: "analytic area-light shading and soft shadows with Linearly Transformed Cosines (seed 004)",
         create: ltc::LtcIntegrator::create,
@@ -42,7 +54,7 @@ pub const REGISTRY: &[Entry] = &[
 ];
 
 /// pbrt-v3 integrators penumbra does not implement; scenes naming them render with the fallback.
-pub const PBRT_UNIMPLEMENTED: &[&str] = &["path", "whitted", "volpath", "bdpt", "mlt", "sppm"];
+pub const PBRT_UNIMPLEMENTED: &[&str] = &["volpath", "bdpt", "mlt", "sppm"];
 
 pub fn names() -> Vec<&'static str> {
     REGISTRY.iter().map(|e| e.name).collect()

@@ -215,3 +215,64 @@ pub fn assert_same(a: &[f32], b: &[f32], what: &str) {
         b[diff[0]]
     );
 }
+
+/// Asserts that a render matches a pbrt-v3 reference up to the noise of both: the image mean
+/// within `mean_tol` (relative), mean z² < 1.5 and fewer than 0.5 % of values beyond 5σ, where
+/// each value's variance is our per-pixel sample variance × (1 + `ref_var_ratio`, the
+/// reference's variance relative to ours). A pixel whose samples all agree has a sample
+/// variance of 0 even when a sliver of it (an emitter's edge) differs: a rare event at this
+/// sample count that its neighbours' variance does show. So each value's variance is the
+/// largest of its 3×3 neighbourhood (same channel), plus floors of 0.2 % of the image mean and
+/// of the value itself (float accumulation). Prints the figures under `label`.
+pub fn assert_matches_reference(label: &str, ours: &Render, reference: &Image, ref_var_ratio: f64, mean_tol: f64) {
+    assert!(ours.image.data.iter().all(|v| v.is_finite()), "{label}: non-finite values");
+    let (w, h) = (reference.width as usize, reference.height as usize);
+    assert_eq!((ours.image.width as usize, ours.image.height as usize), (w, h), "{label}: image sizes");
+    let local_var = |i: usize| {
+        let (c, px) = (i % 3, i / 3);
+        let (x, y) = ((px % w) as i64, (px / w) as i64);
+        let mut v = 0.0f64;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                    v = v.max(ours.variance.data[(ny as usize * w + nx as usize) * 3 + c] as f64);
+                }
+            }
+        }
+        v
+    };
+    let floor_abs = 2e-3 * mean(reference);
+    let mut z2 = 0.0;
+    let mut outliers = 0;
+    let mut worst = (0.0f64, 0usize);
+    for (i, (o, r)) in ours.image.data.iter().zip(&reference.data).enumerate() {
+        let var = local_var(i) * (1.0 + ref_var_ratio) + floor_abs.powi(2) + (2e-3 * *r as f64).powi(2);
+        let z = (*o as f64 - *r as f64) / var.sqrt();
+        z2 += z * z;
+        if z.abs() > 5.0 {
+            outliers += 1;
+        }
+        if z.abs() > worst.0 {
+            worst = (z.abs(), i);
+        }
+    }
+    let n = reference.data.len() as f64;
+    let (m_ours, m_ref) = (mean(&ours.image), mean(reference));
+    let rel = m_ours / m_ref - 1.0;
+    let (mean_z2, outliers) = (z2 / n, outliers as f64 / n);
+    let wi = worst.1;
+    eprintln!(
+        "{label}: mean {m_ours:.6} vs pbrt-v3 {m_ref:.6} ({:+.4}%), RMSE {:.3e}, mean z² {mean_z2:.3}, \
+         beyond 5σ {:.3}%, worst z {:.1} at value {wi} ({} vs {})",
+        rel * 100.0,
+        rmse(&ours.image, reference),
+        outliers * 100.0,
+        worst.0,
+        ours.image.data[wi],
+        reference.data[wi]
+    );
+    assert!(rel.abs() < mean_tol, "{label}: image mean differs by {:.3}% from pbrt-v3", rel * 100.0);
+    assert!(mean_z2 < 1.5, "{label}: differences exceed the noise (mean z² = {mean_z2:.3})");
+    assert!(outliers < 0.005, "{label}: {:.2}% of values beyond 5σ", outliers * 100.0);
+}

@@ -1,6 +1,7 @@
 //! Machinery several integrators share.
 
 pub mod direct;
+pub mod light_distribution;
 
 use penumbra_core::film::Bounds2i;
 use penumbra_core::IVec2;

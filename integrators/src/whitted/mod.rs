@@ -1,0 +1,101 @@
+//! `whitted`: pbrt-v3's Whitted-style ray tracer (`integrators/whitted.cpp` is the specification).
+//!
+//! At the first surface with a material: its emission, plus every light with one light sample
+//! each (no BSDF sampling, no MIS; a shadow ray per sample), plus — up to `maxdepth` — perfect
+//! specular reflection and transmission, each followed recursively with one 2D sample. A ray
+//! leaving the scene sees the infinite lights. Surfaces without a material are passed through
+//! without counting depth. Sampler dimensions: one 2D sample per light, in the scene's light
+//! order, then the reflection's and the transmission's 2D samples (pbrt-v3's order).
+//!
+//! Parameters (pbrt-v3's): `"integer maxdepth"` (5), `"integer pixelbounds"` (pixels outside
+//! are not sampled).
+
+use crate::common::direct::{shadow_ray, specular};
+use crate::common::pixel_bounds_param;
+use penumbra_core::bxdf::BxdfFlags;
+use penumbra_core::film::{Bounds2i, Film};
+use penumbra_core::geometry::Ray;
+use penumbra_core::integrator::{
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+};
+use penumbra_core::light::LightContext;
+use penumbra_core::sampler::Sampler;
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
+use penumbra_core::Rgb;
+use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
+
+pub struct Whitted {
+    pub max_depth: u32,
+    pub pixel_bounds: Option<Bounds2i>,
+}
+
+impl Whitted {
+    /// Reads `maxdepth` and `pixelbounds` (see the module doc).
+    pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
+        let max_depth = params.get_one_int("maxdepth", 5);
+        if !(0..=1024).contains(&max_depth) {
+            return Err(Diagnostic::error(
+                params.loc_of("maxdepth").cloned(),
+                format!("\"maxdepth\" must be in 0..=1024, got {max_depth}"),
+            ));
+        }
+        let pixel_bounds = pixel_bounds_param(params, warnings);
+        Ok(Box::new(Whitted { max_depth: max_depth as u32, pixel_bounds }))
+    }
+
+    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
+        let (first, queries) = scene.first_surface(ray);
+        stats.rays += queries - 1;
+        let SurfaceHit { si, bsdf, le, .. } = match first {
+            Ok(h) => h,
+            Err(escaped) => return escaped,
+        };
+        let mut l = le;
+        let ns = bsdf.shading_normal();
+        let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
+        for light in scene.light_list() {
+            let u = sampler.get_2d();
+            let Some(ls) = light.sample_li(&ctx, u, &scene.meshes) else { continue };
+            if ls.li == Rgb::ZERO || !(ls.pdf > 0.0) {
+                continue;
+            }
+            let f = bsdf.f(si.wo, ls.wi, BxdfFlags::ALL);
+            if f != Rgb::ZERO {
+                stats.shadow_rays += 1;
+                if !scene.occluded(&shadow_ray(&si, &ls)) {
+                    l += f * ls.li * (ls.wi.dot(ns).abs() / ls.pdf);
+                }
+            }
+        }
+        if depth + 1 < self.max_depth {
+            for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
+                l += specular(&si, &bsdf, sampler, stats, kind, |r, sampler, stats| {
+                    self.li(r, scene, sampler, stats, depth + 1)
+                });
+            }
+        }
+        l
+    }
+}
+
+impl PixelEstimator for Whitted {
+    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, _: &mut [f32]) -> Rgb {
+        Whitted::li(self, ray, scene, sampler, stats, 0)
+    }
+
+    fn pixel_bounds(&self) -> Option<Bounds2i> {
+        self.pixel_bounds
+    }
+}
+
+impl Integrator for Whitted {
+    fn name(&self) -> &str {
+        "whitted"
+    }
+    fn requirements(&self) -> Requirements {
+        Requirements { accel: true, lights: true, materials: true, ..Default::default() }
+    }
+    fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+        render_pixels(self, scene, ctx, film)
+    }
+}
