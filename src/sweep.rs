@@ -22,7 +22,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
-/// The integrator that renders `--reference-spp` references.
+/// The integrator that renders `--reference-spp` references unless `--reference-integrator` names one.
 const REFERENCE_INTEGRATOR: &str = "directlighting";
 /// Exit status when interrupted (as a shell reports SIGINT).
 const EXIT_CANCELLED: u8 = 130;
@@ -35,9 +35,13 @@ pub struct SweepArgs {
     /// Reference image (.exr, .png or .pfm) of the same size as the renders.
     #[arg(long)]
     pub reference: Option<PathBuf>,
-    /// Render the reference with "directlighting" at N spp instead (cached under OUTDIR/cache/).
+    /// Render the reference with --reference-integrator at N spp instead (cached under OUTDIR/cache/).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub reference_spp: Option<u32>,
+    /// The integrator of the `--reference-spp` render: the estimator the others should converge
+    /// to (`path` for scenes lit by more than direct light).
+    #[arg(long, value_name = "NAME", default_value = REFERENCE_INTEGRATOR)]
+    pub reference_integrator: String,
     /// Sampler seed of the `--reference-spp` render (default: --seed + 1, so that the
     /// reference's samples are not the renders' samples).
     #[arg(long, value_name = "S")]
@@ -396,6 +400,7 @@ pub fn fnv1a64(bytes: &[u8]) -> u64 {
 /// The cache key of a `--reference-spp` render.
 pub fn reference_key(
     scene_bytes: &[u8],
+    integrator: &str,
     resolution: Option<(u32, u32)>,
     crop: Option<Crop>,
     spp: u32,
@@ -404,10 +409,8 @@ pub fn reference_key(
     let mut key = b"penumbra-sweep-reference-v1\0".to_vec();
     key.extend_from_slice(scene_bytes);
     key.extend_from_slice(
-        format!(
-            "\0integrator={REFERENCE_INTEGRATOR}\0resolution={resolution:?}\0crop={crop:?}\0spp={spp}\0seed={seed}"
-        )
-        .as_bytes(),
+        format!("\0integrator={integrator}\0resolution={resolution:?}\0crop={crop:?}\0spp={spp}\0seed={seed}")
+            .as_bytes(),
     );
     format!("{:016x}", fnv1a64(&key))
 }
@@ -873,6 +876,13 @@ fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
             integrators.push(n.to_string());
         }
     }
+    if args.reference_spp.is_some() && penumbra_integrators::find(&args.reference_integrator).is_none() {
+        return Err(fail(format!(
+            "unknown reference integrator \"{}\"; valid names: {}",
+            args.reference_integrator,
+            penumbra_integrators::names().join(", ")
+        )));
+    }
     if integrators.is_empty() {
         return Err(fail("-i: no integrator given"));
     }
@@ -989,7 +999,8 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
         }
         (None, Some(n)) => {
             let rseed = args.reference_seed.unwrap_or(args.seed.wrapping_add(1));
-            let key = reference_key(&s.scene_bytes, s.resolution, s.crop, n, rseed);
+            let ri = args.reference_integrator.as_str();
+            let key = reference_key(&s.scene_bytes, ri, s.resolution, s.crop, n, rseed);
             let cache_dir = args.output.join("cache");
             let path = cache_dir.join(format!("{key}.exr"));
             let cached = match image::read(&path) {
@@ -1008,16 +1019,16 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
             };
             let was_cached = cached.is_some();
             if let Some(img) = cached {
-                say(format!("using cached reference {} ({REFERENCE_INTEGRATOR}, {n} spp)", path.display()));
+                say(format!("using cached reference {} ({ri}, {n} spp)", path.display()));
                 reference = Some(img);
             } else {
-                say(format!("rendering reference: {REFERENCE_INTEGRATOR} at {n} spp, seed {rseed}"));
+                say(format!("rendering reference: {ri} at {n} spp, seed {rseed}"));
                 std::fs::create_dir_all(&cache_dir)
                     .map_err(|e| fail(format!("cannot create {}: {e}", cache_dir.display())))?;
                 let warnings = DiagSink::new();
                 let t0 = Instant::now();
                 let opts = RenderOptions {
-                    integrator: Some(REFERENCE_INTEGRATOR),
+                    integrator: Some(ri),
                     params: &[],
                     build: BuildOptions { spp: Some(n), seed: rseed, crop: s.crop, resolution: s.resolution },
                     threads: args.threads,
@@ -1041,13 +1052,13 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
             }
             reference_json = json!({
                 "kind": "rendered",
-                "integrator": REFERENCE_INTEGRATOR,
+                "integrator": ri,
                 "spp": n,
                 "seed": rseed,
                 "path": path.display().to_string(),
                 "cached": was_cached,
             });
-            reference_label = format!("{REFERENCE_INTEGRATOR} at {n} spp (seed {rseed}), `{}`", path.display());
+            reference_label = format!("{ri} at {n} spp (seed {rseed}), `{}`", path.display());
         }
         (None, None) => return Err(fail("give --reference or --reference-spp")),
     }
@@ -1299,13 +1310,17 @@ mod tests {
         assert_eq!(fnv1a64(b""), 0xcbf29ce484222325);
         assert_eq!(fnv1a64(b"a"), 0xaf63dc4c8601ec8c);
         assert_eq!(fnv1a64(b"foobar"), 0x85944171f73967e8);
-        let k = reference_key(b"scene", Some((32, 32)), None, 256, 1);
-        assert_eq!(k, reference_key(b"scene", Some((32, 32)), None, 256, 1));
-        assert_ne!(k, reference_key(b"scene", Some((32, 32)), None, 256, 2));
-        assert_ne!(k, reference_key(b"scene", Some((32, 32)), None, 512, 1));
-        assert_ne!(k, reference_key(b"scene", Some((64, 32)), None, 256, 1));
-        assert_ne!(k, reference_key(b"scene", Some((32, 32)), Some(Crop::Pixels([0, 8, 0, 8])), 256, 1));
-        assert_ne!(k, reference_key(b"scene2", Some((32, 32)), None, 256, 1));
+        let k = reference_key(b"scene", "directlighting", Some((32, 32)), None, 256, 1);
+        assert_eq!(k, reference_key(b"scene", "directlighting", Some((32, 32)), None, 256, 1));
+        assert_ne!(k, reference_key(b"scene", "directlighting", Some((32, 32)), None, 256, 2));
+        assert_ne!(k, reference_key(b"scene", "directlighting", Some((32, 32)), None, 512, 1));
+        assert_ne!(k, reference_key(b"scene", "directlighting", Some((64, 32)), None, 256, 1));
+        assert_ne!(
+            k,
+            reference_key(b"scene", "directlighting", Some((32, 32)), Some(Crop::Pixels([0, 8, 0, 8])), 256, 1)
+        );
+        assert_ne!(k, reference_key(b"scene2", "directlighting", Some((32, 32)), None, 256, 1));
+        assert_ne!(k, reference_key(b"scene", "path", Some((32, 32)), None, 256, 1));
         assert_eq!(k.len(), 16);
     }
 

@@ -125,6 +125,44 @@ fn directlighting_sweep_with_cached_reference() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// A `path` sweep against a `path` reference (`--reference-integrator`): error falls with the
+/// budget towards the reference's own noise, where a directlighting reference would leave the
+/// indirect light as a floor.
+#[test]
+fn path_sweep_against_a_path_reference() {
+    let out = out_dir("path");
+    let args = [
+        "-i",
+        "path",
+        "--reference-spp",
+        "512",
+        "--reference-integrator",
+        "path",
+        "--budgets",
+        "1,8,64",
+        "--resolution",
+        "24x24",
+    ];
+    let o = sweep(&args, &out);
+    let (stdout, stderr) = (text(&o.stdout), text(&o.stderr));
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    assert!(stderr.contains("rendering reference: path at 512 spp"), "{stderr}");
+    let rows = parse_csv(&std::fs::read_to_string(out.join("sweep.csv")).unwrap());
+    assert_eq!(
+        rows.iter().map(|r| (r.integrator.as_str(), r.budget)).collect::<Vec<_>>(),
+        [("path", 1), ("path", 8), ("path", 64)]
+    );
+    assert!(rows[2].rmse < 0.4 * rows[0].rmse, "{} vs {}", rows[2].rmse, rows[0].rmse);
+    assert!(stdout.contains("| path |"), "{stdout}");
+    let bad = sweep(&["-i", "path", "--reference-spp", "4", "--reference-integrator", "nope"], &out);
+    assert!(
+        !bad.status.success() && text(&bad.stderr).contains("unknown reference integrator"),
+        "{}",
+        text(&bad.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 #[test]
 fn errors_stop_before_rendering() {
     // Unknown integrator: rejected before anything is rendered or written.
