@@ -11,7 +11,7 @@
 //! stratification across the per-light samples.
 
 use crate::common::direct::{estimate_direct, sample_one_light, specular};
-use crate::common::pixel_bounds_param;
+use crate::common::{max_depth_param, pixel_bounds_param};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::{Bounds2i, Film};
 use penumbra_core::geometry::Ray;
@@ -38,13 +38,7 @@ pub struct DirectLighting {
 
 impl DirectLighting {
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let max_depth = params.get_one_int("maxdepth", 5);
-        if !(0..=1024).contains(&max_depth) {
-            return Err(Diagnostic::error(
-                params.loc_of("maxdepth").cloned(),
-                format!("\"maxdepth\" must be in 0..=1024, got {max_depth}"),
-            ));
-        }
+        let max_depth = max_depth_param(params, 1024)?;
         let st = params.get_one_string("strategy", "all");
         let strategy = match st.as_str() {
             "all" => Strategy::All,
@@ -58,7 +52,7 @@ impl DirectLighting {
             }
         };
         let pixel_bounds = pixel_bounds_param(params, warnings);
-        Ok(Box::new(DirectLighting { strategy, max_depth: max_depth as u32, pixel_bounds }))
+        Ok(Box::new(DirectLighting { strategy, max_depth, pixel_bounds }))
     }
 }
 

@@ -5,7 +5,20 @@ pub mod light_distribution;
 
 use penumbra_core::film::Bounds2i;
 use penumbra_core::IVec2;
-use penumbra_parser::{DiagSink, ParamSet};
+use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
+
+/// pbrt-v3's `"integer maxdepth"` (default 5), at most `limit` (a recursive integrator's stack
+/// bounds it; an iterative one only its run time).
+pub fn max_depth_param(params: &ParamSet, limit: u32) -> Result<u32, Diagnostic> {
+    let max_depth = params.get_one_int("maxdepth", 5);
+    match u32::try_from(max_depth) {
+        Ok(d) if d <= limit => Ok(d),
+        _ => Err(Diagnostic::error(
+            params.loc_of("maxdepth").cloned(),
+            format!("\"maxdepth\" must be in 0..={limit}, got {max_depth}"),
+        )),
+    }
+}
 
 /// pbrt-v3's integrator parameter `"integer pixelbounds" [x0 x1 y0 y1]` (read by
 /// `directlighting`, `path` and `whitted`): the pixels to sample. Not four values: a warning

@@ -20,7 +20,7 @@
 
 use crate::common::direct::sample_one_light;
 use crate::common::light_distribution::{LightDistribution, LightSampleStrategy};
-use crate::common::pixel_bounds_param;
+use crate::common::{max_depth_param, pixel_bounds_param};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::{Bounds2i, Film};
 use penumbra_core::geometry::Ray;
@@ -43,13 +43,7 @@ pub struct PathIntegrator {
 impl PathIntegrator {
     /// Reads `maxdepth`, `rrthreshold`, `lightsamplestrategy` and `pixelbounds` (see the module doc).
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let max_depth = params.get_one_int("maxdepth", 5);
-        if !(0..=1 << 16).contains(&max_depth) {
-            return Err(Diagnostic::error(
-                params.loc_of("maxdepth").cloned(),
-                format!("\"maxdepth\" must be in 0..=65536, got {max_depth}"),
-            ));
-        }
+        let max_depth = max_depth_param(params, 1 << 16)?;
         let rr_threshold = params.get_one_float("rrthreshold", 1.0);
         if !rr_threshold.is_finite() {
             return Err(Diagnostic::error(params.loc_of("rrthreshold").cloned(), "\"rrthreshold\" must be finite"));
@@ -63,7 +57,7 @@ impl PathIntegrator {
             LightSampleStrategy::Spatial
         });
         let pixel_bounds = pixel_bounds_param(params, warnings);
-        Ok(Box::new(PathIntegrator { max_depth: max_depth as u32, rr_threshold, strategy, pixel_bounds }))
+        Ok(Box::new(PathIntegrator { max_depth, rr_threshold, strategy, pixel_bounds }))
     }
 }
 

@@ -11,7 +11,7 @@
 //! are not sampled).
 
 use crate::common::direct::{shadow_ray, specular};
-use crate::common::pixel_bounds_param;
+use crate::common::{max_depth_param, pixel_bounds_param};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::{Bounds2i, Film};
 use penumbra_core::geometry::Ray;
@@ -32,15 +32,9 @@ pub struct Whitted {
 impl Whitted {
     /// Reads `maxdepth` and `pixelbounds` (see the module doc).
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let max_depth = params.get_one_int("maxdepth", 5);
-        if !(0..=1024).contains(&max_depth) {
-            return Err(Diagnostic::error(
-                params.loc_of("maxdepth").cloned(),
-                format!("\"maxdepth\" must be in 0..=1024, got {max_depth}"),
-            ));
-        }
+        let max_depth = max_depth_param(params, 1024)?;
         let pixel_bounds = pixel_bounds_param(params, warnings);
-        Ok(Box::new(Whitted { max_depth: max_depth as u32, pixel_bounds }))
+        Ok(Box::new(Whitted { max_depth, pixel_bounds }))
     }
 
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
