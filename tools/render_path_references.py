@@ -59,7 +59,7 @@ def directives(tokens):
     return out
 
 
-def rewrite(text, spp, res, pfm, integrator):
+def rewrite(text, spp, res, pfm, integrator, box_filter=True):
     head, sep, world = text.partition("WorldBegin")
     assert sep, "no WorldBegin"
     sampler_type = '"halton"'
@@ -69,10 +69,13 @@ def rewrite(text, spp, res, pfm, integrator):
             sampler_type = args[0]
         elif name == "Integrator" and integrator:
             pass
-        elif name not in ("PixelFilter", "Film"):
+        elif name == "Film" or (name == "PixelFilter" and box_filter):
+            pass
+        else:
             kept.append(name + " " + " ".join(args))
     kept.append(f'Sampler {sampler_type} "integer pixelsamples" [ {spp} ]')
-    kept.append('PixelFilter "box"')
+    if box_filter:
+        kept.append('PixelFilter "box"')
     kept.append(f'Film "image" "integer xresolution" [ {res} ] "integer yresolution" [ {res} ] "string filename" [ "{pfm}" ]')
     if integrator:
         kept.append(f'Integrator "{integrator}"')
