@@ -16,7 +16,8 @@ fn reference_case(name: &str) -> (String, f64, f64) {
 }
 
 /// Renders the public scene of reference `name` at 64×64 with `integrator`, its own sampler
-/// and a box filter (as the reference script renders it for pbrt-v3), and compares.
+/// and a box filter (as the reference script renders it for pbrt-v3), and compares: the image
+/// mean within 1 %, per value within the noise, and the means of 8×8-pixel regions.
 fn check(name: &str, integrator: &str, spp: u32) {
     let (rel, ref_spp, ref_res) = reference_case(name);
     let mut desc = penumbra_parser::parse_file(&scene(&format!("public/{rel}"))).unwrap().scene;
@@ -24,13 +25,9 @@ fn check(name: &str, integrator: &str, spp: u32) {
     let ours = render_desc(&desc, &Opts { integrator: Some(integrator), spp: Some(spp), ..Default::default() });
     let reference: Image = image_rgb(&format!("tests/data/path-references/{name}.exr"));
     let per_pixel = ref_spp * (ref_res / 64.0).powi(2);
-    assert_matches_reference(
-        &format!("{name} ({integrator}, {spp} spp)"),
-        &ours,
-        &reference,
-        spp as f64 / per_pixel,
-        0.01,
-    );
+    let label = format!("{name} ({integrator}, {spp} spp)");
+    assert_matches_reference(&label, &ours, &reference, spp as f64 / per_pixel, 0.01);
+    assert_regions_match(&label, &ours, &reference, spp as f64 / per_pixel, 8);
 }
 
 fn image_rgb(rel: &str) -> Image {
@@ -56,6 +53,18 @@ fn path_matches_pbrt_v3_glass() {
 fn whitted_matches_pbrt_v3_glass_and_mirror() {
     check("glass-whitted", "whitted", 64);
     check("mirror-whitted", "whitted", 64);
+}
+
+/// Known discrepancy, not yet explained: on the bump-mapped sphere (`windy` bump map on a
+/// tessellated sphere) the image mean is 1.0 % (path) and 1.4 % (whitted) below pbrt-v3's
+/// (`cargo test --release --test path -- --ignored --nocapture`). Not the bump step's fallback
+/// du/dv (pbrt-v3's 0.0005 instead of 0.01 moves it by 0.07 %); the tessellated sphere's uv
+/// derivatives and the `windy` texture are what is left to compare.
+#[test]
+#[ignore]
+fn path_and_whitted_match_pbrt_v3_bump_map() {
+    check("bump-whitted", "whitted", 64);
+    check("bump-path", "path", 128);
 }
 
 /// The inside of a closed cube whose walls emit `L` = 1 (both sides) and reflect with albedo

@@ -29,6 +29,8 @@ CASES = [
     ("glass-whitted", "hackmad-pbrt-v3-rs/scenes/materials/glass.pbrt", None, 256, 128),
     ("mirror-whitted", "hackmad-pbrt-v3-rs/scenes/materials/mirror.pbrt", None, 256, 128),
     ("glass-path", "hackmad-pbrt-v3-rs/scenes/materials/glass.pbrt", "path", 1024, 128),
+    ("bump-whitted", "hackmad-pbrt-v3-rs/scenes/materials/bump.pbrt", None, 256, 128),
+    ("bump-path", "hackmad-pbrt-v3-rs/scenes/materials/bump.pbrt", "path", 512, 128),
 ]
 
 TOKEN = re.compile(r'"[^"]*"|\[|\]|[^\s\[\]"]+')
