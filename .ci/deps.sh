@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Test dependencies for penumbra's image cross-checks (sourced by the CI script; idempotent).
+set -euo pipefail
+# Test dependencies for penumbra's image cross-checks (run by the CI script, which fails if
+# they cannot be installed; idempotent).
 # idiff/oiiotool for tests/idiff_crosscheck.rs, and OpenImageIO's Python bindings, which the
 # same test uses to read idiff's numbers at full double precision.
 command -v idiff >/dev/null 2>&1 || (apt-get update && apt-get install -y openimageio-tools)
-python3 -c 'import OpenImageIO' >/dev/null 2>&1 || (apt-get update && apt-get install -y python3-openimageio) || true
+python3 -c 'import OpenImageIO' >/dev/null 2>&1 || (apt-get update && apt-get install -y python3-openimageio)

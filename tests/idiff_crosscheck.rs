@@ -1,8 +1,11 @@
 //! Cross-checks `penumbra diff` against OpenImageIO's `idiff` on generated
 //! image pairs. Needs `idiff` (openimageio-tools, see `.ci/deps.sh`); without
-//! it the test prints "SKIPPED: idiff not found" and returns. When OIIO's Python
+//! it the test prints "SKIPPED: idiff not found" and returns, or fails when the `CI`
+//! environment variable is set (as `.ci/run` sets it). When OIIO's Python
 //! bindings are importable, the numbers are also compared at full precision
 //! through `ImageBufAlgo.compare` (idiff prints only 6 significant digits).
+
+mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -143,8 +146,7 @@ struct Case {
 #[test]
 fn idiff_crosscheck() {
     let Some(idiff) = find_on_path("idiff") else {
-        println!("SKIPPED: idiff not found (install openimageio-tools; see .ci/deps.sh)");
-        eprintln!("SKIPPED: idiff not found (install openimageio-tools; see .ci/deps.sh)");
+        common::skip_or_fail_in_ci("idiff not found (install openimageio-tools; see .ci/deps.sh)");
         return;
     };
     let dir = std::env::temp_dir().join(format!("penumbra-idiff-{}", std::process::id()));
@@ -216,7 +218,7 @@ fn idiff_crosscheck() {
         cases.push(Case { name: "half-exr", a: p("half_a.exr"), b: p("half_b.exr"), same_exit: true });
         cases.push(Case { name: "png16", a: p("png16_a.png"), b: p("png16_b.png"), same_exit: true });
     } else {
-        println!("note: oiiotool not found, half-EXR and 16-bit PNG cases skipped");
+        common::skip_or_fail_in_ci("oiiotool not found: the half-EXR and 16-bit PNG cases");
     }
 
     // idiff takes about a second to start; run the cases concurrently.
@@ -297,7 +299,7 @@ fn idiff_crosscheck() {
         cases.len()
     );
     if python_checked == 0 {
-        println!("note: OpenImageIO Python bindings not found; only idiff's 6-digit output was compared");
+        common::skip_or_fail_in_ci("OpenImageIO's Python bindings not found: only idiff's 6-digit output was compared");
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }

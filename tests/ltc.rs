@@ -9,7 +9,8 @@ use common::*;
 /// shading is exact.
 fn matte_variant(name: &str) -> String {
     let text = std::fs::read_to_string(scene(&format!("suite/ltc/{name}.pbrt"))).unwrap();
-    text.lines()
+    let out = text
+        .lines()
         .map(|l| {
             let t = l.trim_start();
             if t.starts_with("Material \"plastic\"") {
@@ -25,7 +26,16 @@ fn matte_variant(name: &str) -> String {
             }
         })
         .collect::<Vec<_>>()
-        .join("\n")
+        .join("\n");
+    // The variant must leave no other material behind (a material written another way, e.g. a
+    // named one, would otherwise silently keep its glossy lobe).
+    let non_matte = out
+        .lines()
+        .map(str::trim_start)
+        .filter(|l| l.contains("Material") && !l.starts_with("Material \"matte\""))
+        .collect::<Vec<_>>();
+    assert!(non_matte.is_empty(), "{name}: the matte variant kept {non_matte:?}");
+    out
 }
 
 fn opts<'a>(integrator: &'a str, params: &'a [&'a str], spp: u32) -> Opts<'a> {
