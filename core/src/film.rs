@@ -9,6 +9,7 @@
 //! rendered in.
 
 use crate::filter::Filter;
+use crate::geometry::Bounds2i;
 use crate::image::Image;
 use crate::Rgb;
 use glam::{IVec2, Vec2};
@@ -20,41 +21,6 @@ pub fn floor_i32(x: f32) -> i32 {
     let i = x as i32;
     // The truncation rounds towards zero: one less for a negative non-integer.
     i.saturating_sub(((i as f32) > x) as i32)
-}
-
-/// Half-open integer rectangle `[min, max)`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Bounds2i {
-    pub min: IVec2,
-    pub max: IVec2,
-}
-
-impl Bounds2i {
-    pub fn new(min: IVec2, max: IVec2) -> Self {
-        Bounds2i { min, max }
-    }
-    pub fn is_empty(&self) -> bool {
-        self.max.x <= self.min.x || self.max.y <= self.min.y
-    }
-    pub fn width(&self) -> i32 {
-        (self.max.x - self.min.x).max(0)
-    }
-    pub fn height(&self) -> i32 {
-        (self.max.y - self.min.y).max(0)
-    }
-    pub fn area(&self) -> i64 {
-        self.width() as i64 * self.height() as i64
-    }
-    pub fn intersect(&self, o: &Bounds2i) -> Bounds2i {
-        Bounds2i { min: self.min.max(o.min), max: self.max.min(o.max) }
-    }
-    pub fn contains(&self, p: IVec2) -> bool {
-        p.x >= self.min.x && p.x < self.max.x && p.y >= self.min.y && p.y < self.max.y
-    }
-    /// Pixels in raster order.
-    pub fn iter(&self) -> impl Iterator<Item = IVec2> + '_ {
-        (self.min.y..self.max.y).flat_map(move |y| (self.min.x..self.max.x).map(move |x| IVec2::new(x, y)))
-    }
 }
 
 /// What the film is and where its pixels are.

@@ -1,7 +1,7 @@
 //! Rays, frames and pbrt-v3's conservative floating-point error bounds for
 //! spawning rays off surfaces without self-intersection.
 
-use glam::Vec3;
+use glam::{DVec3, IVec2, Vec3};
 
 /// A ray `o + t d` for `t` in `(0, t_max)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -72,11 +72,13 @@ pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
 }
 
 /// An orthonormal frame; `to_local`/`from_local` map between world and frame coordinates (z = normal).
+/// `Frame` (f32) is the shading frame of a surface interaction; `Frame<DVec3>` is the f64 frame
+/// the analytic methods work in ([`crate::ltc`]: x towards the outgoing direction).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Frame {
-    pub x: Vec3,
-    pub y: Vec3,
-    pub z: Vec3,
+pub struct Frame<V = Vec3> {
+    pub x: V,
+    pub y: V,
+    pub z: V,
 }
 
 impl Frame {
@@ -99,14 +101,49 @@ impl Frame {
         let y = y / l;
         Frame { x: y.cross(n), y, z: n }
     }
-    #[inline]
-    pub fn to_local(&self, v: Vec3) -> Vec3 {
-        Vec3::new(v.dot(self.x), v.dot(self.y), v.dot(self.z))
+}
+
+impl Frame<DVec3> {
+    /// The frame for normal `n` and outgoing direction `wo`: z = `n` normalised (+z if it is
+    /// zero), x = `wo`'s projection onto the tangent plane (any tangent if `wo ∥ n`), y = z × x.
+    pub fn toward(n: DVec3, wo: DVec3) -> Self {
+        let z = n.normalize_or_zero();
+        let z = if z == DVec3::ZERO { DVec3::Z } else { z };
+        let t = wo - z * z.dot(wo);
+        let x = if t.length_squared() > 1e-24 * wo.length_squared().max(1e-300) {
+            t.normalize()
+        } else {
+            orthonormal_basis(z).0
+        };
+        Frame { x, y: z.cross(x), z }
     }
-    #[inline]
-    pub fn from_local(&self, v: Vec3) -> Vec3 {
-        self.x * v.x + self.y * v.y + self.z * v.z
-    }
+}
+
+macro_rules! frame_maps {
+    ($v:ty) => {
+        impl Frame<$v> {
+            /// World direction to frame coordinates.
+            #[inline]
+            pub fn to_local(&self, v: $v) -> $v {
+                <$v>::new(v.dot(self.x), v.dot(self.y), v.dot(self.z))
+            }
+            /// Frame coordinates to a world direction.
+            #[inline]
+            pub fn from_local(&self, v: $v) -> $v {
+                self.x * v.x + self.y * v.y + self.z * v.z
+            }
+        }
+    };
+}
+frame_maps!(Vec3);
+frame_maps!(DVec3);
+
+/// Two unit vectors completing `n` to a right-handed orthonormal frame (f64; Duff et al.).
+pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
+    let sign = 1.0f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), DVec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 /// `n` flipped, if needed, to lie in the hemisphere of `v`.
@@ -161,6 +198,41 @@ impl Bounds3 {
         }
         let c = self.center();
         (c, (self.max - c).length())
+    }
+}
+
+/// Half-open integer rectangle `[min, max)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Bounds2i {
+    pub min: IVec2,
+    pub max: IVec2,
+}
+
+impl Bounds2i {
+    pub fn new(min: IVec2, max: IVec2) -> Self {
+        Bounds2i { min, max }
+    }
+    pub fn is_empty(&self) -> bool {
+        self.max.x <= self.min.x || self.max.y <= self.min.y
+    }
+    pub fn width(&self) -> i32 {
+        (self.max.x - self.min.x).max(0)
+    }
+    pub fn height(&self) -> i32 {
+        (self.max.y - self.min.y).max(0)
+    }
+    pub fn area(&self) -> i64 {
+        self.width() as i64 * self.height() as i64
+    }
+    pub fn intersect(&self, o: &Bounds2i) -> Bounds2i {
+        Bounds2i { min: self.min.max(o.min), max: self.max.min(o.max) }
+    }
+    pub fn contains(&self, p: IVec2) -> bool {
+        p.x >= self.min.x && p.x < self.max.x && p.y >= self.min.y && p.y < self.max.y
+    }
+    /// Pixels in raster order.
+    pub fn iter(&self) -> impl Iterator<Item = IVec2> + '_ {
+        (self.min.y..self.max.y).flat_map(move |y| (self.min.x..self.max.x).map(move |x| IVec2::new(x, y)))
     }
 }
 

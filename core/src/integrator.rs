@@ -1,7 +1,8 @@
 //! The integrator interface and the generic parallel driver for per-pixel estimators.
 
 use crate::camera::CameraSample;
-use crate::film::{Bounds2i, Film};
+use crate::film::Film;
+use crate::geometry::Bounds2i;
 use crate::geometry::Ray;
 use crate::sampler::Sampler;
 use crate::scene::{Requirements, Scene};

@@ -13,6 +13,7 @@ pub mod filter;
 pub mod geometry;
 pub mod image;
 pub mod integrator;
+pub mod interaction;
 pub mod light;
 pub mod ltc;
 pub mod material;

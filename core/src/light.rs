@@ -22,9 +22,9 @@
 use crate::accel::interpolate;
 use crate::geometry::{face_forward, gamma, Bounds3, Ray};
 use crate::image::Image;
+use crate::interaction::SceneObject;
 use crate::mesh::TriangleMesh;
 use crate::sampling::{spherical_phi, spherical_theta, uniform_sample_triangle, Distribution1D, Distribution2D};
-use crate::scene::SceneObject;
 use crate::spectrum::luminance;
 use crate::Rgb;
 use glam::{Mat3, Vec2, Vec3};
@@ -342,7 +342,7 @@ fn tri_vertices(mesh: &TriangleMesh, tri: usize) -> Option<[Vec3; 3]> {
 /// The normal pbrt-v3's `Triangle::Sample` gives the point with barycentrics `b`:
 /// the winding normal, face-forwarded to the interpolated shading normal when the
 /// mesh has normals, else flipped by `ReverseOrientation` xor handedness (as
-/// [`crate::scene::Scene::interaction`] orients hits).
+/// `Scene::interaction` orients hits).
 fn sampled_normal(mesh: &TriangleMesh, tri: usize, pv: [Vec3; 3], b: [f32; 3]) -> Vec3 {
     let mut n = (pv[1] - pv[0]).cross(pv[2] - pv[0]).normalize_or_zero();
     if mesh.flip_normals {

@@ -5,7 +5,7 @@
 //!
 //! # Frame and table
 //!
-//! Everything is in the local shading frame of [`ShadingFrame`]: `z` the normal,
+//! Everything is in the local shading frame [`Frame::toward`]: `z` the normal,
 //! `x` the tangent direction of `ωo` (so `ωo = (sin θo, 0, cos θo)`). An LTC is
 //! the distribution `D(ω) = Do(ω̂o) |det M⁻¹| / |M⁻¹ω|³` with `ω̂o = M⁻¹ω / |M⁻¹ω|`
 //! and `Do` the clamped cosine `max(0, z)/π`. For isotropic GGX, `M⁻¹` has the
@@ -33,44 +33,11 @@ use std::sync::OnceLock;
 
 use glam::{DMat3, DVec2, DVec3};
 
+use crate::geometry::Frame;
 use crate::spherical;
 
 /// The embedded GGX table (see the module documentation for the format).
 static LTC_GGX_BIN: &[u8] = include_bytes!("../data/ltc_ggx.bin");
-
-/// A local shading frame: `z` the normal, `x` the tangent direction of `ωo`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ShadingFrame {
-    pub x: DVec3,
-    pub y: DVec3,
-    pub z: DVec3,
-}
-
-impl ShadingFrame {
-    /// The frame for normal `n` (unit) and outgoing direction `wo`: `x` is `wo`'s
-    /// projection onto the tangent plane (any tangent if `wo ∥ n`), `y = z × x`.
-    pub fn new(n: DVec3, wo: DVec3) -> Self {
-        let z = n.normalize_or_zero();
-        let z = if z == DVec3::ZERO { DVec3::Z } else { z };
-        let t = wo - z * z.dot(wo);
-        let x = if t.length_squared() > 1e-24 * wo.length_squared().max(1e-300) {
-            t.normalize()
-        } else {
-            spherical::orthonormal_basis(z).0
-        };
-        ShadingFrame { x, y: z.cross(x), z }
-    }
-
-    /// World direction to local coordinates.
-    pub fn to_local(&self, d: DVec3) -> DVec3 {
-        DVec3::new(d.dot(self.x), d.dot(self.y), d.dot(self.z))
-    }
-
-    /// Local coordinates to a world direction.
-    pub fn to_world(&self, d: DVec3) -> DVec3 {
-        self.x * d.x + self.y * d.y + self.z * d.z
-    }
-}
 
 /// One LTC: its inverse matrix (local frame) and the scalar terms.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -158,7 +125,7 @@ impl LtcCoeffs {
 /// is taken to the local frame, transformed by `minv`, clipped to the horizon
 /// and integrated with Lambert's edge formula. Signed by orientation (positive
 /// loops positive); multiply by the magnitude for `∫ f cos`.
-pub fn ltc_integrate(minv: &DMat3, frame: &ShadingFrame, loops: &[Vec<DVec3>]) -> f64 {
+pub fn ltc_integrate(minv: &DMat3, frame: &Frame<DVec3>, loops: &[Vec<DVec3>]) -> f64 {
     ltc_integrate_vector(minv, frame, loops).z
 }
 
@@ -166,7 +133,7 @@ pub fn ltc_integrate(minv: &DMat3, frame: &ShadingFrame, loops: &[Vec<DVec3>]) -
 /// integrates: its `z` is that integral (bit for bit), and `M` times it points along the
 /// region's LTC-weighted mean direction (Heitz et al.'s proxy for Fresnel and horizon
 /// handling). Signed by orientation, as is the integral; nothing is allocated.
-pub fn ltc_integrate_vector(minv: &DMat3, frame: &ShadingFrame, loops: &[Vec<DVec3>]) -> DVec3 {
+pub fn ltc_integrate_vector(minv: &DMat3, frame: &Frame<DVec3>, loops: &[Vec<DVec3>]) -> DVec3 {
     let mut sum = DVec3::ZERO;
     let flip = minv.determinant() < 0.0;
     for l in loops {

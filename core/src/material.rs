@@ -13,8 +13,8 @@
 
 use crate::bxdf::{Bsdf, Bxdf, Fresnel, TransportMode};
 use crate::geometry::face_forward;
+use crate::interaction::SurfaceInteraction;
 use crate::microfacet::{roughness_to_alpha, MicrofacetDistribution};
-use crate::scene::SurfaceInteraction;
 use crate::spectrum::{copper_eta, copper_k, Rgb};
 use crate::texture::{FloatParam, SpectrumParam, TextureEvalContext, Textures};
 use glam::{Vec2, Vec3};

@@ -4,17 +4,18 @@
 use crate::accel::{interpolate, Accel, Hit, DEFAULT_UV};
 use crate::bxdf::Bsdf;
 use crate::camera::Camera;
-use crate::film::{Bounds2i, FilmSpec};
+use crate::film::FilmSpec;
 use crate::filter::{create_filter, Filter};
-use crate::geometry::{face_forward, gamma, Bounds3, Frame, Ray};
+use crate::geometry::{face_forward, gamma, Bounds2i, Bounds3, Frame, Ray};
+use crate::interaction::{SceneObject, SurfaceInteraction};
 use crate::light::{Light, Lights};
 use crate::material::{BsdfOptions, Material, Materials, ShadingGeometry};
 use crate::mesh::TriangleMesh;
 use crate::sampler::{create_sampler, Sampler};
 use crate::shapes::{build_shape, ShapeContext, Tessellation};
 use crate::texture::{TextureEvalContext, Textures};
-use glam::{IVec2, Vec2, Vec3};
-use penumbra_parser::{DiagSink, Diagnostic, Entity, FileLoc, SceneDescription, ShapeDesc};
+use glam::{IVec2, Vec3};
+use penumbra_parser::{DiagSink, Diagnostic, Entity, SceneDescription, ShapeDesc};
 use std::time::Instant;
 
 /// What the scene build must provide for an integrator. Everything is off by
@@ -52,23 +53,6 @@ pub struct BuildOptions {
     pub crop: Option<Crop>,
     /// Overrides of the film resolution (tests render scenes small).
     pub resolution: Option<(u32, u32)>,
-}
-
-/// One shape directive (or one shape of one object instance) in the scene.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SceneObject {
-    /// The shape type as written (`"sphere"`, `"trianglemesh"`…).
-    pub kind: String,
-    pub loc: FileLoc,
-    /// Index into `SceneDescription::materials`; `None` means no surface (pbrt-v3's `Material "none"`).
-    pub material: Option<usize>,
-    /// Index into `SceneDescription::area_lights`.
-    pub area_light: Option<usize>,
-    /// Which `ObjectInstance` this came from, if any.
-    pub instance: Option<usize>,
-    /// `"bool occluder" false` on the shape: analytic visibility methods ignore it as an
-    /// occluder (a penumbra extension; pbrt-v3 reports the parameter unused and renders).
-    pub occluder: bool,
 }
 
 /// The first surface with a material along a ray, before its BSDF is built
@@ -132,47 +116,6 @@ pub struct Scene {
     pub integrator: Entity,
     pub report: BuildReport,
 }
-
-/// The local geometry at a ray hit, with pbrt-v3's conventions for normals.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SurfaceInteraction {
-    pub p: Vec3,
-    /// Conservative absolute error bound on `p`.
-    pub p_error: Vec3,
-    /// Geometric normal (pbrt-v3's `n`: flipped by `ReverseOrientation` xor handedness,
-    /// and on the side of the shading normal when the mesh has normals).
-    pub n: Vec3,
-    pub uv: Vec2,
-    pub dpdu: Vec3,
-    pub dpdv: Vec3,
-    /// Shading frame (z = shading normal).
-    pub shading: Frame,
-    /// Direction towards the ray origin.
-    pub wo: Vec3,
-    pub mesh: u32,
-    pub tri: u32,
-}
-
-impl SurfaceInteraction {
-    /// A ray leaving the surface in direction `d`, offset so it cannot re-hit this surface.
-    pub fn spawn_ray(&self, d: Vec3) -> Ray {
-        Ray::new(crate::geometry::offset_ray_origin(self.p, self.p_error, self.n, d), d, f32::INFINITY)
-    }
-    /// A shadow ray from this surface to point `p` (stops just short of it).
-    pub fn spawn_ray_to(&self, p: Vec3) -> Ray {
-        let o = crate::geometry::offset_ray_origin(self.p, self.p_error, self.n, p - self.p);
-        Ray::new(o, p - o, 1.0 - SHADOW_EPSILON)
-    }
-    /// A shadow ray between this surface and another surface point, both ends offset.
-    pub fn spawn_ray_to_surface(&self, p: Vec3, p_error: Vec3, n: Vec3) -> Ray {
-        let o = crate::geometry::offset_ray_origin(self.p, self.p_error, self.n, p - self.p);
-        let t = crate::geometry::offset_ray_origin(p, p_error, n, o - p);
-        Ray::new(o, t - o, 1.0 - SHADOW_EPSILON)
-    }
-}
-
-/// pbrt-v3's `ShadowEpsilon`.
-pub const SHADOW_EPSILON: f32 = 0.0001;
 
 /// A ray bundle with more candidate triangles than this is traversed ray by ray: testing each
 /// candidate would cost more than a traversal.

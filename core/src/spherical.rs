@@ -47,6 +47,7 @@ use i_overlay::core::fill_rule::FillRule;
 use i_overlay::core::overlay_rule::OverlayRule;
 use i_overlay::float::overlay::FloatOverlay;
 
+pub use crate::geometry::orthonormal_basis;
 use crate::mesh::{EdgeAdjacency, TriangleMesh, BOUNDARY};
 
 /// A spherical polygon: one loop of directions seen from the shading point
@@ -310,14 +311,6 @@ pub fn hemisphere_center(poly: &[DVec3]) -> Option<DVec3> {
         p += step * t;
     }
     None
-}
-
-/// Two unit vectors completing `n` to a right-handed orthonormal frame.
-pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
-    let sign = 1.0f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), DVec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 /// Winding number of a loop around direction `d` (non-zero: inside). The loop

@@ -18,8 +18,8 @@
 //! - Parameters on the `Shape` that override material parameters (pbrt-v3's
 //!   `geomParams`) are not supported: only the material's own parameters are used.
 
+use crate::interaction::SurfaceInteraction;
 use crate::rng::Rng;
-use crate::scene::SurfaceInteraction;
 use crate::spectrum::Rgb;
 use glam::{Mat4, Vec2, Vec3};
 use penumbra_parser::{

@@ -18,10 +18,11 @@ use penumbra_core::geometry::{face_forward, Frame, Ray};
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
+use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::material::Material;
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::{cosine_sample_hemisphere, uniform_sample_hemisphere};
-use penumbra_core::scene::{Requirements, Scene, SurfaceInteraction};
+use penumbra_core::scene::{Requirements, Scene};
 use penumbra_core::sh::{basis, transfer::TransferChannels, ShOrder, MAX_ORDER};
 use penumbra_core::texture::TextureEvalContext;
 use penumbra_core::Rgb;

@@ -13,13 +13,14 @@
 use crate::common::direct::{estimate_direct, sample_one_light, specular};
 use crate::common::{max_depth_param, pixel_bounds_param};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
-use penumbra_core::film::{Bounds2i, Film};
-use penumbra_core::geometry::Ray;
+use penumbra_core::film::Film;
+use penumbra_core::geometry::{Bounds2i, Ray};
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
+use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::sampler::Sampler;
-use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction};
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 

@@ -31,16 +31,17 @@ use crate::common::direct::estimate_direct;
 use glam::DVec3;
 use penumbra_core::bxdf::{Bsdf, BxdfFlags, Fresnel};
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{Bounds3, Ray};
+use penumbra_core::geometry::{Bounds3, Frame, Ray};
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, PixelShared, RenderContext, RenderError, RenderStats, ThreadStats,
 };
+use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{emitting_normal, Light, LightContext};
-use penumbra_core::ltc::{ltc_integrate_vector, Ltc, LtcCoeffs, ShadingFrame};
+use penumbra_core::ltc::{ltc_integrate_vector, Ltc, LtcCoeffs};
 use penumbra_core::material::{LtcDescription, LtcFresnel, LtcSpecular};
 use penumbra_core::mesh::TriangleMesh;
 use penumbra_core::sampler::Sampler;
-use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction, SurfacePoint};
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfacePoint};
 use penumbra_core::spectrum::luminance;
 use penumbra_core::spherical::{self, SilhouetteMesh};
 use penumbra_core::{Rgb, Vec2, Vec3};
@@ -876,7 +877,7 @@ impl<'a> LtcShader<'a> {
         // pbrt-v3's BSDFs reflect on whichever side ωo is (a mesh wound inwards still lights
         // up): integrate over the hemisphere around the normal on ωo's side.
         let n = if n.dot(si.wo) < 0.0 { -n } else { n };
-        let frame = ShadingFrame::new(d3(n), d3(si.wo));
+        let frame = Frame::toward(d3(n), d3(si.wo));
         let spec = desc.specular.map(|s| {
             let cos_o = frame.to_local(d3(si.wo)).z.clamp(0.0, 1.0);
             (s, Ltc::lookup(cos_o as f32, s.alpha))
@@ -981,7 +982,7 @@ impl<'a> LtcShader<'a> {
         p: DVec3,
         piece: &[DVec3],
         mut occ: Occluders,
-        frame: &ShadingFrame,
+        frame: &Frame<DVec3>,
         wo_local: DVec3,
         spec: Option<&(LtcSpecular, LtcCoeffs)>,
         acc: &mut Accum,
@@ -1053,7 +1054,7 @@ impl<'a> LtcShader<'a> {
             // kink no single mean direction captures. The region is split along that circle
             // (a 16-gon) when it straddles it: F = 1 outside, rings of mean-direction
             // Fresnel inside (below).
-            let wo_world = frame.to_world(wo_local);
+            let wo_world = frame.from_local(wo_local);
             // (Decided on the whole light, so that a shadowed point is split wherever the
             // unshadowed one is: the same Fresnel treatment, never brighter.)
             let split = tir_threshold(&s.fresnel).map(|tc| {

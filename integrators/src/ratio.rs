@@ -46,15 +46,16 @@ use crate::ltc::{
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{gamma, Ray};
+use penumbra_core::geometry::{gamma, Frame, Ray};
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, PixelShared, RenderContext, RenderError, RenderStats, ThreadStats,
 };
+use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{emitting_normal, DiffuseAreaLight, Light, LightContext};
-use penumbra_core::ltc::{Ltc, ShadingFrame};
+use penumbra_core::ltc::Ltc;
 use penumbra_core::material::LtcDescription;
 use penumbra_core::sampler::Sampler;
-use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfaceInteraction};
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
 use penumbra_core::spectrum::luminance;
 use penumbra_core::{Rgb, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
@@ -482,7 +483,7 @@ impl Estimator<'_> {
         let Some(mesh) = scene.meshes.get(geom.mesh as usize) else { return (s, u) };
         let n0 = desc.n.normalize_or_zero();
         let n = if n0.dot(si.wo) < 0.0 { -n0 } else { n0 };
-        let frame = ShadingFrame::new(d3(n), d3(si.wo));
+        let frame = Frame::toward(d3(n), d3(si.wo));
         let cos_o = frame.to_local(d3(si.wo)).z.clamp(0.0, 1.0) as f32;
         let spec = desc.specular.map(|sp| (sp, Ltc::lookup(cos_o, sp.alpha)));
         let w_d = luminance(desc.diffuse).max(0.0) as f64;
@@ -554,7 +555,7 @@ impl Estimator<'_> {
                 let x = ((x - w_d) / w_s.max(1e-300)).clamp(0.0, 1.0 - f64::EPSILON / 2.0);
                 spec.as_ref().map(|(_, c)| c.sample(DVec2::new(x, y))).unwrap_or(DVec3::ZERO)
             };
-            let wd = frame.to_world(local).normalize_or_zero();
+            let wd = frame.from_local(local).normalize_or_zero();
             if wd == DVec3::ZERO {
                 continue;
             }

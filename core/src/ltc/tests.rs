@@ -83,11 +83,11 @@ fn magnitude_matches_bsdf_directional_albedo() {
 #[test]
 fn lambertian_identity_gives_the_form_factor() {
     let mut rng = Rng::new(3);
-    let frame = ShadingFrame::new(DVec3::new(0.2, -0.3, 0.9).normalize(), DVec3::new(0.5, 0.5, 0.7));
+    let frame = Frame::toward(DVec3::new(0.2, -0.3, 0.9).normalize(), DVec3::new(0.5, 0.5, 0.7));
     for _ in 0..20 {
         let l: Vec<DVec3> = (0..5)
             .map(|_| {
-                frame.to_world(
+                frame.from_local(
                     DVec3::new(rng.uniform_f64() - 0.5, rng.uniform_f64() - 0.5, rng.uniform_f64() * 0.6 - 0.1)
                         + frame.z,
                 )
@@ -106,11 +106,11 @@ fn lambertian_identity_gives_the_form_factor() {
 fn shading_frame_puts_wo_in_the_xz_plane() {
     let n = DVec3::new(0.3, 0.4, 0.8).normalize();
     let wo = DVec3::new(-0.5, 0.1, 0.6).normalize();
-    let f = ShadingFrame::new(n, wo);
+    let f = Frame::toward(n, wo);
     let l = f.to_local(wo);
     assert!(l.y.abs() < 1e-14 && l.x > 0.0 && (l.z - wo.dot(n)).abs() < 1e-14);
     assert!((f.x.cross(f.y) - f.z).length() < 1e-14);
-    let g = ShadingFrame::new(n, n);
+    let g = Frame::toward(n, n);
     assert!((g.x.dot(n)).abs() < 1e-14 && (g.x.length() - 1.0).abs() < 1e-14);
 }
 
@@ -140,7 +140,7 @@ fn ltc_integral_of_random_polygons_matches_the_brdf() {
             let phi0 = 2.0 * PI * rng.uniform_f64();
             let sin = (1.0 - cos * cos).sqrt();
             let wo = DVec3::new(sin * phi0.cos(), sin * phi0.sin(), cos);
-            let frame = ShadingFrame::new(DVec3::Z, wo);
+            let frame = Frame::toward(DVec3::Z, wo);
             let refl = DVec3::new(-wo.x, -wo.y, wo.z);
             for k in 0..3 {
                 let center = (refl

@@ -6,10 +6,11 @@
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::geometry::Ray;
 use penumbra_core::integrator::ThreadStats;
+use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{Light, LightContext, LightLiSample};
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::{power_heuristic, Distribution1D};
-use penumbra_core::scene::{Scene, SurfaceInteraction};
+use penumbra_core::scene::Scene;
 use penumbra_core::{Rgb, Vec2, Vec3};
 
 /// The shadow ray from `si` to the point a light sample chose (both ends offset when the

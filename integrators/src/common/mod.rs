@@ -3,7 +3,7 @@
 pub mod direct;
 pub mod light_distribution;
 
-use penumbra_core::film::Bounds2i;
+use penumbra_core::geometry::Bounds2i;
 use penumbra_core::IVec2;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 

@@ -22,8 +22,8 @@ use crate::common::direct::sample_one_light;
 use crate::common::light_distribution::{LightDistribution, LightSampleStrategy};
 use crate::common::{max_depth_param, pixel_bounds_param};
 use penumbra_core::bxdf::BxdfFlags;
-use penumbra_core::film::{Bounds2i, Film};
-use penumbra_core::geometry::Ray;
+use penumbra_core::film::Film;
+use penumbra_core::geometry::{Bounds2i, Ray};
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
