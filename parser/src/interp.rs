@@ -760,7 +760,34 @@ impl Interp {
                 .err(loc, format!("\"{word}\" after WorldEnd: penumbra renders a single WorldBegin/WorldEnd block")));
         }
         match word {
-            // -- transforms (allowed anywhere) --
+            "Identity" | "Translate" | "Scale" | "Rotate" | "LookAt" | "Transform" | "ConcatTransform"
+            | "CoordinateSystem" | "CoordSysTransform" | "ActiveTransform" | "TransformTimes" => {
+                self.transform_directive(word, loc)
+            }
+            "Camera" | "Film" | "Sampler" | "PixelFilter" | "Integrator" | "Accelerator" | "WorldBegin" => {
+                self.options_directive(word, loc)
+            }
+            "MakeNamedMedium" | "MediumInterface" => self.medium_directive(word, loc),
+            "AttributeBegin" | "AttributeEnd" | "TransformBegin" | "TransformEnd" | "ReverseOrientation" => {
+                self.block_directive(word, loc)
+            }
+            "Material" | "MakeNamedMaterial" | "NamedMaterial" | "Texture" => self.material_directive(word, loc),
+            "LightSource" | "AreaLightSource" | "Shape" | "ObjectBegin" | "ObjectEnd" | "ObjectInstance" => {
+                self.entity_directive(word, loc)
+            }
+            "WorldEnd" => self.world_end(loc),
+            "Include" => {
+                let (name, nloc) = self.expect_string(word)?;
+                self.include(&name, nloc)
+            }
+            "ColorSpace" | "Option" | "Attribute" | "Import" => self.skip_pbrt_v4(word, loc),
+            _ => Err(self.err(loc, format!("unknown directive \"{}\"", show(word.as_bytes())))),
+        }
+    }
+
+    /// `Identity` … `TransformTimes` (allowed anywhere): the CTM, the active transform and named coordinate systems.
+    fn transform_directive(&mut self, word: &str, loc: FileLoc) -> R<()> {
+        match word {
             "Identity" => self.for_active(|_| Transform::IDENTITY),
             "Translate" => {
                 let v = self.expect_f64s::<3>("Translate")?;
@@ -837,8 +864,14 @@ impl Interp {
                 self.need_options(&loc, word)?;
                 self.transform_times = (v[0] as f32, v[1] as f32);
             }
+            _ => unreachable!("\"{word}\" is dispatched by `directive` to another group"),
+        }
+        Ok(())
+    }
 
-            // -- options block --
+    /// The options block: camera, film, sampler, filter, integrator, accelerator, and `WorldBegin`.
+    fn options_directive(&mut self, word: &str, loc: FileLoc) -> R<()> {
+        match word {
             "Camera" => {
                 let (kind, params) = self.kind_and_params(word)?;
                 self.need_options(&loc, word)?;
@@ -871,8 +904,14 @@ impl Interp {
                 self.active = 3;
                 self.named_cs.insert("world".to_string(), self.ctm);
             }
+            _ => unreachable!("\"{word}\" is dispatched by `directive` to another group"),
+        }
+        Ok(())
+    }
 
-            // -- media (allowed anywhere) --
+    /// `MakeNamedMedium` and `MediumInterface` (allowed anywhere).
+    fn medium_directive(&mut self, word: &str, loc: FileLoc) -> R<()> {
+        match word {
             "MakeNamedMedium" => {
                 let (name, _) = self.expect_string(word)?;
                 let params = self.parse_params()?;
@@ -894,8 +933,14 @@ impl Interp {
                 self.gs.inside = nz(inside);
                 self.gs.outside = nz(outside);
             }
+            _ => unreachable!("\"{word}\" is dispatched by `directive` to another group"),
+        }
+        Ok(())
+    }
 
-            // -- world block --
+    /// Attribute and transform blocks, and `ReverseOrientation` (world block).
+    fn block_directive(&mut self, word: &str, loc: FileLoc) -> R<()> {
+        match word {
             "AttributeBegin" => {
                 self.need_world(&loc, word)?;
                 self.attribute_begin(&loc)?;
@@ -923,6 +968,14 @@ impl Interp {
                 self.need_world(&loc, word)?;
                 self.gs.reverse = !self.gs.reverse;
             }
+            _ => unreachable!("\"{word}\" is dispatched by `directive` to another group"),
+        }
+        Ok(())
+    }
+
+    /// Materials, named materials and textures (world block).
+    fn material_directive(&mut self, word: &str, loc: FileLoc) -> R<()> {
+        match word {
             "Material" => {
                 let (kind, params) = self.kind_and_params(word)?;
                 self.need_world(&loc, word)?;
@@ -971,15 +1024,15 @@ impl Interp {
                 let params = self.parse_params()?;
                 self.need_world(&loc, word)?;
                 let kind = match ty.as_str() {
-                    "float" => TextureKind::Float,
-                    "spectrum" | "color" => TextureKind::Spectrum,
-                    _ => {
-                        return Err(self.err(
-                            tloc,
-                            format!("Texture \"{name}\": unknown texture type \"{ty}\" (expected \"float\", \"spectrum\" or \"color\")"),
-                        ))
-                    }
-                };
+                "float" => TextureKind::Float,
+                "spectrum" | "color" => TextureKind::Spectrum,
+                _ => {
+                    return Err(self.err(
+                        tloc,
+                        format!("Texture \"{name}\": unknown texture type \"{ty}\" (expected \"float\", \"spectrum\" or \"color\")"),
+                    ))
+                }
+            };
                 self.warn_if_animated(&loc, word);
                 self.textures.push(TextureDesc {
                     name: name.clone(),
@@ -993,6 +1046,14 @@ impl Interp {
                     TextureKind::Spectrum => self.spec_tex.define(&name, idx),
                 }
             }
+            _ => unreachable!("\"{word}\" is dispatched by `directive` to another group"),
+        }
+        Ok(())
+    }
+
+    /// Lights, area lights, shapes and object instancing (world block).
+    fn entity_directive(&mut self, word: &str, loc: FileLoc) -> R<()> {
+        match word {
             "LightSource" => {
                 let (kind, params) = self.kind_and_params(word)?;
                 self.need_world(&loc, word)?;
@@ -1044,57 +1105,64 @@ impl Interp {
                 };
                 self.instances.push(InstanceUse { definition, render_from_instance: self.animated(), loc });
             }
-            "WorldEnd" => {
-                self.need_world(&loc, word)?;
-                if self.current_instance.is_some() {
-                    self.warn(loc.clone(), "WorldEnd inside an object definition (missing ObjectEnd)");
-                    self.current_instance = None;
-                }
-                if let Some(f) = self.attr_stack.last() {
-                    let n = self.attr_stack.len();
-                    let first = f.loc.clone();
-                    self.warn(loc.clone(), format!("missing AttributeEnd: {n} AttributeBegin block(s) still open at WorldEnd (innermost at {first})"));
-                }
-                let open_tf = self.tf_stack.len().saturating_sub(self.attr_stack.len());
-                if open_tf > 0 {
-                    self.warn(
-                        loc.clone(),
-                        format!("missing TransformEnd: {open_tf} TransformBegin block(s) still open at WorldEnd"),
-                    );
-                }
-                self.attr_stack.clear();
-                self.tf_stack.clear();
-                self.world_ended = true;
-            }
-            "Include" => {
-                let (name, nloc) = self.expect_string(word)?;
-                self.include(&name, nloc)?;
-            }
-            "ColorSpace" | "Option" | "Attribute" | "Import" => {
-                self.warn(
-                    loc,
-                    format!("\"{word}\" is a pbrt-v4 directive: this file looks like pbrt-v4 syntax; skipping \"{word}\" and its arguments"),
-                );
-                loop {
-                    match self.peek()? {
-                        Kind::Str | Kind::LBracket | Kind::RBracket => self.lex().consume(),
-                        Kind::Bare => {
-                            let t = self.lex().text();
-                            if looks_numeric(t) || t == b"true" || t == b"false" {
-                                self.lex().consume();
-                            } else {
-                                break;
-                            }
-                        }
-                        Kind::Eof => break,
-                    }
-                }
-            }
-            _ => return Err(self.err(loc, format!("unknown directive \"{}\"", show(word.as_bytes())))),
+            _ => unreachable!("\"{word}\" is dispatched by `directive` to another group"),
         }
         Ok(())
     }
 
+    /// `WorldEnd`: warns about blocks left open, closes them, and ends the world block.
+    fn world_end(&mut self, loc: FileLoc) -> R<()> {
+        self.need_world(&loc, "WorldEnd")?;
+        if self.current_instance.is_some() {
+            self.warn(loc.clone(), "WorldEnd inside an object definition (missing ObjectEnd)");
+            self.current_instance = None;
+        }
+        if let Some(f) = self.attr_stack.last() {
+            let n = self.attr_stack.len();
+            let first = f.loc.clone();
+            self.warn(
+                loc.clone(),
+                format!(
+                    "missing AttributeEnd: {n} AttributeBegin block(s) still open at WorldEnd (innermost at {first})"
+                ),
+            );
+        }
+        let open_tf = self.tf_stack.len().saturating_sub(self.attr_stack.len());
+        if open_tf > 0 {
+            self.warn(
+                loc.clone(),
+                format!("missing TransformEnd: {open_tf} TransformBegin block(s) still open at WorldEnd"),
+            );
+        }
+        self.attr_stack.clear();
+        self.tf_stack.clear();
+        self.world_ended = true;
+        Ok(())
+    }
+
+    /// pbrt-v4's `ColorSpace`, `Option`, `Attribute` and `Import`: a warning, then the
+    /// directive's arguments (strings, brackets, numbers, booleans) are skipped.
+    fn skip_pbrt_v4(&mut self, word: &str, loc: FileLoc) -> R<()> {
+        self.warn(
+            loc,
+            format!("\"{word}\" is a pbrt-v4 directive: this file looks like pbrt-v4 syntax; skipping \"{word}\" and its arguments"),
+        );
+        loop {
+            match self.peek()? {
+                Kind::Str | Kind::LBracket | Kind::RBracket => self.lex().consume(),
+                Kind::Bare => {
+                    let t = self.lex().text();
+                    if looks_numeric(t) || t == b"true" || t == b"false" {
+                        self.lex().consume();
+                    } else {
+                        break;
+                    }
+                }
+                Kind::Eof => break,
+            }
+        }
+        Ok(())
+    }
     fn read_matrix(&mut self, what: &str) -> R<Matrix4> {
         self.expect_kind(Kind::LBracket, what)?;
         let v = self.expect_f64s::<16>(what)?;
