@@ -422,6 +422,117 @@ pub fn bump(
     (face_forward(ns, si.n), dpdu)
 }
 
+/// What a material's BSDF is built from, shared with the sub-materials of `mix`.
+struct ScatterInputs<'a> {
+    si: &'a SurfaceInteraction,
+    ctx: &'a TextureEvalContext,
+    geom: &'a ShadingGeometry,
+    opts: BsdfOptions,
+    materials: &'a Materials,
+    tx: &'a Textures,
+}
+
+/// The lobe builders' view of a point: textures evaluated there, and the (bumped) shading frame.
+struct Lobes<'a> {
+    tx: &'a Textures,
+    ctx: &'a TextureEvalContext,
+    opts: BsdfOptions,
+    ns: Vec3,
+    ss: Vec3,
+    ng: Vec3,
+}
+
+impl Lobes<'_> {
+    /// An empty BSDF in the shading frame with relative index of refraction `eta`.
+    fn bsdf(&self, eta: f32) -> Bsdf {
+        Bsdf::new(self.ns, self.ss, self.ng, eta)
+    }
+    /// A spectrum parameter at the point, clamped to ≥ 0.
+    fn s(&self, p: SpectrumParam) -> Rgb {
+        eval_s(self.tx, p, self.ctx)
+    }
+    fn f(&self, p: FloatParam) -> f32 {
+        eval_f(self.tx, p, self.ctx)
+    }
+}
+
+/// `glass`: specular or microfacet reflection and transmission (one `FresnelSpecular` lobe
+/// for smooth glass when the integrator allows multiple-lobe BxDFs). `rough` = [u, v].
+fn glass(
+    l: &Lobes,
+    kr: SpectrumParam,
+    kt: SpectrumParam,
+    eta: FloatParam,
+    rough: [FloatParam; 2],
+    remap: bool,
+) -> Bsdf {
+    let eta = l.f(eta);
+    let ur = l.f(rough[0]);
+    let vr = l.f(rough[1]);
+    let r = l.s(kr);
+    let t = l.s(kt);
+    let mut b = l.bsdf(eta);
+    if is_black(r) && is_black(t) {
+        return b;
+    }
+    let specular = ur == 0.0 && vr == 0.0;
+    if specular && l.opts.allow_multiple_lobes {
+        let _ = b.add(Bxdf::fresnel_specular(r, t, 1.0, eta, l.opts.mode));
+        return b;
+    }
+    let distrib = trowbridge(ur, vr, remap);
+    if !is_black(r) {
+        let fresnel = Fresnel::Dielectric { eta_i: 1.0, eta_t: eta };
+        let _ = b.add(if specular {
+            Bxdf::specular_reflection(r, fresnel)
+        } else {
+            Bxdf::microfacet_reflection(r, distrib, fresnel)
+        });
+    }
+    if !is_black(t) {
+        let _ = b.add(if specular {
+            Bxdf::specular_transmission(t, 1.0, eta, l.opts.mode)
+        } else {
+            Bxdf::microfacet_transmission(t, distrib, 1.0, eta, l.opts.mode)
+        });
+    }
+    b
+}
+
+/// `translucent`: diffuse and glossy reflection and transmission; `k` = [Kd, Ks],
+/// `rt` = [reflect, transmit].
+fn translucent(l: &Lobes, k: [SpectrumParam; 2], rt: [SpectrumParam; 2], roughness: FloatParam, remap: bool) -> Bsdf {
+    let eta = 1.5;
+    let mut b = l.bsdf(eta);
+    let r = l.s(rt[0]);
+    let t = l.s(rt[1]);
+    if is_black(r) && is_black(t) {
+        return b;
+    }
+    let kd = l.s(k[0]);
+    if !is_black(kd) {
+        if !is_black(r) {
+            let _ = b.add(Bxdf::lambertian_reflection(r * kd));
+        }
+        if !is_black(t) {
+            let _ = b.add(Bxdf::lambertian_transmission(t * kd));
+        }
+    }
+    let ks = l.s(k[1]);
+    if !is_black(ks) && (!is_black(r) || !is_black(t)) {
+        let rough = l.f(roughness);
+        let distrib = trowbridge(rough, rough, remap);
+        if !is_black(r) {
+            let fresnel = Fresnel::Dielectric { eta_i: 1.0, eta_t: eta };
+            let _ = b.add(Bxdf::microfacet_reflection(r * ks, distrib, fresnel));
+        }
+        if !is_black(t) {
+            let _ = b.add(Bxdf::microfacet_transmission(t * ks, distrib, 1.0, eta, l.opts.mode));
+        }
+    }
+    b
+}
+
 fn trowbridge(urough: f32, vrough: f32, remap: bool) -> MicrofacetDistribution {
     if remap {
         MicrofacetDistribution::trowbridge_reitz(roughness_to_alpha(urough), roughness_to_alpha(vrough))
@@ -492,7 +603,7 @@ impl Material {
         materials: &Materials,
         textures: &Textures,
     ) -> Bsdf {
-        self.scatter(si, ctx, geom, opts, materials, textures, 0)
+        self.scatter(&ScatterInputs { si, ctx, geom, opts, materials, tx: textures }, 0)
     }
 
     fn frame(
@@ -508,196 +619,141 @@ impl Material {
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn scatter(
-        &self,
-        si: &SurfaceInteraction,
-        ctx: &TextureEvalContext,
-        geom: &ShadingGeometry,
-        opts: BsdfOptions,
-        materials: &Materials,
-        tx: &Textures,
-        depth: u32,
-    ) -> Bsdf {
-        let (ns, ss) = self.frame(si, ctx, geom, tx);
-        let new_bsdf = |eta: f32| Bsdf::new(ns, ss, si.n, eta);
-        let mode = opts.mode;
+    /// pbrt-v3's `ComputeScatteringFunctions`: the lobes of each material (`depth` counts the
+    /// `mix` nesting, cut at 16).
+    fn scatter(&self, inp: &ScatterInputs, depth: u32) -> Bsdf {
+        let (ns, ss) = self.frame(inp.si, inp.ctx, inp.geom, inp.tx);
+        let l = Lobes { tx: inp.tx, ctx: inp.ctx, opts: inp.opts, ns, ss, ng: inp.si.n };
         match *self {
             Material::Matte { kd, sigma, .. } => {
-                let mut b = new_bsdf(1.0);
-                let r = eval_s(tx, kd, ctx);
-                let sig = eval_f(tx, sigma, ctx).clamp(0.0, 90.0);
+                let mut b = l.bsdf(1.0);
+                let r = l.s(kd);
+                let sig = l.f(sigma).clamp(0.0, 90.0);
                 if !is_black(r) {
-                    let l = if sig == 0.0 { Bxdf::lambertian_reflection(r) } else { Bxdf::oren_nayar(r, sig) };
-                    let _ = b.add(l);
+                    let lobe = if sig == 0.0 { Bxdf::lambertian_reflection(r) } else { Bxdf::oren_nayar(r, sig) };
+                    let _ = b.add(lobe);
                 }
                 b
             }
             Material::Plastic { kd, ks, roughness, remap, .. } => {
-                let mut b = new_bsdf(1.0);
-                let kd = eval_s(tx, kd, ctx);
+                let mut b = l.bsdf(1.0);
+                let kd = l.s(kd);
                 if !is_black(kd) {
                     let _ = b.add(Bxdf::lambertian_reflection(kd));
                 }
-                let ks = eval_s(tx, ks, ctx);
+                let ks = l.s(ks);
                 if !is_black(ks) {
-                    let r = eval_f(tx, roughness, ctx);
+                    let r = l.f(roughness);
                     let fresnel = Fresnel::Dielectric { eta_i: 1.5, eta_t: 1.0 };
                     let _ = b.add(Bxdf::microfacet_reflection(ks, trowbridge(r, r, remap), fresnel));
                 }
                 b
             }
             Material::Metal { eta, k, roughness, uroughness, vroughness, remap, .. } => {
-                let mut b = new_bsdf(1.0);
-                let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
-                let vr = eval_f(tx, vroughness.unwrap_or(roughness), ctx);
+                let mut b = l.bsdf(1.0);
+                let ur = l.f(uroughness.unwrap_or(roughness));
+                let vr = l.f(vroughness.unwrap_or(roughness));
                 let fresnel = Fresnel::Conductor {
                     eta_i: Rgb::ONE,
-                    eta_t: tx.eval_spectrum(eta, ctx),
-                    k: tx.eval_spectrum(k, ctx),
+                    eta_t: l.tx.eval_spectrum(eta, l.ctx),
+                    k: l.tx.eval_spectrum(k, l.ctx),
                 };
                 let _ = b.add(Bxdf::microfacet_reflection(Rgb::ONE, trowbridge(ur, vr, remap), fresnel));
                 b
             }
             Material::Mirror { kr, .. } => {
-                let mut b = new_bsdf(1.0);
-                let r = eval_s(tx, kr, ctx);
+                let mut b = l.bsdf(1.0);
+                let r = l.s(kr);
                 if !is_black(r) {
                     let _ = b.add(Bxdf::specular_reflection(r, Fresnel::NoOp));
                 }
                 b
             }
             Material::Glass { kr, kt, eta, uroughness, vroughness, remap, .. } => {
-                let eta = eval_f(tx, eta, ctx);
-                let ur = eval_f(tx, uroughness, ctx);
-                let vr = eval_f(tx, vroughness, ctx);
-                let r = eval_s(tx, kr, ctx);
-                let t = eval_s(tx, kt, ctx);
-                let mut b = new_bsdf(eta);
-                if is_black(r) && is_black(t) {
-                    return b;
-                }
-                let specular = ur == 0.0 && vr == 0.0;
-                if specular && opts.allow_multiple_lobes {
-                    let _ = b.add(Bxdf::fresnel_specular(r, t, 1.0, eta, mode));
-                    return b;
-                }
-                let distrib = trowbridge(ur, vr, remap);
-                if !is_black(r) {
-                    let fresnel = Fresnel::Dielectric { eta_i: 1.0, eta_t: eta };
-                    let _ = b.add(if specular {
-                        Bxdf::specular_reflection(r, fresnel)
-                    } else {
-                        Bxdf::microfacet_reflection(r, distrib, fresnel)
-                    });
-                }
-                if !is_black(t) {
-                    let _ = b.add(if specular {
-                        Bxdf::specular_transmission(t, 1.0, eta, mode)
-                    } else {
-                        Bxdf::microfacet_transmission(t, distrib, 1.0, eta, mode)
-                    });
-                }
-                b
+                glass(&l, kr, kt, eta, [uroughness, vroughness], remap)
             }
             Material::Substrate { kd, ks, uroughness, vroughness, remap, .. } => {
-                let mut b = new_bsdf(1.0);
-                let d = eval_s(tx, kd, ctx);
-                let s = eval_s(tx, ks, ctx);
-                let ur = eval_f(tx, uroughness, ctx);
-                let vr = eval_f(tx, vroughness, ctx);
+                let mut b = l.bsdf(1.0);
+                let d = l.s(kd);
+                let s = l.s(ks);
+                let ur = l.f(uroughness);
+                let vr = l.f(vroughness);
                 if !is_black(d) || !is_black(s) {
                     let _ = b.add(Bxdf::fresnel_blend(d, s, trowbridge(ur, vr, remap)));
                 }
                 b
             }
-            Material::Uber { kd, ks, kr, kt, roughness, uroughness, vroughness, eta, opacity, remap, .. } => {
-                let e = eval_f(tx, eta, ctx);
-                let op = eval_s(tx, opacity, ctx);
-                let t = clamp0(Rgb::ONE - op);
-                let mut b;
-                if !is_black(t) {
-                    b = new_bsdf(1.0);
-                    let _ = b.add(Bxdf::specular_transmission(t, 1.0, 1.0, mode));
-                } else {
-                    b = new_bsdf(e);
-                }
-                let kd = op * eval_s(tx, kd, ctx);
-                if !is_black(kd) {
-                    let _ = b.add(Bxdf::lambertian_reflection(kd));
-                }
-                let ks = op * eval_s(tx, ks, ctx);
-                if !is_black(ks) {
-                    let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
-                    let vr = match vroughness {
-                        Some(v) => eval_f(tx, v, ctx),
-                        None => ur,
-                    };
-                    let fresnel = Fresnel::Dielectric { eta_i: 1.0, eta_t: e };
-                    let _ = b.add(Bxdf::microfacet_reflection(ks, trowbridge(ur, vr, remap), fresnel));
-                }
-                let kr = op * eval_s(tx, kr, ctx);
-                if !is_black(kr) {
-                    let _ = b.add(Bxdf::specular_reflection(kr, Fresnel::Dielectric { eta_i: 1.0, eta_t: e }));
-                }
-                let kt = op * eval_s(tx, kt, ctx);
-                if !is_black(kt) {
-                    let _ = b.add(Bxdf::specular_transmission(kt, 1.0, e, mode));
-                }
-                b
-            }
+            Material::Uber { .. } => self.uber(&l),
             Material::Translucent { kd, ks, reflect, transmit, roughness, remap, .. } => {
-                let eta = 1.5;
-                let mut b = new_bsdf(eta);
-                let r = eval_s(tx, reflect, ctx);
-                let t = eval_s(tx, transmit, ctx);
-                if is_black(r) && is_black(t) {
-                    return b;
-                }
-                let kd = eval_s(tx, kd, ctx);
-                if !is_black(kd) {
-                    if !is_black(r) {
-                        let _ = b.add(Bxdf::lambertian_reflection(r * kd));
-                    }
-                    if !is_black(t) {
-                        let _ = b.add(Bxdf::lambertian_transmission(t * kd));
-                    }
-                }
-                let ks = eval_s(tx, ks, ctx);
-                if !is_black(ks) && (!is_black(r) || !is_black(t)) {
-                    let rough = eval_f(tx, roughness, ctx);
-                    let distrib = trowbridge(rough, rough, remap);
-                    if !is_black(r) {
-                        let fresnel = Fresnel::Dielectric { eta_i: 1.0, eta_t: eta };
-                        let _ = b.add(Bxdf::microfacet_reflection(r * ks, distrib, fresnel));
-                    }
-                    if !is_black(t) {
-                        let _ = b.add(Bxdf::microfacet_transmission(t * ks, distrib, 1.0, eta, mode));
-                    }
-                }
-                b
+                translucent(&l, [kd, ks], [reflect, transmit], roughness, remap)
             }
-            Material::Mix { amount, m1, m2 } => {
-                let s1 = eval_s(tx, amount, ctx);
-                let s2 = clamp0(Rgb::ONE - s1);
-                let sub = |m: usize| -> Bsdf {
-                    match materials.get(m) {
-                        Some(mat) if depth < 16 => mat.scatter(si, ctx, geom, opts, materials, tx, depth + 1),
-                        _ => Bsdf::new(ns, ss, si.n, 1.0),
-                    }
-                };
-                let b1 = sub(m1);
-                let b2 = sub(m2);
-                let mut b = Bsdf::new(b1.shading_normal(), b1.local_to_world(Vec3::X), b1.geometric_normal(), b1.eta);
-                for l in b1.bxdfs() {
-                    let _ = b.add(scale_bxdf(*l, s1));
-                }
-                for l in b2.bxdfs() {
-                    let _ = b.add(scale_bxdf(*l, s2));
-                }
-                b
-            }
+            Material::Mix { amount, m1, m2 } => self.mix(inp, &l, amount, [m1, m2], depth),
         }
+    }
+
+    /// `uber`: a specular transmission for `1 − opacity`, then diffuse, glossy, specular
+    /// reflection and specular transmission lobes scaled by `opacity`.
+    fn uber(&self, l: &Lobes) -> Bsdf {
+        let Material::Uber { kd, ks, kr, kt, roughness, uroughness, vroughness, eta, opacity, remap, .. } = *self
+        else {
+            unreachable!("Material::uber on another material")
+        };
+        let e = l.f(eta);
+        let op = l.s(opacity);
+        let t = clamp0(Rgb::ONE - op);
+        let mut b;
+        if !is_black(t) {
+            b = l.bsdf(1.0);
+            let _ = b.add(Bxdf::specular_transmission(t, 1.0, 1.0, l.opts.mode));
+        } else {
+            b = l.bsdf(e);
+        }
+        let kd = op * l.s(kd);
+        if !is_black(kd) {
+            let _ = b.add(Bxdf::lambertian_reflection(kd));
+        }
+        let ks = op * l.s(ks);
+        if !is_black(ks) {
+            let ur = l.f(uroughness.unwrap_or(roughness));
+            let vr = match vroughness {
+                Some(v) => l.f(v),
+                None => ur,
+            };
+            let fresnel = Fresnel::Dielectric { eta_i: 1.0, eta_t: e };
+            let _ = b.add(Bxdf::microfacet_reflection(ks, trowbridge(ur, vr, remap), fresnel));
+        }
+        let kr = op * l.s(kr);
+        if !is_black(kr) {
+            let _ = b.add(Bxdf::specular_reflection(kr, Fresnel::Dielectric { eta_i: 1.0, eta_t: e }));
+        }
+        let kt = op * l.s(kt);
+        if !is_black(kt) {
+            let _ = b.add(Bxdf::specular_transmission(kt, 1.0, e, l.opts.mode));
+        }
+        b
+    }
+
+    /// `mix`: the lobes of `m[0]` scaled by `amount` and of `m[1]` by `1 − amount`, in `m[0]`'s
+    /// shading frame (a missing sub-material, or nesting past 16, is an empty BSDF).
+    fn mix(&self, inp: &ScatterInputs, l: &Lobes, amount: SpectrumParam, m: [usize; 2], depth: u32) -> Bsdf {
+        let s1 = l.s(amount);
+        let s2 = clamp0(Rgb::ONE - s1);
+        let sub = |m: usize| -> Bsdf {
+            match inp.materials.get(m) {
+                Some(mat) if depth < 16 => mat.scatter(inp, depth + 1),
+                _ => l.bsdf(1.0),
+            }
+        };
+        let b1 = sub(m[0]);
+        let b2 = sub(m[1]);
+        let mut b = Bsdf::new(b1.shading_normal(), b1.local_to_world(Vec3::X), b1.geometric_normal(), b1.eta);
+        for l in b1.bxdfs() {
+            let _ = b.add(scale_bxdf(*l, s1));
+        }
+        for l in b2.bxdfs() {
+            let _ = b.add(scale_bxdf(*l, s2));
+        }
+        b
     }
 
     /// The material as a diffuse albedo plus an optional isotropic GGX lobe, for
