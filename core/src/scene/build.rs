@@ -1,0 +1,271 @@
+//! [`Scene::build`]: the stages that turn a parsed scene into a renderable one, each timed
+//! into the [`BuildReport`], each built only when the [`Requirements`] ask for it.
+
+use super::{BuildOptions, BuildReport, Crop, Requirements, Scene};
+use crate::accel::Accel;
+use crate::camera::Camera;
+use crate::film::FilmSpec;
+use crate::filter::create_filter;
+use crate::geometry::{Bounds2i, Bounds3};
+use crate::interaction::SceneObject;
+use crate::light::Lights;
+use crate::material::Materials;
+use crate::mesh::TriangleMesh;
+use crate::sampler::{create_sampler, Sampler};
+use crate::shapes::{build_shape, ShapeContext, Tessellation};
+use crate::texture::Textures;
+use glam::IVec2;
+use penumbra_parser::{DiagSink, Diagnostic, SceneDescription, ShapeDesc};
+use std::time::Instant;
+
+impl Scene {
+    /// Builds what `req` asks for. Warnings go to `warnings`; unused parameters of
+    /// every entity the build consumed are reported there too.
+    pub fn build(
+        desc: &SceneDescription,
+        req: Requirements,
+        opts: &BuildOptions,
+        warnings: &DiagSink,
+    ) -> Result<Scene, Diagnostic> {
+        let mut report = BuildReport::default();
+        let t0 = Instant::now();
+        let film = film_spec(desc, opts, warnings)?;
+        warnings.extend(desc.film.params.report_unused("film \"image\""));
+        let camera = Camera::from_desc(&desc.camera, film.full_resolution, warnings)?;
+        warnings.extend(desc.camera.entity.params.report_unused(&format!("camera \"{}\"", desc.camera.entity.kind)));
+        let filter =
+            create_filter(&desc.filter).map_err(|e| Diagnostic::error(Some(desc.filter.loc.clone()), e.to_string()))?;
+        warnings.extend(desc.filter.params.report_unused(&format!("filter \"{}\"", desc.filter.kind)));
+        let sampler = sampler(desc, req, opts, warnings)?;
+        report.stages.push(("camera, film, sampler".into(), t0.elapsed().as_secs_f64(), String::new()));
+        warn_media(desc, warnings);
+
+        let t1 = Instant::now();
+        let (meshes, objects) = shapes(desc, warnings)?;
+        let ntris: usize = meshes.iter().map(|m| m.triangle_count()).sum();
+        report.stages.push((
+            "shapes".into(),
+            t1.elapsed().as_secs_f64(),
+            format!("{} meshes, {} triangles", meshes.len(), ntris),
+        ));
+
+        let mut bounds = Bounds3::EMPTY;
+        for m in &meshes {
+            for p in &m.positions {
+                bounds.extend(*p);
+            }
+        }
+        let accel = if req.accel {
+            let a = Accel::build(&meshes);
+            report.stages.push(("bvh".into(), a.build_seconds, format!("{} triangles", a.triangle_count())));
+            Some(a)
+        } else {
+            None
+        };
+        let lights = if req.lights {
+            let t = Instant::now();
+            let l = Lights::build(desc, &meshes, &objects, bounds, warnings)?;
+            report.stages.push(("lights".into(), t.elapsed().as_secs_f64(), format!("{} lights", l.len())));
+            Some(l)
+        } else {
+            None
+        };
+        let (materials, textures) = if req.materials {
+            let (m, t) = materials(desc, &objects, warnings, &mut report)?;
+            (Some(m), Some(t))
+        } else {
+            (None, None)
+        };
+        Ok(Scene {
+            camera,
+            film,
+            filter,
+            sampler,
+            meshes,
+            objects,
+            accel,
+            lights,
+            materials,
+            textures,
+            bounds,
+            integrator: desc.integrator.clone(),
+            report,
+        })
+    }
+}
+
+fn film_spec(desc: &SceneDescription, opts: &BuildOptions, warnings: &DiagSink) -> Result<FilmSpec, Diagnostic> {
+    let e = &desc.film;
+    let p = &e.params;
+    if e.kind != "image" {
+        warnings.warn(
+            Some(e.loc.clone()),
+            format!("film \"{}\" is not pbrt-v3's \"image\": treating it as \"image\"", e.kind),
+        );
+    }
+    let mut res = (p.get_one_int("xresolution", 1280), p.get_one_int("yresolution", 720));
+    if res.0 <= 0 || res.1 <= 0 || res.0 > 1 << 16 || res.1 > 1 << 16 {
+        return Err(Diagnostic::error(
+            Some(e.loc.clone()),
+            format!("film resolution {}x{} is out of range", res.0, res.1),
+        ));
+    }
+    let file_res = (res.0 as u32, res.1 as u32);
+    if let Some(r) = opts.resolution {
+        res = (r.0 as i32, r.1 as i32);
+    }
+    let full = (res.0 as u32, res.1 as u32);
+    let mut crop = [0.0f32, 1.0, 0.0, 1.0];
+    if let Some(c) = p.get_floats("cropwindow") {
+        if c.len() == 4 {
+            crop = [c[0], c[1], c[2], c[3]];
+        } else {
+            warnings.warn(p.loc_of("cropwindow").cloned(), "\"cropwindow\" needs 4 values: ignored");
+        }
+    }
+    let mut pixel_bounds = FilmSpec::crop_to_pixels(full, crop);
+    if let Some(pb) = p.get_ints("pixelbounds") {
+        if pb.len() == 4 && opts.resolution.is_none() {
+            pixel_bounds = pixel_bounds.intersect(&Bounds2i::new(IVec2::new(pb[0], pb[2]), IVec2::new(pb[1], pb[3])));
+        }
+    }
+    match opts.crop {
+        Some(Crop::Fraction(c)) => pixel_bounds = FilmSpec::crop_to_pixels(full, c),
+        Some(Crop::Pixels(c)) => {
+            pixel_bounds = Bounds2i::new(IVec2::new(c[0], c[2]), IVec2::new(c[1], c[3]))
+                .intersect(&Bounds2i::new(IVec2::ZERO, IVec2::new(full.0 as i32, full.1 as i32)))
+        }
+        None => {}
+    }
+    if pixel_bounds.is_empty() {
+        return Err(Diagnostic::error(Some(e.loc.clone()), "the crop window / pixel bounds contain no pixels"));
+    }
+    let _ = file_res;
+    p.get_floats("diagonal");
+    Ok(FilmSpec {
+        full_resolution: full,
+        pixel_bounds,
+        filename: p.get_one_string("filename", "pbrt.exr"),
+        scale: p.get_one_float("scale", 1.0),
+        max_sample_luminance: p.get_one_float("maxsampleluminance", f32::INFINITY),
+    })
+}
+
+/// The scene's sampler, with `--spp` applied and the count raised to the integrator's
+/// `min_pixel_samples` (with a warning saying why).
+fn sampler(
+    desc: &SceneDescription,
+    req: Requirements,
+    opts: &BuildOptions,
+    warnings: &DiagSink,
+) -> Result<Box<dyn Sampler>, Diagnostic> {
+    let sampler_with = |spp: Option<u32>, warnings: &DiagSink| {
+        create_sampler(&desc.sampler, spp, opts.seed, warnings)
+            .map_err(|e| Diagnostic::error(Some(desc.sampler.loc.clone()), e.to_string()))
+    };
+    let mut sampler = sampler_with(opts.spp, warnings)?;
+    if let Some((min, why)) = req.min_pixel_samples {
+        let n = sampler.samples_per_pixel();
+        if n < min {
+            sampler = sampler_with(Some(min), warnings)?;
+            warnings.warn(
+                Some(desc.sampler.loc.clone()),
+                format!("{n} samples per pixel raised to {}: {why}", sampler.samples_per_pixel()),
+            );
+        }
+    }
+    warnings.extend(desc.sampler.params.report_unused(&format!("sampler \"{}\"", desc.sampler.kind)));
+    Ok(sampler)
+}
+
+/// Media are parsed but not rendered: one warning when the scene has any.
+fn warn_media(desc: &SceneDescription, warnings: &DiagSink) {
+    if !desc.media.is_empty() || desc.shapes.iter().any(|s| s.inside_medium.is_some() || s.outside_medium.is_some()) {
+        warnings.warn(
+            desc.media.first().map(|m| m.entity.loc.clone()),
+            "participating media are not supported: rendering as if every medium were vacuum",
+        );
+    }
+}
+
+/// Every shape directive, then every shape of every object instance (with the instance's
+/// transform), as world-space meshes with one [`SceneObject`] each.
+fn shapes(desc: &SceneDescription, warnings: &DiagSink) -> Result<(Vec<TriangleMesh>, Vec<SceneObject>), Diagnostic> {
+    let ctx = ShapeContext::for_scene(desc, warnings, Tessellation::default());
+    let mut meshes = Vec::new();
+    let mut objects = Vec::new();
+    for s in &desc.shapes {
+        add_shape(s, None, &ctx, &mut meshes, &mut objects)?;
+        warnings.extend(s.entity.params.report_unused(&format!("shape \"{}\"", s.entity.kind)));
+    }
+    for (ii, inst) in desc.instances.iter().enumerate() {
+        let Some(def) = desc.instance_definitions.get(inst.definition) else { continue };
+        for s in &def.shapes {
+            let mut s = s.clone();
+            s.render_from_object.start = inst.render_from_instance.start.compose(&s.render_from_object.start);
+            s.render_from_object.end = inst.render_from_instance.end.compose(&s.render_from_object.end);
+            add_shape(&s, Some(ii), &ctx, &mut meshes, &mut objects)?;
+        }
+    }
+    Ok((meshes, objects))
+}
+
+/// One shape's mesh and object (nothing for a shape that tessellates to no triangles).
+fn add_shape(
+    s: &ShapeDesc,
+    instance: Option<usize>,
+    ctx: &ShapeContext,
+    meshes: &mut Vec<TriangleMesh>,
+    objects: &mut Vec<SceneObject>,
+) -> Result<(), Diagnostic> {
+    if let Some(mesh) = build_shape(s, ctx)? {
+        if mesh.alpha.is_some() || mesh.shadow_alpha.is_some() {
+            ctx.warnings.warn(
+                Some(s.entity.loc.clone()),
+                format!(
+                    "\"alpha\"/\"shadowalpha\" cut-outs are not supported yet: shape \"{}\" renders opaque",
+                    s.entity.kind
+                ),
+            );
+        }
+        meshes.push(mesh);
+        objects.push(SceneObject {
+            kind: s.entity.kind.clone(),
+            loc: s.entity.loc.clone(),
+            material: s.material,
+            area_light: s.area_light,
+            instance,
+            occluder: s.entity.params.get_one_bool("occluder", true),
+        });
+    }
+    Ok(())
+}
+
+/// The materials some object uses and the textures they reference (timed into `report`).
+fn materials(
+    desc: &SceneDescription,
+    objects: &[SceneObject],
+    warnings: &DiagSink,
+    report: &mut BuildReport,
+) -> Result<(Materials, Textures), Diagnostic> {
+    let t2 = Instant::now();
+    let mut used = vec![false; desc.materials.len()];
+    for o in objects {
+        if let Some(m) = o.material.and_then(|m| used.get_mut(m)) {
+            *m = true;
+        }
+    }
+    let mut textures = Textures::new(desc);
+    let materials = Materials::build(desc, &used, &mut textures, warnings)?;
+    report.stages.push((
+        "materials".into(),
+        t2.elapsed().as_secs_f64(),
+        format!(
+            "{} materials, {} textures, {} images",
+            materials.built_count(),
+            textures.built_count(),
+            textures.image_count()
+        ),
+    ));
+    Ok((materials, textures))
+}
