@@ -1,0 +1,235 @@
+//! The `sweep` command line ([`SweepArgs`], [`Metric`]) and its validation ([`setup`]):
+//! every integrator is created once with its parameters before anything renders.
+
+use super::output::Row;
+use super::{fail, print_new_warnings, Failure};
+use crate::render::{parse_crop, parse_resolution};
+use penumbra::cli_params;
+use penumbra::pipeline;
+use penumbra_core::metrics;
+use penumbra_core::scene::Crop;
+use penumbra_parser::{DiagSink, Param, SceneDescription};
+use std::collections::BTreeSet;
+use std::path::PathBuf;
+
+/// The integrator that renders `--reference-spp` references unless `--reference-integrator` names one.
+pub const REFERENCE_INTEGRATOR: &str = "directlighting";
+
+#[derive(clap::Args)]
+#[command(group(clap::ArgGroup::new("ref").required(true).args(["reference", "reference_spp"])))]
+pub struct SweepArgs {
+    /// The pbrt-v3 scene file.
+    pub scene: PathBuf,
+    /// Reference image (.exr, .png or .pfm) of the same size as the renders.
+    #[arg(long)]
+    pub reference: Option<PathBuf>,
+    /// Render the reference with --reference-integrator at N spp instead (cached under OUTDIR/cache/).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub reference_spp: Option<u32>,
+    /// The integrator of the `--reference-spp` render: the estimator the others should converge
+    /// to (`path` for scenes lit by more than direct light).
+    #[arg(long, value_name = "NAME", default_value = REFERENCE_INTEGRATOR)]
+    pub reference_integrator: String,
+    /// Sampler seed of the `--reference-spp` render (default: --seed + 1, so that the
+    /// reference's samples are not the renders' samples).
+    #[arg(long, value_name = "S")]
+    pub reference_seed: Option<u64>,
+    /// Integrators to compare, comma-separated.
+    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]")]
+    pub integrators: Vec<String>,
+    /// Explicit budgets, comma-separated (default: 1, 2, 4, ... until --time-limit).
+    #[arg(long, value_delimiter = ',', value_name = "B[,B...]", value_parser = clap::value_parser!(u32).range(1..))]
+    pub budgets: Option<Vec<u32>>,
+    /// Seconds of build + render per integrator: the next budget is skipped when the time
+    /// predicted from the previous render would exceed it (default 60; with --budgets,
+    /// no limit unless given).
+    #[arg(long, value_name = "SECONDS")]
+    pub time_limit: Option<f64>,
+    /// Largest budget of the doubling schedule.
+    #[arg(long, default_value_t = 65536, value_name = "B", value_parser = clap::value_parser!(u32).range(1..))]
+    pub max_budget: u32,
+    /// The budget sets this integrator parameter (`--param NAME=budget`) instead of the spp.
+    #[arg(long, value_name = "NAME")]
+    pub budget_param: Option<String>,
+    /// Samples per pixel when the budget is a parameter (default: the scene's sampler).
+    #[arg(long, requires = "budget_param", value_parser = clap::value_parser!(u32).range(1..))]
+    pub spp: Option<u32>,
+    /// Integrator parameter `key=value` for every integrator (repeatable; type inferred).
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+    /// Worker threads (default: all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Sampler seed of the renders.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Override the film resolution `WxH`.
+    #[arg(long)]
+    pub resolution: Option<String>,
+    /// Crop `x0,x1,y0,y1` (as `penumbra render --crop`).
+    #[arg(long)]
+    pub crop: Option<String>,
+    /// Output directory.
+    #[arg(short = 'o', long = "output", default_value = "sweep-out")]
+    pub output: PathBuf,
+    /// Error to reach for the "time to error" column (default: the error directlighting
+    /// reaches at its largest budget, else the smallest error of the first integrator).
+    #[arg(long, value_name = "E")]
+    pub target_error: Option<f64>,
+    /// The error plotted and summarised.
+    #[arg(long, value_enum, default_value_t = Metric::Rmse)]
+    pub metric: Metric,
+    /// Do not compute FLIP (it is computed outside the timed region anyway).
+    #[arg(long)]
+    pub no_flip: bool,
+    /// Only the summary on stdout; no per-render lines.
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
+}
+
+/// An error metric, lower is better (PSNR is recorded but cannot be plotted on a log axis).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Metric {
+    Mae,
+    Rmse,
+    #[value(name = "max_err", alias = "max-err")]
+    MaxErr,
+    Relmse,
+    Smape,
+    Flip,
+}
+
+impl Metric {
+    pub fn column(self) -> &'static str {
+        match self {
+            Metric::Mae => "mae",
+            Metric::Rmse => "rmse",
+            Metric::MaxErr => "max_err",
+            Metric::Relmse => "relmse",
+            Metric::Smape => "smape",
+            Metric::Flip => "flip",
+        }
+    }
+    pub fn label(self) -> &'static str {
+        match self {
+            Metric::Mae => "MAE",
+            Metric::Rmse => "RMSE",
+            Metric::MaxErr => "max error",
+            Metric::Relmse => "relMSE",
+            Metric::Smape => "SMAPE",
+            Metric::Flip => "FLIP",
+        }
+    }
+    pub fn of(self, r: &Row) -> Option<f64> {
+        Some(match self {
+            Metric::Mae => r.mae,
+            Metric::Rmse => r.rmse,
+            Metric::MaxErr => r.max_err,
+            Metric::Relmse => r.relmse,
+            Metric::Smape => r.smape,
+            Metric::Flip => r.flip?,
+        })
+    }
+}
+
+/// The validated command line and the parsed scene.
+pub struct Setup {
+    pub desc: SceneDescription,
+    pub scene_bytes: Vec<u8>,
+    pub params: Vec<Param>,
+    pub crop: Option<Crop>,
+    pub resolution: Option<(u32, u32)>,
+    pub integrators: Vec<String>,
+    /// Warnings already printed.
+    pub seen: BTreeSet<String>,
+}
+
+/// Checks the arguments, reads and parses the scene, and creates each integrator once (so bad
+/// parameter values fail before any render).
+pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
+    let mut integrators: Vec<String> = Vec::new();
+    for n in args.integrators.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
+        if penumbra_integrators::find(n).is_none() {
+            return Err(fail(format!(
+                "unknown integrator \"{n}\"; valid names: {}",
+                penumbra_integrators::names().join(", ")
+            )));
+        }
+        if !integrators.iter().any(|m| m == n) {
+            integrators.push(n.to_string());
+        }
+    }
+    if args.reference_spp.is_some() && penumbra_integrators::find(&args.reference_integrator).is_none() {
+        return Err(fail(format!(
+            "unknown reference integrator \"{}\"; valid names: {}",
+            args.reference_integrator,
+            penumbra_integrators::names().join(", ")
+        )));
+    }
+    if integrators.is_empty() {
+        return Err(fail("-i: no integrator given"));
+    }
+    if let Some(t) = args.time_limit {
+        if !(t > 0.0) || !t.is_finite() {
+            return Err(fail("--time-limit must be a positive number of seconds"));
+        }
+    }
+    if let Some(e) = args.target_error {
+        if !(e > 0.0) || !e.is_finite() {
+            return Err(fail("--target-error must be a positive number"));
+        }
+    }
+    if matches!(&args.budgets, Some(b) if b.is_empty()) {
+        return Err(fail("--budgets: empty list"));
+    }
+    if args.metric == Metric::Flip && (args.no_flip || !metrics::FLIP_AVAILABLE) {
+        return Err(fail(if args.no_flip {
+            "--metric flip contradicts --no-flip"
+        } else {
+            "--metric flip: FLIP is not available in this build"
+        }));
+    }
+    if let Some(p) = &args.budget_param {
+        if p.trim().is_empty() || p.contains('=') {
+            return Err(fail("--budget-param expects a parameter name"));
+        }
+    }
+    let params = args
+        .params
+        .iter()
+        .map(|p| cli_params::parse_param(p))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| fail(e.message))?;
+    let crop = args.crop.as_deref().map(parse_crop).transpose().map_err(fail)?;
+    let resolution = args.resolution.as_deref().map(parse_resolution).transpose().map_err(fail)?;
+    let scene_bytes =
+        std::fs::read(&args.scene).map_err(|e| fail(format!("cannot read scene {}: {e}", args.scene.display())))?;
+    let parsed = pipeline::load_scene(Some(&args.scene)).map_err(|d| Failure { code: 1, message: d.to_string() })?;
+    let warnings = DiagSink::new();
+    warnings.extend(parsed.warnings);
+    // Create each integrator once with its parameters, so that bad values fail before any render.
+    for n in &integrators {
+        let mut p = params.clone();
+        if let Some(name) = &args.budget_param {
+            p.push(budget_param(name, 1)?);
+        }
+        pipeline::choose_integrator(&parsed.scene, Some(n), &p, &warnings)
+            .map_err(|d| Failure { code: 1, message: format!("integrator \"{n}\": {}", d.message) })?;
+        // The budget parameter must be one the integrator reads.
+        if let (Some(name), Some(entry)) = (&args.budget_param, penumbra_integrators::find(n)) {
+            let ps = cli_params::merge(&Default::default(), &[budget_param(name, 1)?]);
+            let _ = (entry.create)(&ps, &DiagSink::new());
+            if !ps.find(name.trim()).is_some_and(|p| p.was_used()) {
+                return Err(fail(format!("--budget-param {}: integrator \"{n}\" has no such parameter", name.trim())));
+            }
+        }
+    }
+    let mut seen = BTreeSet::new();
+    print_new_warnings(&warnings, &mut seen);
+    Ok(Setup { desc: parsed.scene, scene_bytes, params, crop, resolution, integrators, seen })
+}
+
+/// The `--budget-param NAME` parameter set to `budget`.
+pub fn budget_param(name: &str, budget: u32) -> Result<Param, Failure> {
+    cli_params::parse_param(&format!("{}={budget}", name.trim())).map_err(|e| fail(e.message))
+}
