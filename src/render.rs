@@ -2,8 +2,9 @@
 
 use penumbra::cli_params;
 use penumbra::pipeline::{self, RenderOptions};
+use penumbra_core::image::Image;
 use penumbra_core::scene::{BuildOptions, Crop};
-use penumbra_parser::{DiagSink, Diagnostic};
+use penumbra_parser::{DiagSink, Diagnostic, Param, SceneDescription};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -102,49 +103,12 @@ pub fn run(args: RenderArgs) -> ExitCode {
     };
     let parse_seconds = t0.elapsed().as_secs_f64();
     warnings.extend(parsed.warnings);
-    let params: Result<Vec<_>, Diagnostic> = args.params.iter().map(|p| cli_params::parse_param(p)).collect();
-    let params = match params {
-        Ok(p) => p,
-        Err(e) => return fail(e.message),
-    };
-    let crop = match args.crop.as_deref().map(parse_crop).transpose() {
-        Ok(c) => c,
+    let inputs = match Inputs::of(&args, &parsed.scene) {
+        Ok(i) => i,
         Err(e) => return fail(e),
     };
-    let resolution = match args.resolution.as_deref().map(parse_resolution).transpose() {
-        Ok(r) => r,
-        Err(e) => return fail(e),
-    };
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(parsed.scene.film.params.get_one_string("filename", "pbrt.exr")));
-    if !matches!(
-        output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(),
-        Some("exr" | "png" | "pfm")
-    ) {
-        return fail(format!("{}: output must end in .exr, .png or .pfm", output.display()));
-    }
-
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let c = cancel.clone();
-        let _ = ctrlc::set_handler(move || {
-            if c.swap(true, Ordering::SeqCst) {
-                std::process::exit(130);
-            }
-        });
-    }
-    let bar = (!args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(|| {
-        let b = indicatif::ProgressBar::new(1);
-        b.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} tiles (eta {eta})",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        b
-    });
+    let cancel = cancel_on_interrupt();
+    let bar = (!args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(progress_bar);
     let progress = |done: u64, total: u64| {
         if let Some(b) = &bar {
             b.set_length(total);
@@ -153,8 +117,8 @@ pub fn run(args: RenderArgs) -> ExitCode {
     };
     let opts = RenderOptions {
         integrator: args.integrator.as_deref(),
-        params: &params,
-        build: BuildOptions { spp: args.spp, seed: args.seed, crop, resolution },
+        params: &inputs.params,
+        build: BuildOptions { spp: args.spp, seed: args.seed, crop: inputs.crop, resolution: inputs.resolution },
         threads: args.threads,
         with_variance: args.variance,
         cancel: &cancel,
@@ -181,37 +145,12 @@ pub fn run(args: RenderArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let mut image = r.image;
-    if !output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) && image.channels.len() > 3 {
-        image = match image.select_channels(&["R", "G", "B"]) {
-            Ok(i) => i,
-            Err(e) => return fail(e),
-        };
-    }
-    if let Err(e) = penumbra_core::image::write(&image, &output) {
-        return fail(e);
-    }
-    let stats = serde_json::json!({
-        "scene": args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| pipeline::DEFAULT_SCENE_NAME.to_string()),
-        "integrator": r.integrator,
-        "parameters": args.params,
-        "image": output.display().to_string(),
-        "resolution": [r.film.full_resolution.0, r.film.full_resolution.1],
-        "pixel_bounds": [r.film.pixel_bounds.min.x, r.film.pixel_bounds.max.x, r.film.pixel_bounds.min.y, r.film.pixel_bounds.max.y],
-        "spp": r.stats.spp,
-        "seed": args.seed,
-        "threads": r.stats.threads,
-        "parse_seconds": parse_seconds,
-        "build_seconds": r.build.total_seconds(),
-        "build": r.build.stages.iter().map(|(s, t, d)| serde_json::json!({"stage": s, "seconds": t, "detail": d})).collect::<Vec<_>>(),
-        "render_seconds": r.stats.render_seconds,
-        "stats": r.stats,
-    });
-    let sp = stats_path(&output);
-    let text = serde_json::to_string_pretty(&stats).unwrap_or_default();
-    if let Err(e) = penumbra_core::image::write_atomic(&sp, |w| w.write_all(text.as_bytes())) {
-        return fail(e);
-    }
+    let output = &inputs.output;
+    let stats = stats_json(&args, &r, output, parse_seconds);
+    let image = match write_outputs(r.image, output, &stats) {
+        Ok(i) => i,
+        Err(e) => return fail(e),
+    };
     if !args.quiet {
         eprintln!(
             "{}: {} at {} spp, {}x{} px, build {:.3} s, render {:.3} s, {:.2} M rays/s",
@@ -226,4 +165,90 @@ pub fn run(args: RenderArgs) -> ExitCode {
         );
     }
     ExitCode::SUCCESS
+}
+
+/// The command-line values `run` reads besides the scene: parsed and checked before rendering.
+struct Inputs {
+    params: Vec<Param>,
+    crop: Option<Crop>,
+    resolution: Option<(u32, u32)>,
+    /// `-o`, else the scene's Film filename; .exr, .png or .pfm.
+    output: PathBuf,
+}
+
+impl Inputs {
+    fn of(args: &RenderArgs, scene: &SceneDescription) -> Result<Inputs, String> {
+        let params: Result<Vec<_>, Diagnostic> = args.params.iter().map(|p| cli_params::parse_param(p)).collect();
+        let params = params.map_err(|e| e.message)?;
+        let crop = args.crop.as_deref().map(parse_crop).transpose()?;
+        let resolution = args.resolution.as_deref().map(parse_resolution).transpose()?;
+        let output = args
+            .output
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(scene.film.params.get_one_string("filename", "pbrt.exr")));
+        if !matches!(
+            output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(),
+            Some("exr" | "png" | "pfm")
+        ) {
+            return Err(format!("{}: output must end in .exr, .png or .pfm", output.display()));
+        }
+        Ok(Inputs { params, crop, resolution, output })
+    }
+}
+
+/// A flag set by the first Ctrl-C (renders stop at the next tile); a second one exits with
+/// status 130 (as a shell reports SIGINT).
+pub fn cancel_on_interrupt() -> Arc<AtomicBool> {
+    let cancel = Arc::new(AtomicBool::new(false));
+    let c = cancel.clone();
+    let _ = ctrlc::set_handler(move || {
+        if c.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+    });
+    cancel
+}
+
+/// The tile progress bar on stderr.
+fn progress_bar() -> indicatif::ProgressBar {
+    let b = indicatif::ProgressBar::new(1);
+    b.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} tiles (eta {eta})",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    b
+}
+
+/// What `stats.json` records of a render.
+fn stats_json(args: &RenderArgs, r: &pipeline::Rendered, output: &Path, parse_seconds: f64) -> serde_json::Value {
+    serde_json::json!({
+        "scene": args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| pipeline::DEFAULT_SCENE_NAME.to_string()),
+        "integrator": r.integrator,
+        "parameters": args.params,
+        "image": output.display().to_string(),
+        "resolution": [r.film.full_resolution.0, r.film.full_resolution.1],
+        "pixel_bounds": [r.film.pixel_bounds.min.x, r.film.pixel_bounds.max.x, r.film.pixel_bounds.min.y, r.film.pixel_bounds.max.y],
+        "spp": r.stats.spp,
+        "seed": args.seed,
+        "threads": r.stats.threads,
+        "parse_seconds": parse_seconds,
+        "build_seconds": r.build.total_seconds(),
+        "build": r.build.stages.iter().map(|(s, t, d)| serde_json::json!({"stage": s, "seconds": t, "detail": d})).collect::<Vec<_>>(),
+        "render_seconds": r.stats.render_seconds,
+        "stats": r.stats,
+    })
+}
+
+/// Writes the image (R, G, B only unless it is an EXR), then `stats` beside it; returns the image written.
+fn write_outputs(mut image: Image, output: &Path, stats: &serde_json::Value) -> Result<Image, String> {
+    if !output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) && image.channels.len() > 3 {
+        image = image.select_channels(&["R", "G", "B"]).map_err(|e| e.to_string())?;
+    }
+    penumbra_core::image::write(&image, output).map_err(|e| e.to_string())?;
+    let sp = stats_path(output);
+    let text = serde_json::to_string_pretty(stats).unwrap_or_default();
+    penumbra_core::image::write_atomic(&sp, |w| w.write_all(text.as_bytes())).map_err(|e| e.to_string())?;
+    Ok(image)
 }

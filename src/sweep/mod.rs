@@ -19,6 +19,7 @@ mod summary;
 #[cfg(test)]
 mod tests;
 
+use crate::render::cancel_on_interrupt;
 pub use args::SweepArgs;
 use args::{budget_param, setup, Setup};
 use output::{Outputs, Row};
@@ -161,18 +162,6 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
         Some(e) => Err(e),
         None => Ok(0),
     }
-}
-
-/// A flag set by the first Ctrl-C (renders stop at the next tile); a second one exits at once.
-fn cancel_on_interrupt() -> Arc<AtomicBool> {
-    let cancel = Arc::new(AtomicBool::new(false));
-    let c = cancel.clone();
-    let _ = ctrlc::set_handler(move || {
-        if c.swap(true, Ordering::SeqCst) {
-            std::process::exit(EXIT_CANCELLED as i32);
-        }
-    });
-    cancel
 }
 
 /// What every render of the sweep shares.
