@@ -143,15 +143,9 @@ struct Case {
     same_exit: bool,
 }
 
-#[test]
-fn idiff_crosscheck() {
-    let Some(idiff) = find_on_path("idiff") else {
-        common::skip_or_fail_in_ci("idiff not found (install openimageio-tools; see .ci/deps.sh)");
-        return;
-    };
-    let dir = std::env::temp_dir().join(format!("penumbra-idiff-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+/// The image pairs, written to `dir`: generated ones in each format, and (when `oiiotool` is
+/// found) files written by OIIO itself.
+fn write_cases(dir: &Path) -> Vec<Case> {
     let p = |n: &str| dir.join(n);
     let (w, h) = (67u32, 45u32);
     let rgb = ["R", "G", "B"];
@@ -220,15 +214,18 @@ fn idiff_crosscheck() {
     } else {
         common::skip_or_fail_in_ci("oiiotool not found: the half-EXR and 16-bit PNG cases");
     }
+    cases
+}
 
-    // idiff takes about a second to start; run the cases concurrently.
+/// What idiff and penumbra say of each pair (concurrently: idiff takes about a second to
+/// start), with OIIO's full-precision numbers when its Python bindings are importable.
+fn run_all(idiff: &Path, cases: &[Case]) -> Vec<(Idiff, Value, i32, Option<[f64; 7]>)> {
     let pairs: Vec<(&Path, &Path)> = cases.iter().map(|c| (c.a.as_path(), c.b.as_path())).collect();
-    let results: Vec<_> = std::thread::scope(|scope| {
+    std::thread::scope(|scope| {
         let python = scope.spawn(|| run_python(&pairs));
         let handles: Vec<_> = cases
             .iter()
             .map(|c| {
-                let idiff = &idiff;
                 scope.spawn(move || {
                     let theirs = run_idiff(idiff, &c.a, &c.b);
                     let (ours, code) = run_penumbra(&c.a, &c.b);
@@ -245,50 +242,69 @@ fn idiff_crosscheck() {
                 (theirs, ours, code, python.as_ref().map(|rows| rows[i]))
             })
             .collect::<Vec<_>>()
-    });
+    })
+}
+
+/// Asserts that penumbra agrees with idiff on `c` (to idiff's printed precision) and with OIIO's
+/// full-precision numbers when there are any; returns whether those were checked.
+fn check_case(c: &Case, theirs: &Idiff, ours: &Value, code: i32, full: Option<[f64; 7]>) -> bool {
+    println!(
+        "{:>11}: idiff {:?} | ours mean {} rms {} psnr {} max {} @ ({}, {}, {}) exit {code}",
+        c.name,
+        theirs,
+        ours["mean_error"],
+        ours["rms_error"],
+        ours["psnr"],
+        ours["max_error"],
+        ours["max_x"],
+        ours["max_y"],
+        ours["max_channel"]
+    );
+    // idiff prints 6 significant digits: agreement is up to that rounding.
+    let printed = 5.000_1e-6;
+    for (key, t) in
+        [("mean_error", theirs.mean), ("rms_error", theirs.rms), ("psnr", theirs.psnr), ("max_error", theirs.max)]
+    {
+        assert!(agree(num(ours, key), t, printed), "{}: {key} ours {} vs idiff {t}", c.name, ours[key]);
+    }
+    match &theirs.at {
+        Some((x, y, ch)) => {
+            let at = (
+                ours["max_x"].as_u64().unwrap() as u32,
+                ours["max_y"].as_u64().unwrap() as u32,
+                ours["max_channel"].as_str().unwrap(),
+            );
+            assert_eq!(at, (*x, *y, ch.as_str()), "{}: max location", c.name);
+        }
+        None => assert_eq!(num(ours, "max_error"), 0.0, "{}", c.name),
+    }
+    if c.same_exit {
+        assert_eq!(code, theirs.code, "{}: exit code", c.name);
+    }
+    if let Some([mean, rms, psnr, max, x, y, ch]) = full {
+        for (key, t) in [("mean_error", mean), ("rms_error", rms), ("psnr", psnr), ("max_error", max)] {
+            assert!(agree(num(ours, key), t, 1e-6), "{}: {key} ours {} vs OIIO {t}", c.name, ours[key]);
+        }
+        // OIIO reports (0, 0, channel 0) when there is no error at all.
+        assert_eq!((num(ours, "max_x"), num(ours, "max_y"), num(ours, "max_c")), (x, y, ch), "{}", c.name);
+    }
+    full.is_some()
+}
+
+#[test]
+fn idiff_crosscheck() {
+    let Some(idiff) = find_on_path("idiff") else {
+        common::skip_or_fail_in_ci("idiff not found (install openimageio-tools; see .ci/deps.sh)");
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("penumbra-idiff-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let cases = write_cases(&dir);
+    let results = run_all(&idiff, &cases);
     let mut python_checked = 0;
     for (c, (theirs, ours, code, full)) in cases.iter().zip(results) {
-        println!(
-            "{:>11}: idiff {:?} | ours mean {} rms {} psnr {} max {} @ ({}, {}, {}) exit {code}",
-            c.name,
-            theirs,
-            ours["mean_error"],
-            ours["rms_error"],
-            ours["psnr"],
-            ours["max_error"],
-            ours["max_x"],
-            ours["max_y"],
-            ours["max_channel"]
-        );
-        // idiff prints 6 significant digits: agreement is up to that rounding.
-        let printed = 5.000_1e-6;
-        for (key, t) in
-            [("mean_error", theirs.mean), ("rms_error", theirs.rms), ("psnr", theirs.psnr), ("max_error", theirs.max)]
-        {
-            assert!(agree(num(&ours, key), t, printed), "{}: {key} ours {} vs idiff {t}", c.name, ours[key]);
-        }
-        match &theirs.at {
-            Some((x, y, ch)) => {
-                let at = (
-                    ours["max_x"].as_u64().unwrap() as u32,
-                    ours["max_y"].as_u64().unwrap() as u32,
-                    ours["max_channel"].as_str().unwrap(),
-                );
-                assert_eq!(at, (*x, *y, ch.as_str()), "{}: max location", c.name);
-            }
-            None => assert_eq!(num(&ours, "max_error"), 0.0, "{}", c.name),
-        }
-        if c.same_exit {
-            assert_eq!(code, theirs.code, "{}: exit code", c.name);
-        }
-        if let Some([mean, rms, psnr, max, x, y, ch]) = full {
-            python_checked += 1;
-            for (key, t) in [("mean_error", mean), ("rms_error", rms), ("psnr", psnr), ("max_error", max)] {
-                assert!(agree(num(&ours, key), t, 1e-6), "{}: {key} ours {} vs OIIO {t}", c.name, ours[key]);
-            }
-            // OIIO reports (0, 0, channel 0) when there is no error at all.
-            assert_eq!((num(&ours, "max_x"), num(&ours, "max_y"), num(&ours, "max_c")), (x, y, ch), "{}", c.name);
-        }
+        python_checked += check_case(c, &theirs, &ours, code, full) as usize;
     }
     // The deliberate deviation: a NaN fails with us, while idiff passes it.
     let nan = cases.iter().find(|c| c.name == "nan").unwrap();
