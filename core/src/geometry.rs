@@ -236,6 +236,15 @@ impl Bounds2i {
     }
 }
 
+/// Interpolates a per-vertex attribute with barycentrics.
+pub fn interpolate<T>(v: [T; 3], b: [f32; 3]) -> T
+where
+    T: std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+{
+    let [a, c, d] = v;
+    a * b[0] + c * b[1] + d * b[2]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -19,8 +19,7 @@
 //! difference is in the light count (which changes which light pbrt's `one`
 //! strategy picks for a given sample, not the converged image).
 
-use crate::accel::interpolate;
-use crate::geometry::{face_forward, gamma, Bounds3, Ray};
+use crate::geometry::{face_forward, gamma, interpolate, Bounds3, Ray};
 use crate::image::Image;
 use crate::interaction::SceneObject;
 use crate::mesh::TriangleMesh;

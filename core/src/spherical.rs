@@ -50,6 +50,8 @@ use i_overlay::float::overlay::FloatOverlay;
 pub use crate::geometry::orthonormal_basis;
 use crate::mesh::{EdgeAdjacency, TriangleMesh, BOUNDARY};
 
+pub mod cone;
+
 /// A spherical polygon: one loop of directions seen from the shading point
 /// (see the module conventions).
 #[derive(Clone, Debug, Default, PartialEq)]

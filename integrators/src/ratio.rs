@@ -39,10 +39,9 @@
 //! reached the light) and the ratio is taken as 1 (the analytic `U` unchanged). The
 //! output is never NaN or infinite.
 
-use crate::ltc::{
-    add_other_lights, fresnel_at, parse_shading, warn_infinite_lights, FresnelMode, LtcIntegrator, LtcShader, Mode,
-    SharedPixel,
-};
+use crate::common::other_lights::{add_other_lights, warn_infinite_lights, FallbackWarning};
+use crate::common::pixel_shading::{parse_shading, SharedPixel};
+use crate::ltc::{fresnel_at, AreaLighting, FresnelMode, LtcIntegrator, LtcShader, Mode};
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::Film;
@@ -60,7 +59,6 @@ use penumbra_core::spectrum::luminance;
 use penumbra_core::{Rgb, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use rayon::prelude::*;
-use std::sync::atomic::AtomicBool;
 
 /// Weights of the cross-bilateral filter (all relative, see [`cross_bilateral`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -424,8 +422,7 @@ struct Estimator<'a> {
     n: u32,
     groups: Vec<SampleGroup>,
     pixel_shading: bool,
-    warn_material: AtomicBool,
-    warnings: &'a DiagSink,
+    fallback: FallbackWarning<'a>,
 }
 
 fn d3(v: Vec3) -> DVec3 {
@@ -647,17 +644,7 @@ impl Estimator<'_> {
                 un += uk;
             }
         }
-        add_other_lights(
-            &mut rest,
-            "ratio",
-            hit,
-            desc.is_some(),
-            scene,
-            sampler,
-            stats,
-            &self.warn_material,
-            self.warnings,
-        );
+        add_other_lights(&mut rest, hit, desc.is_some(), scene, sampler, stats, &self.fallback);
         if aov.len() == CHANNELS.len() {
             let finite = |c: Rgb| if c.is_finite() { c.max(Rgb::ZERO) } else { Rgb::ZERO };
             let (u, s, un) = (finite(u), finite(s), finite(un));
@@ -708,7 +695,7 @@ impl PixelEstimator for Estimator<'_> {
     /// `U` once per surface seen in the pixel (as `ltc`'s pixel shading, unshadowed); the
     /// stochastic `S_N`, `U_N` stay per camera sample.
     fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<PixelShared> {
-        Some(Box::new(SharedPixel::trace(&self.shader, rays, scene, false, stats)))
+        Some(Box::new(self.shader.trace_pixel(rays, scene, false, stats)))
     }
 
     fn li_shared(
@@ -721,7 +708,7 @@ impl PixelEstimator for Estimator<'_> {
         shared: &PixelShared,
         index: usize,
     ) -> Rgb {
-        match SharedPixel::sample(shared, index) {
+        match SharedPixel::<AreaLighting>::sample(shared, index) {
             Some((Ok(pt), area)) => match pt.with_bsdf(scene) {
                 Some(h) => self.shade(ray, &h, area, scene, sampler, stats, aov),
                 None => Rgb::ZERO, // (first_point returns only surfaces with a material)
@@ -751,8 +738,7 @@ impl Integrator for RatioIntegrator {
             n: scene.sampler.round_count(self.nsamples).max(1),
             groups,
             pixel_shading: self.ltc.pixel_shading,
-            warn_material: AtomicBool::new(false),
-            warnings: ctx.warnings,
+            fallback: FallbackWarning::new("ratio", ctx.warnings),
         };
         let mut stats = render_pixels(&est, scene, ctx, film)?;
         let t = std::time::Instant::now();

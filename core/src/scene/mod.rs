@@ -1,12 +1,12 @@
 //! The renderable scene, built from a `SceneDescription` according to what
 //! the chosen integrator says it needs ([`Requirements`]).
 
-use crate::accel::{interpolate, Accel, Hit, DEFAULT_UV};
+use crate::accel::{Accel, Hit, DEFAULT_UV};
 use crate::bxdf::Bsdf;
 use crate::camera::Camera;
 use crate::film::FilmSpec;
 use crate::filter::Filter;
-use crate::geometry::{face_forward, gamma, Bounds3, Frame, Ray};
+use crate::geometry::{face_forward, gamma, interpolate, Bounds3, Frame, Ray};
 use crate::interaction::{SceneObject, SurfaceInteraction};
 use crate::light::{Light, Lights};
 use crate::material::{BsdfOptions, Material, Materials, ShadingGeometry};

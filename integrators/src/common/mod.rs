@@ -2,6 +2,8 @@
 
 pub mod direct;
 pub mod light_distribution;
+pub mod other_lights;
+pub mod pixel_shading;
 
 use penumbra_core::geometry::Bounds2i;
 use penumbra_core::IVec2;

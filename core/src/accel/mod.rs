@@ -12,6 +12,10 @@
 //! Triangles are intersected with the watertight algorithm of Woop et al. and
 //! pbrt-v3's conservative bound on `t`, so rays spawned with
 //! [`crate::geometry::offset_ray_origin`] never re-hit their own surface.
+//!
+//! [`objects`]: a small hierarchy over object bounds queried with cones (occluder search).
+
+pub mod objects;
 
 use crate::geometry::{gamma, Bounds3, Ray};
 use crate::mesh::TriangleMesh;
@@ -342,15 +346,6 @@ fn unit_direction(d: Vec3) -> (Vec3A, f32) {
     let d = Vec3A::from(d);
     let len = d.length();
     (d / len + Vec3A::ZERO, len)
-}
-
-/// Interpolates a per-vertex attribute with barycentrics.
-pub fn interpolate<T>(v: [T; 3], b: [f32; 3]) -> T
-where
-    T: std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
-{
-    let [a, c, d] = v;
-    a * b[0] + c * b[1] + d * b[2]
 }
 
 /// pbrt-v3's default triangle uv when a mesh has none.

@@ -31,7 +31,12 @@
 //! The two agree unless the object-to-world transform mirrors.
 
 use glam::{Vec2, Vec3};
-use std::collections::HashMap;
+
+mod adjacency;
+mod predicates;
+
+pub use adjacency::{Edge, EdgeAdjacency, BOUNDARY};
+pub use predicates::PlanarOutline;
 
 /// pbrt-v3's `"texture alpha"` / `"float alpha"` (and `shadowalpha`) cut-outs.
 ///
@@ -77,53 +82,6 @@ pub struct TriangleMesh {
     pub alpha: Option<AlphaSpec>,
     /// `"shadowalpha"` cut-out: applies to shadow rays only.
     pub shadow_alpha: Option<AlphaSpec>,
-}
-
-/// Marker for "no triangle on this side" in [`Edge::tris`].
-pub const BOUNDARY: u32 = u32::MAX;
-
-/// An undirected edge of the position-welded mesh.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Edge {
-    /// Welded vertex ids, in the direction `tris[0]` traverses the edge.
-    pub v: [u32; 2],
-    /// The first two incident triangles; `tris[1] == BOUNDARY` for a boundary edge.
-    pub tris: [u32; 2],
-    /// Number of incident triangles (1 boundary, 2 manifold, more: non-manifold).
-    pub count: u32,
-    /// Whether `tris[1]` traverses the edge in the opposite direction (consistent orientation).
-    pub consistent: bool,
-}
-
-/// Edge adjacency after welding vertices with identical positions.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct EdgeAdjacency {
-    /// For each mesh vertex, its welded id.
-    pub weld: Vec<u32>,
-    /// Number of distinct positions.
-    pub welded_count: usize,
-    pub edges: Vec<Edge>,
-    /// For each triangle, its edges (p0p1, p1p2, p2p0) as indices into `edges`;
-    /// `u32::MAX` for an edge whose two ends weld together (degenerate triangle).
-    pub tri_edges: Vec<[u32; 3]>,
-}
-
-impl EdgeAdjacency {
-    pub fn boundary_edges(&self) -> usize {
-        self.edges.iter().filter(|e| e.count == 1).count()
-    }
-    pub fn non_manifold_edges(&self) -> usize {
-        self.edges.iter().filter(|e| e.count > 2).count()
-    }
-    /// Every edge has exactly two consistently oriented triangles.
-    pub fn is_closed_manifold(&self) -> bool {
-        !self.edges.is_empty() && self.edges.iter().all(|e| e.count == 2 && e.consistent)
-    }
-}
-
-fn weld_key(p: Vec3) -> [u32; 3] {
-    // +0.0 so that -0.0 and 0.0 weld together.
-    [(p.x + 0.0).to_bits(), (p.y + 0.0).to_bits(), (p.z + 0.0).to_bits()]
 }
 
 impl TriangleMesh {
@@ -208,147 +166,6 @@ impl TriangleMesh {
         } else {
             [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0)]
         }
-    }
-
-    /// Edge adjacency after welding vertices with bit-identical positions
-    /// (so seams duplicated for texture coordinates do not count as boundaries).
-    pub fn build_adjacency(&self) -> EdgeAdjacency {
-        let mut map: HashMap<[u32; 3], u32> = HashMap::with_capacity(self.positions.len());
-        let weld: Vec<u32> = self
-            .positions
-            .iter()
-            .map(|p| {
-                let n = map.len() as u32;
-                *map.entry(weld_key(*p)).or_insert(n)
-            })
-            .collect();
-        let welded_count = map.len();
-        let mut edges: Vec<Edge> = Vec::with_capacity(self.indices.len() * 3 / 2);
-        let mut lookup: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.indices.len() * 3 / 2);
-        let mut tri_edges = Vec::with_capacity(self.indices.len());
-        for (t, tri) in self.indices.iter().enumerate() {
-            let w = tri.map(|i| weld.get(i as usize).copied().unwrap_or(u32::MAX));
-            let mut te = [u32::MAX; 3];
-            for k in 0..3 {
-                let (a, b) = (w[k], w[(k + 1) % 3]);
-                if a == b || a == u32::MAX || b == u32::MAX {
-                    continue;
-                }
-                let key = (a.min(b), a.max(b));
-                match lookup.get(&key) {
-                    Some(&ei) => {
-                        let e = &mut edges[ei as usize];
-                        if e.count == 1 {
-                            e.tris[1] = t as u32;
-                            e.consistent = e.v == [b, a];
-                        }
-                        e.count += 1;
-                        te[k] = ei;
-                    }
-                    None => {
-                        let ei = edges.len() as u32;
-                        edges.push(Edge { v: [a, b], tris: [t as u32, BOUNDARY], count: 1, consistent: false });
-                        lookup.insert(key, ei);
-                        te[k] = ei;
-                    }
-                }
-            }
-            tri_edges.push(te);
-        }
-        EdgeAdjacency { weld, welded_count, edges, tri_edges }
-    }
-
-    /// Whether the mesh, after welding by position, is a closed, consistently
-    /// oriented 2-manifold (every edge shared by exactly two triangles traversing
-    /// it in opposite directions) and convex with outward winding: every vertex
-    /// lies on or behind every triangle's plane, within `rel_tol` times the
-    /// bounding-box diagonal.
-    ///
-    /// The test is exact (all vertex/plane pairs) up to 10⁸ pairs; beyond that it
-    /// checks every edge's dihedral angle (local convexity) and connectivity, which
-    /// for a closed connected embedded surface implies convexity (Tietze–Nakajima).
-    pub fn is_closed_convex(&self, rel_tol: f32) -> bool {
-        let adj = self.build_adjacency();
-        if !adj.is_closed_manifold() {
-            return false;
-        }
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for p in &self.positions {
-            lo = lo.min(*p);
-            hi = hi.max(*p);
-        }
-        let tol = (rel_tol.max(0.0) * (hi - lo).length()) as f64;
-        if !tol.is_finite() {
-            return false;
-        }
-        let p64 = |p: Vec3| [p.x as f64, p.y as f64, p.z as f64];
-        let planes: Vec<([f64; 3], f64)> = (0..self.indices.len())
-            .filter_map(|t| {
-                let [a, b, c] = self.vertices(t).map(p64);
-                let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-                let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-                let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
-                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                if len <= 0.0 || !len.is_finite() {
-                    return None; // degenerate triangles define no plane
-                }
-                let n = [n[0] / len, n[1] / len, n[2] / len];
-                Some((n, n[0] * a[0] + n[1] * a[1] + n[2] * a[2]))
-            })
-            .collect();
-        let behind = |(n, d): &([f64; 3], f64), p: [f64; 3]| n[0] * p[0] + n[1] * p[1] + n[2] * p[2] - d <= tol;
-        // Distinct welded positions.
-        let mut verts = vec![[0.0f64; 3]; adj.welded_count];
-        for (i, w) in adj.weld.iter().enumerate() {
-            verts[*w as usize] = p64(self.positions[i]);
-        }
-        if (planes.len() as u64) * (verts.len() as u64) <= 100_000_000 {
-            return planes.iter().all(|pl| verts.iter().all(|v| behind(pl, *v)));
-        }
-        // Local convexity at every edge plus connectivity.
-        let plane_of = |t: u32| -> Option<([f64; 3], f64)> {
-            let [a, b, c] = self.vertices(t as usize).map(p64);
-            let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-            let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-            let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
-            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-            (len > 0.0 && len.is_finite()).then(|| {
-                let n = [n[0] / len, n[1] / len, n[2] / len];
-                (n, n[0] * a[0] + n[1] * a[1] + n[2] * a[2])
-            })
-        };
-        for e in &adj.edges {
-            for (s, o) in [(0, 1), (1, 0)] {
-                if let Some(pl) = plane_of(e.tris[s]) {
-                    for &vi in &self.indices[e.tris[o] as usize] {
-                        if !behind(&pl, p64(self.positions[vi as usize])) {
-                            return false;
-                        }
-                    }
-                }
-            }
-        }
-        // Connectivity over triangles.
-        let mut seen = vec![false; self.indices.len()];
-        let mut stack = vec![0usize];
-        seen[0] = true;
-        let mut count = 1;
-        while let Some(t) = stack.pop() {
-            for &ei in &adj.tri_edges[t] {
-                if ei == u32::MAX {
-                    continue;
-                }
-                for &o in &adj.edges[ei as usize].tris {
-                    if o != BOUNDARY && !seen[o as usize] {
-                        seen[o as usize] = true;
-                        count += 1;
-                        stack.push(o as usize);
-                    }
-                }
-            }
-        }
-        count == self.indices.len()
     }
 }
 

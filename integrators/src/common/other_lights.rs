@@ -1,0 +1,96 @@
+//! The lights an analytic area-light integrator (`ltc`, `ratio`) does not shade itself:
+//! delta lights with one shadow ray, infinite lights and the area lights of materials
+//! without an LTC form with directlighting's estimator ([`crate::common::direct`]).
+
+use crate::common::direct::estimate_direct;
+use penumbra_core::bxdf::{Bsdf, BxdfFlags};
+use penumbra_core::integrator::ThreadStats;
+use penumbra_core::interaction::SurfaceInteraction;
+use penumbra_core::light::{Light, LightContext};
+use penumbra_core::sampler::Sampler;
+use penumbra_core::scene::{Scene, SurfaceHit};
+use penumbra_core::{Rgb, Vec2};
+use penumbra_parser::DiagSink;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// The one warning an integrator gives when a material without an LTC form falls back to
+/// directlighting's estimator.
+pub struct FallbackWarning<'a> {
+    pub integrator: &'static str,
+    pub warned: AtomicBool,
+    pub warnings: &'a DiagSink,
+}
+
+impl<'a> FallbackWarning<'a> {
+    pub fn new(integrator: &'static str, warnings: &'a DiagSink) -> FallbackWarning<'a> {
+        FallbackWarning { integrator, warned: AtomicBool::new(false), warnings }
+    }
+
+    fn no_ltc_form(&self) {
+        if !self.warned.swap(true, Ordering::Relaxed) {
+            self.warnings.warn(
+                None,
+                format!(
+                    "{}: a material that does not reduce to a Lambertian plus a GGX lobe (mirror, glass, \
+                     translucent, mix, Oren–Nayar, anisotropic…) is rendered with directlighting's estimator",
+                    self.integrator
+                ),
+            );
+        }
+    }
+}
+
+/// Adds to `l` every light `ltc` and `ratio` do not shade analytically, at `hit`: delta lights
+/// by [`delta_light`]; infinite lights, and area lights when the material has no LTC form
+/// (`ltc_form` false, with one warning), by directlighting's estimator (two 2D samples each).
+pub fn add_other_lights(
+    l: &mut Rgb,
+    hit: &SurfaceHit,
+    ltc_form: bool,
+    scene: &Scene,
+    sampler: &mut dyn Sampler,
+    stats: &mut ThreadStats,
+    warning: &FallbackWarning,
+) {
+    let SurfaceHit { si, bsdf, .. } = hit;
+    for (k, light) in scene.light_list().iter().enumerate() {
+        match light {
+            Light::Area(_) if ltc_form => {} // shaded analytically
+            Light::Infinite(_) | Light::Area(_) => {
+                if !ltc_form {
+                    warning.no_ltc_form();
+                }
+                let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
+                *l += estimate_direct(si, bsdf, u_scatter, k, light, u_light, scene, stats);
+            }
+            _ => *l += delta_light(si, bsdf, light, scene, stats),
+        }
+    }
+}
+
+/// The one warning `integrator` gives when the scene has infinite lights (they have no polygon).
+pub fn warn_infinite_lights(integrator: &str, scene: &Scene, warnings: &DiagSink) {
+    if scene.light_list().iter().any(Light::is_infinite) {
+        warnings.warn(
+            None,
+            format!("{integrator}: infinite lights have no polygon: they are rendered with directlighting's estimator"),
+        );
+    }
+}
+
+/// A delta light (point, spot, distant, goniometric, projection) at `si`: exact hard shadow by one
+/// ray, the real BSDF.
+fn delta_light(si: &SurfaceInteraction, bsdf: &Bsdf, light: &Light, scene: &Scene, stats: &mut ThreadStats) -> Rgb {
+    let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
+    let Some(ls) = light.sample_li(&ctx, Vec2::splat(0.5), &scene.meshes) else { return Rgb::ZERO };
+    let f = bsdf.f(si.wo, ls.wi, BxdfFlags::NON_SPECULAR) * ls.wi.dot(si.shading.z).abs();
+    if f == Rgb::ZERO {
+        return Rgb::ZERO;
+    }
+    stats.shadow_rays += 1;
+    if scene.occluded(&si.spawn_ray_to(ls.p_light)) {
+        Rgb::ZERO
+    } else {
+        f * ls.li / ls.pdf
+    }
+}

@@ -1,0 +1,141 @@
+//! Pixel shading ("multisample antialiasing"): the camera samples of a pixel only resolve
+//! which surfaces the pixel sees and where their edges run; samples that see the same smooth
+//! piece of surface form a cluster, shaded once at its most central member. `ltc` and `ratio`
+//! use it through `PixelEstimator::begin_pixel`; the value shaded per cluster is the
+//! integrator's (`T`).
+
+use glam::DVec3;
+use penumbra_core::geometry::Ray;
+use penumbra_core::integrator::{PixelShared, ThreadStats};
+use penumbra_core::scene::{Scene, SurfacePoint};
+use penumbra_core::{Rgb, Vec3};
+use penumbra_parser::{DiagSink, ParamSet};
+
+/// `"string shading"`: `"pixel"` (default: each surface seen in a pixel shaded once) or
+/// `"sample"` (every camera sample shaded); `true` for pixel.
+pub fn parse_shading(integrator: &str, params: &ParamSet, warnings: &DiagSink) -> bool {
+    match params.get_one_string("shading", "pixel").as_str() {
+        "pixel" => true,
+        "sample" => false,
+        other => {
+            warnings.warn(
+                params.loc_of("shading").cloned(),
+                format!("{integrator}: unknown shading \"{other}\" (expected pixel or sample): using \"pixel\""),
+            );
+            true
+        }
+    }
+}
+
+/// A camera ray's first surface (its BSDF not built), or the radiance it escaped with
+/// ([`Scene::first_point`]).
+pub type FirstSurface = Result<SurfacePoint, Rgb>;
+
+/// The samples of one pixel: their first surfaces and the value of each one's cluster
+/// (`None`: the ray escaped, or the shader gave none for that surface).
+pub struct SharedPixel<T> {
+    hits: Vec<FirstSurface>,
+    shaded: Vec<Option<T>>,
+}
+
+impl<T: Copy + Send + 'static> SharedPixel<T> {
+    /// Traces the pixel's camera `rays` (one traversal for the bundle when it meets few
+    /// triangles) and shades each cluster once with `shade` ([`shade_clusters`]).
+    pub fn trace(
+        rays: &[Ray],
+        scene: &Scene,
+        stats: &mut ThreadStats,
+        light_distance: impl Fn(DVec3) -> f64,
+        shade: impl FnMut(&SurfacePoint) -> Option<T>,
+    ) -> SharedPixel<T> {
+        let candidates = scene.bundle_candidates(rays);
+        let mut hits: Vec<FirstSurface> = Vec::with_capacity(rays.len());
+        for r in rays {
+            let prev = hits.last().and_then(|h| h.as_ref().ok()).map(|h| &h.si);
+            let (first, queries) = scene.first_point_among(r, candidates.as_deref(), prev);
+            stats.rays += queries;
+            hits.push(first);
+        }
+        let shaded = shade_clusters(rays, &hits, light_distance, shade);
+        SharedPixel { hits, shaded }
+    }
+
+    /// Sample `index` of the pixel: its first surface (or the radiance its ray escaped with) and
+    /// its cluster's value; `None` when `shared` is not a `SharedPixel<T>` or has no such sample.
+    pub fn sample(shared: &PixelShared, index: usize) -> Option<(&FirstSurface, Option<T>)> {
+        let sh = shared.downcast_ref::<SharedPixel<T>>()?;
+        Some((sh.hits.get(index)?, sh.shaded.get(index).copied().flatten()))
+    }
+}
+
+/// A pixel cluster whose extent exceeds this fraction of its distance to the nearest light is
+/// shaded sample by sample.
+const NEAR_FIELD: f64 = 0.05;
+
+/// Samples of a pixel that see the same smooth piece of surface (its members are the samples
+/// whose `cluster` entry is its index).
+struct Cluster {
+    mesh: u32,
+    n: Vec3,
+    depth: f32,
+    dir_sum: Vec3,
+}
+
+/// Each hit's cluster (same mesh, shading normals within ~11°, depths within 5 %;
+/// `usize::MAX`: none, the ray escaped) and the clusters.
+fn clusters_of(rays: &[Ray], hits: &[FirstSurface], dirs: &[Vec3]) -> (Vec<usize>, Vec<Cluster>) {
+    let mut clusters: Vec<Cluster> = Vec::new();
+    let mut cluster = vec![usize::MAX; hits.len()];
+    for (i, h) in hits.iter().enumerate() {
+        let Ok(h) = h else { continue };
+        let n = h.si.shading.z;
+        let depth = (h.si.p - rays[i].o).length();
+        let d = dirs[i];
+        match clusters.iter().position(|c| {
+            c.mesh == h.si.mesh && c.n.dot(n) > 0.98 && (c.depth - depth).abs() <= 0.05 * c.depth.max(depth)
+        }) {
+            Some(k) => {
+                cluster[i] = k;
+                clusters[k].dir_sum += d;
+            }
+            None => {
+                cluster[i] = clusters.len();
+                clusters.push(Cluster { mesh: h.si.mesh, n, depth, dir_sum: d });
+            }
+        }
+    }
+    (cluster, clusters)
+}
+
+/// Groups the pixel's hits into clusters and shades each cluster once, at the member whose
+/// ray is closest to the cluster's mean direction — every member when the cluster's extent
+/// is not small against `light_distance` of that point (the lighting varies across the
+/// pixel: a light grazing the floor).
+pub fn shade_clusters<T: Copy>(
+    rays: &[Ray],
+    hits: &[FirstSurface],
+    light_distance: impl Fn(DVec3) -> f64,
+    mut shade: impl FnMut(&SurfacePoint) -> Option<T>,
+) -> Vec<Option<T>> {
+    let dirs: Vec<Vec3> = rays.iter().map(|r| r.d.normalize_or_zero()).collect();
+    let (cluster, clusters) = clusters_of(rays, hits, &dirs);
+    let mut shaded = vec![None; hits.len()];
+    let mut shade_one = |i: usize| -> Option<T> { shade(hits[i].as_ref().ok()?) };
+    let dir = |i: usize| dirs[i];
+    let pos = |i: usize| hits[i].as_ref().map(|h| h.si.p.as_dvec3()).unwrap_or(DVec3::ZERO);
+    let cluster = &cluster[..];
+    for (k, c) in clusters.iter().enumerate() {
+        let members = || (0..hits.len()).filter(move |&m| cluster[m] == k);
+        let mean = c.dir_sum.normalize_or_zero();
+        let Some(rep) = members().max_by(|a, b| dir(*a).dot(mean).total_cmp(&dir(*b).dot(mean))) else {
+            continue;
+        };
+        let extent = members().map(|m| (pos(m) - pos(rep)).length()).fold(0.0, f64::max);
+        let near = extent > NEAR_FIELD * light_distance(pos(rep));
+        let v = shade_one(rep);
+        for m in members() {
+            shaded[m] = if m == rep || !near { v } else { shade_one(m) };
+        }
+    }
+    shaded
+}

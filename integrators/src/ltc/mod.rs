@@ -1,0 +1,301 @@
+//! `ltc`: analytic shading and soft shadows from polygonal area lights — seed 004
+//! (`../shared/seeds/004_*`: Heitz et al.'s Linearly Transformed Cosines with analytic
+//! visibility from spherical polygon Booleans).
+//!
+//! At each shading point and for each emitting triangle of each area light, the
+//! triangle is projected onto the sphere of directions, the occluders between the
+//! point and the triangle are projected too, and the visible part (light minus the
+//! union of occluders, [`spherical::difference`]) is integrated in closed form:
+//! the clamped cosine for the Lambertian lobe (exact), and a Linearly Transformed
+//! Cosine fitted to the Trowbridge–Reitz lobe for the glossy part.
+//!
+//! Occluders come from a bounding-volume hierarchy over the scene's objects,
+//! queried with the cone from the shading point around the light triangle's
+//! bounding sphere (the paper's `GetBetween`). An occluder is represented by its
+//! silhouette loop when it is closed and convex (mode `silhouette`, or `auto` when
+//! the builder proves it convex) and by its triangles otherwise (`per-triangle`, which
+//! also takes every light triangle on its own: the paper's Sect. 4.4).
+//! Occluder geometry beyond the light triangle's plane cannot shadow it: triangles
+//! are clipped to the half-space of the shading point first, and a convex object
+//! straddling that plane is taken triangle by triangle. The triangles of one object
+//! that need no clipping (and lie in the open hemisphere around the light) are
+//! subtracted as the outline of their union ([`spherical::triangle_chains`]: each
+//! taken positively oriented from the point, shared edges cancelled, the rest covers
+//! by winding number), which is exact and has far fewer edges than the triangles —
+//! for a closed mesh, its silhouette edges (`"bool mergeoccluders" "false"`: one by one).
+//!
+//! Point, spot, distant, goniometric and projection lights get exact hard shadows
+//! (one shadow ray, the real BSDF). Infinite lights, and materials that do not reduce
+//! to a Lambertian plus a GGX lobe, fall back to `directlighting`'s estimator for
+//! that light or that point, with one warning each.
+//!
+//! Stages: [`shader`] prepares the scene (objects, hierarchy, light shapes) and shades a point
+//! light by light; [`occluders`] finds what hides a light piece; [`integrate`] integrates the
+//! visible part; [`fresnel`] applies the glossy lobe's Fresnel factor. Pixel shading and the
+//! lights LTC does not shade live in [`crate::common`] (shared with `ratio`).
+
+mod fresnel;
+mod integrate;
+mod occluders;
+mod shader;
+
+pub use fresnel::{fresnel_at, FresnelMode};
+pub use shader::LtcShader;
+
+use crate::common::other_lights::{add_other_lights, warn_infinite_lights, FallbackWarning};
+use crate::common::pixel_shading::{parse_shading, SharedPixel};
+use penumbra_core::film::Film;
+use penumbra_core::geometry::Ray;
+use penumbra_core::integrator::{
+    render_pixels, Integrator, PixelEstimator, PixelShared, RenderContext, RenderError, RenderStats, ThreadStats,
+};
+use penumbra_core::light::Light;
+use penumbra_core::sampler::Sampler;
+use penumbra_core::scene::{Requirements, Scene, SurfacePoint};
+use penumbra_core::Rgb;
+use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// One silhouette loop per closed mesh.
+    Silhouette,
+    /// Every light and every occluder as its triangles.
+    PerTriangle,
+    /// Silhouettes for objects proven closed and convex, triangles otherwise.
+    Auto,
+}
+
+pub struct LtcIntegrator {
+    pub mode: Mode,
+    pub shadows: bool,
+    pub fresnel: FresnelMode,
+    /// `"string shading" "pixel"` (default): the samples of a pixel only resolve visibility
+    /// (edges, which surface is seen); each surface seen in the pixel is shaded once
+    /// (multisample antialiasing). `"sample"`: every sample is shaded.
+    pub pixel_shading: bool,
+    /// Occluder triangles of one object that lie wholly in front of the light are subtracted as
+    /// their outline (`"bool mergeoccluders"`, default true; false: triangle by triangle).
+    pub merge_occluders: bool,
+    /// With pixel shading, at least this many camera samples per pixel (`"integer
+    /// coveragesamples"`, default 16; 1: the sampler's count as it is). They cost a camera ray
+    /// each, not a shading: below ~16 the image's error is the aliasing of edges, not noise.
+    pub coverage_samples: u32,
+}
+
+/// Why `ltc` raises the sampler's count (the scene build's warning says it).
+const COVERAGE_REASON: &str = "ltc shades each surface a pixel sees once, and the camera samples only resolve which \
+     surfaces those are and where their edges run (a camera ray each); \"integer coveragesamples\" sets this floor";
+
+impl LtcIntegrator {
+    pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
+        let m = params.get_one_string("mode", "auto");
+        let mode = match m.as_str() {
+            "auto" => Mode::Auto,
+            "silhouette" => Mode::Silhouette,
+            "per-triangle" | "pertriangle" => Mode::PerTriangle,
+            other => {
+                warnings.warn(
+                    params.loc_of("mode").cloned(),
+                    format!(
+                        "ltc: unknown mode \"{other}\" (expected auto, silhouette or per-triangle): using \"auto\""
+                    ),
+                );
+                Mode::Auto
+            }
+        };
+        let shadows = params.get_one_bool("shadows", true);
+        let fresnel = match params.get_one_string("fresnel", "average").as_str() {
+            "schlick" => FresnelMode::Schlick,
+            "average" => FresnelMode::Average,
+            other => {
+                warnings.warn(
+                    params.loc_of("fresnel").cloned(),
+                    format!("ltc: unknown fresnel \"{other}\" (expected average or schlick): using \"average\""),
+                );
+                FresnelMode::Average
+            }
+        };
+        let pixel_shading = parse_shading("ltc", params, warnings);
+        let merge_occluders = params.get_one_bool("mergeoccluders", true);
+        let coverage = params.get_one_int("coveragesamples", 16);
+        if !(1..=1024).contains(&coverage) {
+            return Err(Diagnostic::error(
+                params.loc_of("coveragesamples").cloned(),
+                format!("ltc: \"coveragesamples\" must be in 1..=1024, got {coverage}"),
+            ));
+        }
+        Ok(Box::new(LtcIntegrator {
+            mode,
+            shadows,
+            fresnel,
+            pixel_shading,
+            merge_occluders,
+            coverage_samples: coverage as u32,
+        }))
+    }
+}
+
+struct Estimator<'a> {
+    shader: LtcShader<'a>,
+    fallback: FallbackWarning<'a>,
+    /// The scene has lights other than area lights.
+    other_lights: bool,
+}
+
+/// What pixel shading computes once per cluster: the analytic area lighting
+/// `(Σ L·form factor, glossy)`.
+pub(crate) type AreaLighting = (Rgb, Rgb);
+
+impl LtcShader<'_> {
+    /// Traces a pixel's camera `rays` and shades each surface they see once (with or without
+    /// `shadows`): `begin_pixel` of `ltc` and `ratio`.
+    pub(crate) fn trace_pixel(
+        &self,
+        rays: &[Ray],
+        scene: &Scene,
+        shadows: bool,
+        stats: &mut ThreadStats,
+    ) -> SharedPixel<AreaLighting> {
+        let mut scratch = Vec::new();
+        SharedPixel::trace(
+            rays,
+            scene,
+            stats,
+            |p| self.nearest_light_distance(p),
+            |h| {
+                let desc = LtcShader::lobes(scene, &h.si)?;
+                Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
+            },
+        )
+    }
+}
+
+impl Estimator<'_> {
+    /// Radiance from the first surface `hit`; `area` is its analytic area lighting when already
+    /// computed for the pixel.
+    fn shade(
+        &self,
+        hit: &SurfacePoint,
+        area: Option<(Rgb, Rgb)>,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+    ) -> Rgb {
+        let SurfacePoint { si, le, .. } = hit;
+        let mut l = *le;
+        // With the pixel's lighting integrated already, only the sample's albedo is needed.
+        let lit = match area {
+            Some((diffuse, specular)) => LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular),
+            None => LtcShader::lobes(scene, si)
+                .map(|d| self.shader.area_lights(scene, si, &d, self.shader.ltc.shadows, &mut Vec::new())),
+        };
+        let ltc_form = lit.is_some();
+        if let Some(v) = lit {
+            l += v;
+        }
+        // The BSDF only for what the LTC does not shade (delta and infinite lights, materials
+        // without an LTC form).
+        if !ltc_form || self.other_lights {
+            if let Some(hit) = hit.with_bsdf(scene) {
+                add_other_lights(&mut l, &hit, ltc_form, scene, sampler, stats, &self.fallback);
+            }
+        }
+        l
+    }
+}
+
+impl PixelEstimator for Estimator<'_> {
+    fn li(
+        &self,
+        ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        _aov: &mut [f32],
+    ) -> Rgb {
+        let (first, queries) = scene.first_point(ray);
+        stats.rays += queries;
+        match first {
+            Ok(h) => self.shade(&h, None, scene, sampler, stats),
+            Err(escaped) => escaped,
+        }
+    }
+
+    fn shares_pixel_work(&self) -> bool {
+        self.shader.ltc.pixel_shading
+    }
+
+    fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<PixelShared> {
+        Some(Box::new(self.shader.trace_pixel(rays, scene, self.shader.ltc.shadows, stats)))
+    }
+
+    fn li_shared(
+        &self,
+        ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        aov: &mut [f32],
+        shared: &PixelShared,
+        index: usize,
+    ) -> Rgb {
+        match SharedPixel::<AreaLighting>::sample(shared, index) {
+            Some((Ok(h), area)) => self.shade(h, area, scene, sampler, stats),
+            Some((Err(escaped), _)) => *escaped,
+            None => self.li(ray, scene, sampler, stats, aov),
+        }
+    }
+}
+
+impl Integrator for LtcIntegrator {
+    fn name(&self) -> &str {
+        "ltc"
+    }
+    fn requirements(&self) -> Requirements {
+        Requirements {
+            accel: true,
+            lights: true,
+            materials: true,
+            min_pixel_samples: (self.pixel_shading && self.coverage_samples > 1)
+                .then_some((self.coverage_samples, COVERAGE_REASON)),
+            ..Default::default()
+        }
+    }
+    fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+        warn_infinite_lights("ltc", scene, ctx.warnings);
+        let est = Estimator {
+            shader: LtcShader::new(self, scene),
+            fallback: FallbackWarning::new("ltc", ctx.warnings),
+            other_lights: scene.light_list().iter().any(|l| !matches!(l, Light::Area(_))),
+        };
+        render_pixels(&est, scene, ctx, film)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+    use penumbra_core::spherical;
+
+    #[test]
+    /// A coplanar light triangle sharing an edge (the other half of a quad light) does not
+    /// occlude its neighbour from any point.
+    fn coplanar_neighbour_does_not_occlude() {
+        let a = [DVec3::new(-0.8, 3.0, -0.8), DVec3::new(0.8, 3.0, -0.8), DVec3::new(0.8, 3.0, 0.8)];
+        let b = [DVec3::new(-0.8, 3.0, -0.8), DVec3::new(0.8, 3.0, 0.8), DVec3::new(-0.8, 3.0, 0.8)];
+        let mut bad = 0;
+        for i in 0..200 {
+            let p = DVec3::new(-2.0 + 0.02 * i as f64, 0.0, 0.3 - 0.01 * i as f64);
+            let la = spherical::project(p, &a);
+            let lb = spherical::project(p, &b);
+            let ff_a = spherical::form_factor(&la).abs();
+            let d = spherical::difference(std::slice::from_ref(&la), &[lb]);
+            let ff_d = spherical::form_factor_loops(&d);
+            if (ff_a - ff_d).abs() > 1e-6 * ff_a.max(1e-3) {
+                bad += 1;
+                eprintln!("p {p}: A {ff_a} diff {ff_d} loops {}", d.len());
+            }
+        }
+        assert_eq!(bad, 0);
+    }
+}

@@ -1,0 +1,302 @@
+//! Occluder finding: what may hide a light piece from a shading point, as spherical loops.
+//!
+//! The cone from the point around the piece's bounding sphere queries the object hierarchy
+//! (the paper's `GetBetween`), then each candidate's silhouette or triangles: triangles that
+//! cannot be between the point and the light are dropped, those crossing the light's plane
+//! clipped to its half-space, and one object's unclipped triangles merged into the outline of
+//! their union ([`spherical::triangle_chains`]).
+
+use super::shader::{ConvexShape, ObjectInfo, Receiver, Skip};
+use super::LtcShader;
+use glam::DVec3;
+use penumbra_core::accel::objects::Cone;
+use penumbra_core::geometry::Bounds3;
+use penumbra_core::scene::Scene;
+use penumbra_core::spherical;
+use penumbra_core::Vec3;
+
+/// What may hide a light piece from the shading point, projected: loops each covering a
+/// region of its own, and chains covering by winding number (outlines of adjacent triangles).
+#[derive(Default)]
+pub(super) struct Occluders {
+    pub(super) loops: Vec<Vec<DVec3>>,
+    pub(super) chains: Vec<Vec<DVec3>>,
+}
+
+impl Occluders {
+    pub(super) fn is_empty(&self) -> bool {
+        self.loops.is_empty() && self.chains.is_empty()
+    }
+}
+
+/// One occluder query: the light piece `piece` (world positions of a triangle, a planar
+/// outline or a convex light's silhouette) seen from `p`.
+///
+/// `plane` (a point and the normal towards `p`): occluder geometry beyond it is clipped
+/// away. `separate`: the light is convex (its front faces and vertices given) and every
+/// occluder must be separated from it by a plane with `p` on the occluder's side, so that it
+/// lies in front of the light along every ray.
+pub(super) struct PieceQuery<'a> {
+    pub(super) p: DVec3,
+    pub(super) skip: Skip,
+    pub(super) piece: &'a [DVec3],
+    pub(super) plane: Option<(DVec3, DVec3)>,
+    pub(super) separate: Option<&'a ConvexLight<'a>>,
+    pub(super) receiver: Receiver,
+}
+
+/// What a query derives once from its piece: the cone, its axis, and the light mesh and
+/// triangle that are not occluders of the piece.
+struct Reach {
+    cone: Cone,
+    axis: DVec3,
+    light_mesh: usize,
+    skip_tri: Option<usize>,
+}
+
+/// The occluders found so far, and the per-object lists (reused): candidate triangles and
+/// those merged into an outline.
+#[derive(Default)]
+struct Gather {
+    occ: Occluders,
+    candidates: Vec<usize>,
+    whole: Vec<usize>,
+}
+
+/// What one triangle contributes to an object's occluders.
+enum TriangleOcc {
+    /// Nothing (outside the cone, edge-on, behind the light or culled).
+    Skip,
+    /// Wholly in front of the light and in the hemisphere around it: merged with the object's
+    /// other such triangles.
+    Whole,
+    /// Its (clipped) projection.
+    Loop(Vec<DVec3>),
+}
+
+impl LtcShader<'_> {
+    /// The occluder loops (world-space directions from `q.p`) of the piece; `None` when
+    /// `q.separate` is given and an occluder is not separated from the light (the caller then
+    /// takes the light triangle by triangle).
+    pub(super) fn occluders(&self, scene: &Scene, q: &PieceQuery, scratch: &mut Vec<usize>) -> Option<Occluders> {
+        let c = q.piece.iter().copied().sum::<DVec3>() / q.piece.len().max(1) as f64;
+        let r = q.piece.iter().map(|v| (*v - c).length()).fold(0.0, f64::max);
+        let cone = Cone::towards(q.p.as_vec3(), c.as_vec3(), r as f32 * 1.001 + 1e-6);
+        let (light_mesh, skip_tri) = match q.skip {
+            Skip::Mesh(m) => (m, None),
+            Skip::Triangle(m, t) => (m, Some(t)),
+        };
+        let reach = Reach { cone, axis: (c - q.p).normalize_or_zero(), light_mesh, skip_tri };
+        let mut g = Gather::default();
+        self.bvh.query(&reach.cone, scratch);
+        for &o in scratch.iter() {
+            let info = &self.objects[o];
+            if skips_object(q, &reach, o, info) {
+                continue;
+            }
+            if let Some(cl) = q.separate {
+                if !cl.separated_from(&info.bounds, q.p) {
+                    return None;
+                }
+            }
+            let straddles = q.plane.is_some_and(|(plane_o, ln)| {
+                let corners = [info.bounds.min, info.bounds.max];
+                (0..8).any(|k| {
+                    let v = Vec3::new(corners[k & 1].x, corners[(k >> 1) & 1].y, corners[(k >> 2) & 1].z);
+                    (v.as_dvec3() - plane_o).dot(ln) <= 0.0
+                })
+            });
+            let whole_object = !straddles && o != light_mesh && o != q.receiver.mesh;
+            if whole_object && silhouette_occluder(q, info, &mut g.occ) {
+                continue;
+            }
+            self.triangle_occluders(scene, q, &reach, o, straddles, &mut g);
+        }
+        Some(g.occ)
+    }
+
+    /// The occluders of object `o` taken by its triangles (`straddles`: its bounds reach
+    /// beyond the light's plane).
+    fn triangle_occluders(
+        &self,
+        scene: &Scene,
+        q: &PieceQuery,
+        reach: &Reach,
+        o: usize,
+        straddles: bool,
+        g: &mut Gather,
+    ) {
+        let info = &self.objects[o];
+        let mesh = &scene.meshes[o];
+        let Gather { occ, candidates, whole } = g;
+        info.tris.query(&reach.cone, candidates);
+        whole.clear();
+        let cull = self.ltc.merge_occluders && info.closed != 0.0 && !straddles && o != reach.light_mesh;
+        let receiver = q.receiver;
+        for &t in candidates.iter() {
+            // The light triangle itself, and the receiver's own triangle (flat: it cannot
+            // shadow a point on it, and the point's rounding may put it a hair off its plane).
+            if (o == reach.light_mesh && Some(t) == reach.skip_tri) || (o == receiver.mesh && t == receiver.tri) {
+                continue;
+            }
+            let pv = mesh.vertices(t).map(|v| v.as_dvec3());
+            match classify_triangle(q, reach, pv, if cull { info.closed } else { 0.0 }) {
+                TriangleOcc::Skip => {}
+                TriangleOcc::Whole => whole.push(t),
+                TriangleOcc::Loop(l) => occ.loops.push(l),
+            }
+        }
+        // Adjacent triangles: their outline instead of each one (exact, far fewer edges).
+        if whole.len() > 1 && self.ltc.merge_occluders {
+            let outline = spherical::triangle_chains(mesh, whole, &info.weld, q.p);
+            let projected: Vec<Vec<DVec3>> = outline.iter().map(|l| spherical::project(q.p, l)).collect();
+            if projected.iter().flatten().all(|d| *d != DVec3::ZERO) {
+                occ.chains.extend(projected);
+                return;
+            }
+        }
+        occ.loops.extend(whole.iter().map(|&t| spherical::project(q.p, &mesh.vertices(t).map(|v| v.as_dvec3()))));
+    }
+}
+
+/// Objects that cannot occlude the piece: non-occluders, the light's own mesh when it cannot
+/// shadow itself, and the receiver when it is planar or convex seen from outside.
+fn skips_object(q: &PieceQuery, reach: &Reach, o: usize, info: &ObjectInfo) -> bool {
+    if !info.occluder {
+        return true;
+    }
+    if o == reach.light_mesh && (reach.skip_tri.is_none() || info.planar) {
+        return true;
+    }
+    let inside = q.receiver.facing * info.closed < 0.0;
+    // A plane through p subtends nothing; a convex object cannot shadow itself (seen from
+    // outside; from inside, its other faces enclose p: taken by triangles).
+    o == q.receiver.mesh && (info.planar || (info.silhouette.is_some() && !inside))
+}
+
+/// Adds a convex object's silhouette loops; false when it has none from `q.p` (no face turned
+/// towards p: p is inside the solid (or on it), which hides all that lies outside it; its
+/// triangles say exactly what — the light may be inside too) or is not a silhouette object.
+fn silhouette_occluder(q: &PieceQuery, info: &ObjectInfo, occ: &mut Occluders) -> bool {
+    let Some(sil) = &info.silhouette else { return false };
+    let eps = 1e-7 * (info.bounds.max - info.bounds.min).length() as f64;
+    let sil_loops = sil.loops(q.p, eps);
+    if sil_loops.is_empty() {
+        return false;
+    }
+    occ.loops.extend(sil_loops.iter().map(|l| spherical::project(q.p, l)));
+    true
+}
+
+/// What the triangle `pv` contributes; `closed` (non-zero: cull the faces turned towards the
+/// point) is the orientation sign of its closed object.
+fn classify_triangle(q: &PieceQuery, reach: &Reach, pv: [DVec3; 3], closed: f64) -> TriangleOcc {
+    let p = q.p;
+    let tc = (pv[0] + pv[1] + pv[2]) / 3.0;
+    let tr = pv.iter().map(|v| (*v - tc).length()).fold(0.0, f64::max);
+    if !reach.cone.hits_sphere(tc.as_vec3(), tr as f32 * 1.001 + 1e-6) {
+        return TriangleOcc::Skip;
+    }
+    // A triangle whose plane passes through p (the receiver's own, or coplanar with it)
+    // subtends no solid angle, but its projection winds around p along a great circle, which
+    // would read as a whole hemisphere: skip it.
+    let tn = (pv[1] - pv[0]).cross(pv[2] - pv[0]);
+    let tn_len = tn.length();
+    let side = tn.dot(p - pv[0]);
+    if !(tn_len > 0.0) || (side / tn_len).abs() <= 1e-6 * (tr + (p - tc).length()) {
+        return TriangleOcc::Skip;
+    }
+    // The light wholly on p's side of the triangle's plane (or on it): no segment from p to
+    // the light crosses the plane, so none meets the triangle (e.g. a floor below both the
+    // point and the light).
+    if q.piece.iter().all(|v| tn.dot(*v - pv[0]) * side >= 0.0) {
+        return TriangleOcc::Skip;
+    }
+    // A closed solid wholly in front of the light: only the faces turned away from p (where
+    // rays leave it) are needed; they cover what the others do.
+    if closed != 0.0 && tn.dot(p - pv[0]) * closed > 0.0 {
+        return TriangleOcc::Skip;
+    }
+    // Chains are exact within an open hemisphere (the charts' clipping joins points along
+    // minor arcs): only triangles wholly in the one around the light are merged.
+    let in_hemisphere = pv.iter().all(|v| (*v - p).dot(reach.axis) > 1e-3 * (*v - p).length());
+    let Some((plane_o, ln)) = q.plane else {
+        return if in_hemisphere { TriangleOcc::Whole } else { TriangleOcc::Loop(spherical::project(p, &pv)) };
+    };
+    // Nothing strictly in front of the light's plane (e.g. the other half of a quad light,
+    // coplanar with it): it cannot occlude the light.
+    let ln_len = ln.length();
+    let dist = pv.map(|v| (v - plane_o).dot(ln) / ln_len);
+    let front = dist.iter().copied().fold(f64::MIN, f64::max);
+    if !(front > 1e-7 * (tr + (p - tc).length())) {
+        return TriangleOcc::Skip;
+    }
+    if in_hemisphere && dist.iter().all(|&d| d >= 0.0) {
+        return TriangleOcc::Whole;
+    }
+    let clipped = clip_to_plane(&pv, plane_o, ln);
+    if clipped.is_empty() {
+        return TriangleOcc::Skip;
+    }
+    TriangleOcc::Loop(spherical::project(p, &clipped))
+}
+
+/// Sutherland–Hodgman in 3D: the part of polygon `poly` with `(x − o)·n ≥ 0`.
+fn clip_to_plane(poly: &[DVec3], o: DVec3, n: DVec3) -> Vec<DVec3> {
+    let mut out = Vec::with_capacity(poly.len() + 2);
+    for i in 0..poly.len() {
+        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        let (da, db) = ((a - o).dot(n), (b - o).dot(n));
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
+            let t = da / (da - db);
+            out.push(a + (b - a) * t);
+        }
+    }
+    if out.len() < 3 {
+        out.clear();
+    }
+    out
+}
+
+/// A convex light seen from a point: its front faces' planes and its vertices, to prove an
+/// occluder lies in front of it.
+pub(super) struct ConvexLight<'a> {
+    /// (a point of the face, outward unit normal) of every face turned towards the point.
+    front: Vec<(DVec3, DVec3)>,
+    vertices: &'a [DVec3],
+    center: DVec3,
+}
+
+impl<'a> ConvexLight<'a> {
+    pub(super) fn new(shape: &'a ConvexShape, p: DVec3) -> ConvexLight<'a> {
+        let front = shape.faces.iter().copied().filter(|(a, n)| n.dot(p - *a) > shape.eps).collect();
+        ConvexLight { front, vertices: &shape.vertices, center: shape.center }
+    }
+
+    /// Whether a plane separates the box `b` (with the shading point `p` on its side) from the
+    /// light: then along every ray from `p` the box's content comes before the light. Tried:
+    /// the planes of the front faces, and the plane normal to the centres' offset.
+    fn separated_from(&self, b: &Bounds3, p: DVec3) -> bool {
+        let corners: [DVec3; 8] = std::array::from_fn(|k| {
+            DVec3::new(
+                if k & 1 == 0 { b.min.x } else { b.max.x } as f64,
+                if k & 2 == 0 { b.min.y } else { b.max.y } as f64,
+                if k & 4 == 0 { b.min.z } else { b.max.z } as f64,
+            )
+        });
+        if self.front.iter().any(|(a, n)| corners.iter().all(|c| (*c - *a).dot(*n) > 0.0)) {
+            return true;
+        }
+        let bc = (b.min.as_dvec3() + b.max.as_dvec3()) * 0.5;
+        let axis = (bc - self.center).normalize_or_zero();
+        if axis == DVec3::ZERO {
+            return false;
+        }
+        let light_max = self.vertices.iter().map(|v| v.dot(axis)).fold(f64::MIN, f64::max);
+        let box_min = corners.iter().map(|c| c.dot(axis)).fold(f64::MAX, f64::min);
+        box_min > light_max && p.dot(axis) > light_max
+    }
+}

@@ -1,0 +1,504 @@
+//! What `ltc` prepares per scene (object bounds, convexity, the object hierarchy, the area
+//! lights gathered per emitting mesh with their shapes) and the analytic shading of the area
+//! lights at a point: shared with the `ratio` estimator, which needs the unshadowed term.
+
+use super::fresnel::{fresnel_weight, FresnelMode};
+use super::integrate::{Accum, PieceFrame};
+use super::occluders::{ConvexLight, Occluders, PieceQuery};
+use super::{LtcIntegrator, Mode};
+use glam::DVec3;
+use penumbra_core::accel::objects::ObjectBvh;
+use penumbra_core::geometry::Bounds3;
+use penumbra_core::geometry::Frame;
+use penumbra_core::interaction::SurfaceInteraction;
+use penumbra_core::light::emitting_normal;
+use penumbra_core::ltc::Ltc;
+use penumbra_core::material::LtcDescription;
+use penumbra_core::mesh::{EdgeAdjacency, TriangleMesh};
+use penumbra_core::scene::Scene;
+use penumbra_core::spherical::SilhouetteMesh;
+use penumbra_core::{Rgb, Vec3};
+use std::cell::OnceCell;
+
+/// What the estimator knows about each object (mesh `i` = object `i`).
+pub(super) struct ObjectInfo {
+    pub(super) bounds: Bounds3,
+    pub(super) occluder: bool,
+    /// Closed and convex (proven by the builder), with its adjacency for silhouettes.
+    pub(super) silhouette: Option<SilhouetteMesh>,
+    /// A hierarchy over the object's triangles, for the per-triangle cone query.
+    pub(super) tris: ObjectBvh,
+    /// All vertices in one plane: as a light, it cannot shadow itself.
+    pub(super) planar: bool,
+    /// Mesh vertex index → id shared by vertices at the same position (for triangle outlines).
+    pub(super) weld: Vec<u32>,
+    /// A closed, consistently wound mesh (after welding; known for silhouette meshes, and for
+    /// others with `mergeoccluders`): +1 when its winding normals point out of the solid, −1
+    /// when in, 0 otherwise or unknown. From outside or inside, the triangles facing away from a
+    /// point cover exactly the directions in which a ray from it meets the solid (every such ray
+    /// leaves it through one): the others need not be subtracted.
+    pub(super) closed: f64,
+}
+
+/// How an area light's emitting surface is turned into spherical polygons at a shading point.
+enum LightShape {
+    /// One triangle at a time (any mesh).
+    Triangles,
+    /// All triangles in one plane, emitting to the same side, forming one simple polygon:
+    /// the `outline` (world space) is integrated once instead of triangle by triangle.
+    Planar { outline: Vec<DVec3>, normal: DVec3, origin: DVec3 },
+    /// A closed convex mesh emitting outwards: what a point outside sees of it is exactly
+    /// its silhouette loop (the front faces tile it, none overlap), integrated once.
+    Convex(ConvexShape),
+}
+
+/// What a convex light mesh needs at every shading point, computed once.
+pub(super) struct ConvexShape {
+    sil: SilhouetteMesh,
+    /// Edge-on tolerance of its faces: 1e-9 of the mesh's extent.
+    pub(super) eps: f64,
+    /// (a point of the face, outward unit normal) of every non-degenerate face.
+    pub(super) faces: Vec<(DVec3, DVec3)>,
+    pub(super) vertices: Vec<DVec3>,
+    pub(super) center: DVec3,
+}
+
+impl ConvexShape {
+    fn new(mesh: &TriangleMesh, adj: &EdgeAdjacency) -> ConvexShape {
+        let faces = (0..mesh.triangle_count())
+            .filter_map(|t| {
+                let [a, b, c] = mesh.vertices(t).map(d3);
+                let n = (b - a).cross(c - a).normalize_or_zero();
+                (n != DVec3::ZERO).then_some((a, n))
+            })
+            .collect();
+        let vertices: Vec<DVec3> = mesh.positions.iter().map(|q| d3(*q)).collect();
+        let center = vertices.iter().copied().sum::<DVec3>() / vertices.len().max(1) as f64;
+        let sil = SilhouetteMesh::new(mesh, adj);
+        ConvexShape { sil, eps: 1e-9 * mesh.extent(), faces, vertices, center }
+    }
+}
+
+impl LightShape {
+    fn of(mesh: &TriangleMesh, adj: &EdgeAdjacency, tris: &[u32], two_sided: bool) -> LightShape {
+        let n = mesh.triangle_count();
+        let mut covered = vec![false; n];
+        for t in tris {
+            if let Some(c) = covered.get_mut(*t as usize) {
+                *c = true;
+            }
+        }
+        if n == 0 || tris.len() != n || !covered.iter().all(|c| *c) {
+            return LightShape::Triangles;
+        }
+        if let Some(s) = Self::planar(mesh, adj, two_sided) {
+            return s;
+        }
+        if !two_sided && mesh.is_closed_convex_with(adj, 1e-5) {
+            // Outward winding is proven; the emitting side must agree on every face.
+            let outward = (0..n).all(|t| {
+                let w = mesh.winding_normal(t);
+                w == Vec3::ZERO || emitting_normal(mesh, t).dot(w) > 0.0
+            });
+            if outward {
+                return LightShape::Convex(ConvexShape::new(mesh, adj));
+            }
+        }
+        LightShape::Triangles
+    }
+
+    /// A planar mesh's outline ([`TriangleMesh::planar_outline`]) when, one-sided, every
+    /// triangle emits to the side of the largest one.
+    fn planar(mesh: &TriangleMesh, adj: &EdgeAdjacency, two_sided: bool) -> Option<LightShape> {
+        let po = mesh.planar_outline(adj)?;
+        // One emitting side for all (a one-sided light); winding consistent with it.
+        let normal = if two_sided { po.normal } else { d3(emitting_normal(mesh, po.largest)).normalize_or_zero() };
+        if !two_sided {
+            for t in 0..mesh.triangle_count() {
+                let [p0, p1, p2] = mesh.vertices(t).map(d3);
+                if (p1 - p0).cross(p2 - p0).length() != 0.0 && d3(emitting_normal(mesh, t)).dot(normal) <= 0.0 {
+                    return None;
+                }
+            }
+        }
+        Some(LightShape::Planar { outline: po.outline, normal, origin: po.origin })
+    }
+}
+
+/// The area lights of one emitting mesh with one radiance.
+pub(crate) struct LightGroup {
+    pub(crate) mesh: usize,
+    pub(crate) tris: Vec<u32>,
+    /// Bounding sphere of the emitting triangles.
+    pub(crate) center: DVec3,
+    pub(crate) radius: f64,
+    pub(crate) l: Rgb,
+    pub(crate) two_sided: bool,
+    shape: LightShape,
+}
+
+/// The surface being shaded: its mesh and triangle, and `ωo` · its winding normal (with the
+/// orientation of a closed mesh: negative when seen from inside).
+#[derive(Clone, Copy)]
+pub(super) struct Receiver {
+    pub(super) mesh: usize,
+    pub(super) tri: usize,
+    pub(super) facing: f64,
+}
+
+/// Which of the light's own triangles are not occluders of the piece being shaded.
+#[derive(Clone, Copy)]
+pub(super) enum Skip {
+    /// The whole light mesh (planar or convex lights cannot shadow themselves).
+    Mesh(usize),
+    /// One triangle of the light mesh (the others may shadow it).
+    Triangle(usize, usize),
+}
+
+/// The winding normal of the triangle `si` lies on (zero if there is none).
+fn mesh_winding_normal(scene: &Scene, si: &SurfaceInteraction) -> Vec3 {
+    match scene.meshes.get(si.mesh as usize) {
+        Some(m) if (si.tri as usize) < m.triangle_count() => m.winding_normal(si.tri as usize),
+        _ => Vec3::ZERO,
+    }
+}
+
+fn d3(v: Vec3) -> DVec3 {
+    v.as_dvec3()
+}
+
+/// The analytic area-light shading of `ltc` (see the module doc).
+pub struct LtcShader<'a> {
+    pub(super) ltc: &'a LtcIntegrator,
+    pub(super) objects: Vec<ObjectInfo>,
+    pub(super) bvh: ObjectBvh,
+    /// The area lights, gathered per emitting mesh (pbrt-v3 makes one light per triangle).
+    groups: Vec<LightGroup>,
+}
+
+/// A shading point's query: where it is and whether occluders are searched.
+struct PointQuery<'s> {
+    at: PieceFrame,
+    receiver: Receiver,
+    shadows: bool,
+    scratch: &'s mut Vec<usize>,
+}
+
+impl<'a> LtcShader<'a> {
+    /// Prepares the per-object data `settings` needs on `scene` (silhouette adjacency only for
+    /// the objects its mode takes as silhouettes).
+    pub fn new(settings: &'a LtcIntegrator, scene: &Scene) -> LtcShader<'a> {
+        let cells: Vec<OnceCell<EdgeAdjacency>> = scene.meshes.iter().map(|_| OnceCell::new()).collect();
+        let adjacency = |i: usize| cells[i].get_or_init(|| scene.meshes[i].build_adjacency());
+        let mut objects = Vec::with_capacity(scene.meshes.len());
+        let mut boxes = Vec::new();
+        for (i, mesh) in scene.meshes.iter().enumerate() {
+            let occluder = scene.objects.get(i).is_none_or(|o| o.occluder);
+            let info = object_info(settings, mesh, occluder, || adjacency(i));
+            if occluder && mesh.triangle_count() > 0 {
+                boxes.push((i, info.bounds));
+            }
+            objects.push(info);
+        }
+        let mut groups = gather_lights(scene);
+        for g in &mut groups {
+            let mesh = &scene.meshes[g.mesh];
+            // The paper's per-triangle method (its Sect. 4.4) takes every triangle of every
+            // light, as of every occluder, on its own.
+            g.shape = match settings.mode {
+                Mode::PerTriangle => LightShape::Triangles,
+                _ => LightShape::of(mesh, adjacency(g.mesh), &g.tris, g.two_sided),
+            };
+        }
+        LtcShader { ltc: settings, objects, bvh: ObjectBvh::build(&boxes), groups }
+    }
+
+    /// The area lights, one per emitting mesh and radiance.
+    pub(crate) fn light_groups(&self) -> &[LightGroup] {
+        &self.groups
+    }
+
+    /// Distance from `p` to the nearest area light's bounding sphere (0 inside one; infinite
+    /// without area lights).
+    pub(crate) fn nearest_light_distance(&self, p: DVec3) -> f64 {
+        self.groups.iter().map(|g| ((p - g.center).length() - g.radius).max(0.0)).fold(f64::INFINITY, f64::min)
+    }
+
+    /// The LTC description of the material at `si` (`None`: no LTC form, or no material).
+    pub fn lobes(scene: &Scene, si: &SurfaceInteraction) -> Option<LtcDescription> {
+        let (m, _, tx) = scene.material_of(si)?;
+        m.ltc_lobes(si, tx)
+    }
+
+    /// The diffuse albedo of [`Self::lobes`] alone (`None` exactly when it is `None`).
+    pub(super) fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Option<Rgb> {
+        let (m, _, tx) = scene.material_of(si)?;
+        m.ltc_diffuse(si, tx)
+    }
+
+    /// Analytic radiance reflected towards `si.wo` from all area lights, with analytic
+    /// visibility when `shadows`, else unshadowed.
+    pub fn area_lights(
+        &self,
+        scene: &Scene,
+        si: &SurfaceInteraction,
+        desc: &LtcDescription,
+        shadows: bool,
+        scratch: &mut Vec<usize>,
+    ) -> Rgb {
+        let (diffuse, specular) = self.area_lights_split(scene, si, desc, shadows, scratch);
+        desc.diffuse * diffuse + specular
+    }
+
+    /// [`area_lights`](Self::area_lights) as the light reaching the Lambertian lobe (to be
+    /// multiplied by the albedo: `Σ L · form factor`) and the glossy lobe's radiance.
+    pub fn area_lights_split(
+        &self,
+        scene: &Scene,
+        si: &SurfaceInteraction,
+        desc: &LtcDescription,
+        shadows: bool,
+        scratch: &mut Vec<usize>,
+    ) -> (Rgb, Rgb) {
+        let (mut d, mut s) = (Rgb::ZERO, Rgb::ZERO);
+        let facing = mesh_winding_normal(scene, si).dot(si.wo) as f64;
+        let receiver = Receiver { mesh: si.mesh as usize, tri: si.tri as usize, facing };
+        let Some(at) = piece_frame(si, desc) else { return (d, s) };
+        let mut q = PointQuery { at, receiver, shadows, scratch };
+        for g in &self.groups {
+            if scene.meshes.get(g.mesh).is_none() {
+                continue;
+            }
+            let (gd, gs) = self.area_group(scene, &mut q, g);
+            d += gd;
+            s += gs;
+        }
+        (d, s)
+    }
+
+    /// The same for the lights of one mesh.
+    fn area_group(&self, scene: &Scene, q: &mut PointQuery, geom: &LightGroup) -> (Rgb, Rgb) {
+        let mut acc = Accum::default();
+        let whole = match &geom.shape {
+            LightShape::Triangles => false,
+            LightShape::Planar { outline, normal, origin } => {
+                self.planar_light(scene, q, geom, (outline.as_slice(), *normal, *origin), &mut acc);
+                true
+            }
+            LightShape::Convex(shape) => self.convex_light(scene, q, geom, shape, &mut acc),
+        };
+        if !whole {
+            self.light_triangles(scene, q, geom, &mut acc);
+        }
+        let le = geom.l;
+        let diffuse = le * acc.diffuse_ff.max(0.0) as f32;
+        let mut out = Rgb::ZERO;
+        if let Some((s, coeffs)) = q.at.spec {
+            let spec_term = match self.ltc.fresnel {
+                FresnelMode::Schlick => {
+                    fresnel_weight(&s.fresnel, coeffs.magnitude, coeffs.fresnel) * acc.spec_int.max(0.0) as f32
+                }
+                FresnelMode::Average => (acc.spec_fresnel * coeffs.magnitude).max(Rgb::ZERO),
+            };
+            out += s.scale * spec_term * le;
+        }
+        (diffuse, out)
+    }
+
+    /// A planar light's outline as one piece (nothing when the point is in its plane or
+    /// behind a one-sided light).
+    fn planar_light(
+        &self,
+        scene: &Scene,
+        q: &mut PointQuery,
+        geom: &LightGroup,
+        (outline, normal, origin): (&[DVec3], DVec3, DVec3),
+        acc: &mut Accum,
+    ) {
+        let p = q.at.p;
+        let h = normal.dot(p - origin);
+        if h != 0.0 && (geom.two_sided || h > 0.0) {
+            let ln = if h > 0.0 { normal } else { -normal };
+            let occ = if q.shadows {
+                let pq = PieceQuery {
+                    p,
+                    skip: Skip::Mesh(geom.mesh),
+                    piece: outline,
+                    plane: Some((origin, ln)),
+                    separate: None,
+                    receiver: q.receiver,
+                };
+                self.occluders(scene, &pq, q.scratch)
+            } else {
+                Some(Occluders::default())
+            };
+            self.integrate_piece(&q.at, outline, occ.unwrap_or_default(), acc);
+        }
+    }
+
+    /// A convex light's silhouette as one piece; false when an occluder is not wholly in
+    /// front of it (then it is taken triangle by triangle).
+    fn convex_light(
+        &self,
+        scene: &Scene,
+        q: &mut PointQuery,
+        geom: &LightGroup,
+        shape: &ConvexShape,
+        acc: &mut Accum,
+    ) -> bool {
+        let p = q.at.p;
+        let sil = shape.sil.loops(p, shape.eps);
+        match sil.as_slice() {
+            [] => true, // p inside (or edge-on everywhere): no face emits towards it
+            [outline] => {
+                let occ = if q.shadows {
+                    let cl = ConvexLight::new(shape, p);
+                    let pq = PieceQuery {
+                        p,
+                        skip: Skip::Mesh(geom.mesh),
+                        piece: outline,
+                        plane: None,
+                        separate: Some(&cl),
+                        receiver: q.receiver,
+                    };
+                    self.occluders(scene, &pq, q.scratch)
+                } else {
+                    Some(Occluders::default())
+                };
+                match occ {
+                    Some(occ) => {
+                        self.integrate_piece(&q.at, outline, occ, acc);
+                        true
+                    }
+                    None => false,
+                }
+            }
+            _ => false,
+        }
+    }
+
+    /// The light's triangles one by one (those of a one-sided light facing the point).
+    fn light_triangles(&self, scene: &Scene, q: &mut PointQuery, geom: &LightGroup, acc: &mut Accum) {
+        let mesh = &scene.meshes[geom.mesh];
+        let p = q.at.p;
+        for &tri in &geom.tris {
+            let tri = tri as usize;
+            if tri >= mesh.triangle_count() {
+                continue;
+            }
+            let pv = mesh.vertices(tri).map(d3);
+            if !geom.two_sided {
+                let ne = d3(emitting_normal(mesh, tri));
+                if ne.dot(p - pv[0]) <= 0.0 {
+                    continue;
+                }
+            }
+            let occ = if q.shadows {
+                // The light triangle's plane, oriented towards p: occluders beyond it cannot
+                // shadow it.
+                let mut ln = (pv[1] - pv[0]).cross(pv[2] - pv[0]);
+                if ln.dot(p - pv[0]) < 0.0 {
+                    ln = -ln;
+                }
+                let pq = PieceQuery {
+                    p,
+                    skip: Skip::Triangle(geom.mesh, tri),
+                    piece: &pv,
+                    plane: Some((pv[0], ln)),
+                    separate: None,
+                    receiver: q.receiver,
+                };
+                self.occluders(scene, &pq, q.scratch).unwrap_or_default()
+            } else {
+                Occluders::default()
+            };
+            self.integrate_piece(&q.at, &pv, occ, acc);
+        }
+    }
+}
+
+/// The shading frame at `si` for `desc` (its normal turned to ωo's side: pbrt-v3's BSDFs
+/// reflect on whichever side ωo is, so a mesh wound inwards still lights up), ωo in it and
+/// the glossy lobe's LTC; `None` without a normal.
+fn piece_frame(si: &SurfaceInteraction, desc: &LtcDescription) -> Option<PieceFrame> {
+    let n = desc.n.normalize_or_zero();
+    if n == Vec3::ZERO {
+        return None;
+    }
+    let n = if n.dot(si.wo) < 0.0 { -n } else { n };
+    let frame = Frame::toward(d3(n), d3(si.wo));
+    let spec = desc.specular.map(|s| {
+        let cos_o = frame.to_local(d3(si.wo)).z.clamp(0.0, 1.0);
+        (s, Ltc::lookup(cos_o as f32, s.alpha))
+    });
+    let wo_local = frame.to_local(d3(si.wo));
+    Some(PieceFrame { p: d3(si.p), frame, wo_local, spec })
+}
+
+/// What `settings` needs of object `mesh` (`adjacency`: its edge adjacency, asked for only
+/// when needed).
+fn object_info<'m>(
+    settings: &LtcIntegrator,
+    mesh: &TriangleMesh,
+    occluder: bool,
+    adjacency: impl Fn() -> &'m EdgeAdjacency,
+) -> ObjectInfo {
+    let bounds = mesh.bounds();
+    let shadowing = settings.shadows && occluder;
+    let silhouette = match settings.mode {
+        Mode::PerTriangle => None,
+        _ if !shadowing => None,
+        Mode::Auto => mesh.is_closed_convex_with(adjacency(), 1e-4).then(|| SilhouetteMesh::new(mesh, adjacency())),
+        Mode::Silhouette => adjacency().is_closed_manifold().then(|| SilhouetteMesh::new(mesh, adjacency())),
+    };
+    let tris = if shadowing { ObjectBvh::over_triangles(mesh) } else { ObjectBvh::build(&[]) };
+    let (weld, closed) = if shadowing && settings.merge_occluders {
+        let adj = adjacency();
+        (adj.weld.clone(), if adj.is_closed_manifold() { mesh.winding_sign() } else { 0.0 })
+    } else {
+        // (Silhouette meshes are closed: their orientation says which side is inside.)
+        (Vec::new(), if silhouette.is_some() { mesh.winding_sign() } else { 0.0 })
+    };
+    ObjectInfo { bounds, occluder, silhouette, tris, planar: mesh.is_planar(), weld, closed }
+}
+
+/// The scene's area lights gathered per emitting mesh, radiance and sidedness, with the
+/// bounding spheres of their triangles (shapes still [`LightShape::Triangles`]).
+fn gather_lights(scene: &Scene) -> Vec<LightGroup> {
+    let mut groups: Vec<LightGroup> = Vec::new();
+    for l in scene.light_list() {
+        let Some(geom) = l.area() else { continue };
+        if scene.meshes.get(geom.mesh as usize).is_none() {
+            continue;
+        }
+        match groups.iter_mut().find(|g| g.mesh == geom.mesh as usize && g.l == geom.l && g.two_sided == geom.two_sided)
+        {
+            Some(g) => g.tris.extend_from_slice(&geom.tris),
+            None => groups.push(LightGroup {
+                mesh: geom.mesh as usize,
+                tris: geom.tris.clone(),
+                l: geom.l,
+                two_sided: geom.two_sided,
+                shape: LightShape::Triangles,
+                center: DVec3::ZERO,
+                radius: 0.0,
+            }),
+        }
+    }
+    for g in &mut groups {
+        let mesh = &scene.meshes[g.mesh];
+        let mut b = Bounds3::EMPTY;
+        for &t in &g.tris {
+            if (t as usize) < mesh.triangle_count() {
+                for v in mesh.vertices(t as usize) {
+                    b.extend(v);
+                }
+            }
+        }
+        if b.min.x <= b.max.x {
+            g.center = (d3(b.min) + d3(b.max)) * 0.5;
+            g.radius = (d3(b.max) - d3(b.min)).length() * 0.5;
+        }
+    }
+    groups
+}
