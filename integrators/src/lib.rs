@@ -1,6 +1,7 @@
-//! One module per integrator, plus the registry.
+//! One folder per integrator (`<name>/mod.rs` names the seed or paper it implements),
+//! `common/` for what several share, plus the registry.
 
-pub mod ao;
+pub mod ambientocclusion;
 pub mod common;
 pub mod directlighting;
 pub mod ltc;
@@ -49,7 +50,7 @@ pub const REGISTRY: &[Entry] = &[
     Entry {
         name: "ambientocclusion",
         method: "ray-traced ambient occlusion (pbrt-v3 semantics: nsamples, cossample; pbrt-v4's maxdistance)",
-        create: ao::AmbientOcclusion::create,
+        create: ambientocclusion::AmbientOcclusion::create,
     },
 ];
 

@@ -1,5 +1,6 @@
 //! `ratio`: analytic direct illumination × denoised stochastic shadows (Heitz, Hill &
-//! McGuire 2018, "Combining Analytic Direct Illumination and Stochastic Shadows").
+//! McGuire 2018, "Combining Analytic Direct Illumination and Stochastic Shadows"), the ratio
+//! estimator of seed 004 (`../shared/seeds/004_*`), built on `ltc`'s analytic shading.
 //!
 //! For every area light and every point whose material has an LTC form, three terms:
 //!

@@ -1,4 +1,5 @@
-//! `ambientocclusion`: pbrt-v3's AO integrator, plus pbrt-v4's `maxdistance`.
+//! `ambientocclusion`: pbrt-v3's AO integrator (`integrators/ao.cpp` is the specification),
+//! plus pbrt-v4's `maxdistance`.
 //!
 //! Like pbrt-v3 it returns the unnormalised integral of V·cosθ over the
 //! hemisphere around the *geometric* normal (π × the cosine-weighted

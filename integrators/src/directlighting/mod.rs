@@ -1,5 +1,5 @@
-//! `directlighting`: pbrt-v3's direct lighting integrator, the reference every
-//! other integrator is judged against.
+//! `directlighting`: pbrt-v3's direct lighting integrator (`integrators/directlighting.cpp`
+//! is the specification), the reference every other integrator is judged against.
 //!
 //! Same estimator as pbrt-v3: at the first non-specular surface, every light
 //! (strategy "all", each with its own sample count) or one uniformly chosen
