@@ -1,6 +1,7 @@
 //! Machinery several integrators share.
 
 pub mod direct;
+pub mod image_pass;
 pub mod light_distribution;
 pub mod other_lights;
 pub mod pixel_shading;

@@ -1,0 +1,454 @@
+//! `ratio`'s per-pixel estimator: the analytic unshadowed `U` (from `ltc`), the stochastic
+//! `S_N` and `U_N` from the same light and BRDF samples, and the guides, written per camera
+//! sample into the film's extra channels ([`RatioSample`]).
+
+use super::RatioSample;
+use crate::common::other_lights::{add_other_lights, FallbackWarning};
+use crate::common::pixel_shading::SharedPixel;
+use crate::ltc::{fresnel_at, AreaLighting, LtcShader};
+use glam::{DVec2, DVec3};
+use penumbra_core::bxdf::{Bsdf, BxdfFlags};
+use penumbra_core::geometry::{gamma, Frame, Ray};
+use penumbra_core::integrator::{PixelEstimator, PixelShared, ThreadStats};
+use penumbra_core::interaction::SurfaceInteraction;
+use penumbra_core::light::{emitting_normal, DiffuseAreaLight, Light, LightContext};
+use penumbra_core::ltc::{Ltc, LtcCoeffs};
+use penumbra_core::material::{LtcDescription, LtcSpecular};
+use penumbra_core::sampler::Sampler;
+use penumbra_core::scene::{Scene, SurfaceHit};
+use penumbra_core::spectrum::luminance;
+use penumbra_core::{Rgb, Vec2, Vec3};
+
+/// A bounding sphere of an area light's triangles, for quick rejection of BRDF samples.
+struct LightBound {
+    c: DVec3,
+    r: f64,
+}
+
+/// One area light as `ratio` samples it: an emitting mesh's triangles gathered (pbrt-v3 makes
+/// one light per triangle of a `trianglemesh`), a triangle chosen in proportion to its area
+/// and a point uniformly on it, so that each sample costs one shadow ray whatever the
+/// number of triangles.
+pub(super) struct SampleGroup {
+    /// A `Light::Area` over all the group's triangles (with their area distribution).
+    light: Light,
+    bound: LightBound,
+}
+
+impl SampleGroup {
+    /// The groups of `shader`'s area lights (those with a positive area), bounded by the
+    /// groups' spheres.
+    pub(super) fn of(shader: &LtcShader, scene: &Scene) -> Vec<SampleGroup> {
+        shader
+            .light_groups()
+            .iter()
+            .filter_map(|g| {
+                let mesh = scene.meshes.get(g.mesh)?;
+                let light = DiffuseAreaLight::over_triangles(
+                    g.mesh as u32,
+                    mesh,
+                    &mut g.tris.iter().copied(),
+                    g.l,
+                    g.two_sided,
+                    1,
+                )?;
+                Some(SampleGroup {
+                    light: Light::Area(light),
+                    bound: LightBound { c: g.center, r: g.radius * (1.0 + 1e-6) + 1e-9 },
+                })
+            })
+            .collect()
+    }
+}
+
+pub(super) struct Estimator<'a> {
+    pub(super) shader: LtcShader<'a>,
+    pub(super) n: u32,
+    pub(super) groups: Vec<SampleGroup>,
+    pub(super) pixel_shading: bool,
+    pub(super) fallback: FallbackWarning<'a>,
+}
+
+fn d3(v: Vec3) -> DVec3 {
+    v.as_dvec3()
+}
+
+/// Ray–triangle intersection (Möller–Trumbore, both sides): the distance along unit `d`.
+fn hit_triangle(o: DVec3, d: DVec3, pv: [DVec3; 3]) -> Option<f64> {
+    let (e1, e2) = (pv[1] - pv[0], pv[2] - pv[0]);
+    let pvec = d.cross(e2);
+    let det = e1.dot(pvec);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - pv[0];
+    let u = s.dot(pvec) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv;
+    if !(v >= 0.0 && u + v <= 1.0) {
+        return None;
+    }
+    let t = e2.dot(q) * inv;
+    let scale = pv.iter().map(|p| p.abs().max_element()).fold(o.abs().max_element(), f64::max);
+    (t > 1e-7 * scale.max(1e-30) && t.is_finite()).then_some(t)
+}
+
+/// One Monte Carlo sample's point on the light, with what the two estimates need.
+struct LightPoint {
+    p: Vec3,
+    p_error: Vec3,
+    n: Vec3,
+}
+
+/// The point's BRDF as `ratio` samples it: the shading frame (normal on ωo's side), the
+/// glossy lobe's LTC and the normalised luminance weights of the two lobes (both 0: no BRDF
+/// sampling).
+struct Lobes {
+    frame: Frame<DVec3>,
+    spec: Option<(LtcSpecular, LtcCoeffs)>,
+    w_d: f64,
+    w_s: f64,
+}
+
+impl Lobes {
+    fn of(si: &SurfaceInteraction, desc: &LtcDescription) -> Lobes {
+        let n0 = desc.n.normalize_or_zero();
+        let n = if n0.dot(si.wo) < 0.0 { -n0 } else { n0 };
+        let frame = Frame::toward(d3(n), d3(si.wo));
+        let cos_o = frame.to_local(d3(si.wo)).z.clamp(0.0, 1.0) as f32;
+        let spec = desc.specular.map(|sp| (sp, Ltc::lookup(cos_o, sp.alpha)));
+        let w_d = luminance(desc.diffuse).max(0.0) as f64;
+        let w_s = spec
+            .map(|(sp, c)| luminance(sp.scale * fresnel_at(&sp.fresnel, cos_o) * c.magnitude).max(0.0) as f64)
+            .unwrap_or(0.0);
+        let w_sum = w_d + w_s;
+        let (w_d, w_s) =
+            if w_sum > 0.0 && w_sum.is_finite() && n != Vec3::ZERO { (w_d / w_sum, w_s / w_sum) } else { (0.0, 0.0) };
+        Lobes { frame, spec, w_d, w_s }
+    }
+
+    /// The density of direction `w` under the lobe mixture (0 without BRDF samples).
+    fn pdf(&self, w: Vec3, n_b: usize) -> f64 {
+        if n_b == 0 {
+            return 0.0;
+        }
+        let l = self.frame.to_local(d3(w));
+        let mut p = self.w_d * l.z.max(0.0) * std::f64::consts::FRAC_1_PI;
+        if let Some((_, c)) = &self.spec {
+            p += self.w_s * c.pdf(l);
+        }
+        if p.is_finite() {
+            p
+        } else {
+            0.0
+        }
+    }
+
+    /// A direction (world space, unit or zero) from the lobe mixture for the 2D sample `uv`.
+    fn sample(&self, uv: Vec2) -> DVec3 {
+        let (x, y) = (uv.x as f64, uv.y as f64);
+        let local = if x < self.w_d || self.spec.is_none() {
+            let x = (x / self.w_d.max(1e-300)).min(1.0 - f64::EPSILON / 2.0);
+            penumbra_core::ltc::cosine_sample(DVec2::new(x, y))
+        } else {
+            let x = ((x - self.w_d) / self.w_s.max(1e-300)).clamp(0.0, 1.0 - f64::EPSILON / 2.0);
+            self.spec.as_ref().map(|(_, c)| c.sample(DVec2::new(x, y))).unwrap_or(DVec3::ZERO)
+        };
+        self.frame.from_local(local).normalize_or_zero()
+    }
+}
+
+/// The sums `(S_N, U_N)` of one light and each stochastic sample's luminance contributions
+/// (shadowed, unshadowed).
+struct Tally<'a> {
+    s: Rgb,
+    u: Rgb,
+    per_sample: &'a mut [(f32, f32)],
+}
+
+impl Tally<'_> {
+    /// Adds sample `k`'s contribution `c` towards `lp` (one shadow ray decides `S_N`'s part).
+    fn add(
+        &mut self,
+        scene: &Scene,
+        si: &SurfaceInteraction,
+        k: usize,
+        c: Rgb,
+        lp: &LightPoint,
+        stats: &mut ThreadStats,
+    ) {
+        if !(c.is_finite() && c.min_element() >= 0.0) || c == Rgb::ZERO {
+            return;
+        }
+        self.u += c;
+        let y = luminance(c);
+        stats.shadow_rays += 1;
+        let visible = !scene.occluded(&si.spawn_ray_to_surface(lp.p, lp.p_error, lp.n));
+        if visible {
+            self.s += c;
+        }
+        if let Some(ps) = self.per_sample.get_mut(k) {
+            ps.0 += if visible { y } else { 0.0 };
+            ps.1 += y;
+        }
+    }
+}
+
+/// One stochastic estimate's inputs at a point: the scene, the surface and its BSDF, the
+/// light, the lobes and the split of the samples (`n_l` from the light, `n_b` from the BRDF).
+struct Sampling<'a> {
+    scene: &'a Scene,
+    si: &'a SurfaceInteraction,
+    bsdf: &'a Bsdf,
+    group: &'a SampleGroup,
+    lobes: &'a Lobes,
+    n_l: usize,
+    n_b: usize,
+}
+
+impl Sampling<'_> {
+    /// The light-sampled half: a point on the light per sample, weighted by the balance heuristic.
+    fn light_samples(&self, us: &[Vec2], tally: &mut Tally, stats: &mut ThreadStats) {
+        let si = self.si;
+        let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
+        for (k, uv) in us.iter().enumerate() {
+            let Some(ls) = self.group.light.sample_li(&ctx, *uv, &self.scene.meshes) else { continue };
+            if !(ls.pdf > 0.0) || ls.li == Rgb::ZERO {
+                continue;
+            }
+            let f = self.bsdf.f(si.wo, ls.wi, BxdfFlags::NON_SPECULAR) * ls.wi.dot(si.shading.z).abs();
+            if f == Rgb::ZERO {
+                continue;
+            }
+            let denom = self.n_l as f64 * ls.pdf as f64 + self.n_b as f64 * self.lobes.pdf(ls.wi, self.n_b);
+            let c = f * ls.li * (1.0 / denom) as f32;
+            tally.add(
+                self.scene,
+                si,
+                k,
+                c,
+                &LightPoint { p: ls.p_light, p_error: ls.p_light_error, n: ls.n_light },
+                stats,
+            );
+        }
+    }
+
+    /// The BRDF-sampled half (samples `n_l..`): every light triangle a direction crosses counts
+    /// (ignoring occluders), as `U` integrates every triangle.
+    fn brdf_samples(&self, us: &[Vec2], tally: &mut Tally, stats: &mut ThreadStats) {
+        let (si, light) = (self.si, &self.group.light);
+        let Some(geom) = light.area() else { return };
+        let Some(mesh) = self.scene.meshes.get(geom.mesh as usize) else { return };
+        let o = d3(si.p);
+        for (j, uv) in us.iter().enumerate() {
+            let k = self.n_l + j;
+            let wd = self.lobes.sample(*uv);
+            if wd == DVec3::ZERO {
+                continue;
+            }
+            let w = wd.as_vec3();
+            let p_b = self.lobes.pdf(w, self.n_b);
+            if !(p_b > 0.0) {
+                continue;
+            }
+            let f = self.bsdf.f(si.wo, w, BxdfFlags::NON_SPECULAR) * w.dot(si.shading.z).abs();
+            if f == Rgb::ZERO || !self.group.bound.may_hit(o, wd) {
+                continue;
+            }
+            for &tri in &geom.tris {
+                let tri = tri as usize;
+                if tri >= mesh.triangle_count() {
+                    continue;
+                }
+                let pv = mesh.vertices(tri).map(d3);
+                let Some(t) = hit_triangle(o, wd, pv) else { continue };
+                let ne = emitting_normal(mesh, tri);
+                let le = light.l(ne, -w);
+                if le == Rgb::ZERO {
+                    continue;
+                }
+                let xp = o + wd * t;
+                let cos_l = d3(ne).dot(wd).abs();
+                let p_l = t * t / (cos_l * geom.area as f64);
+                if !(p_l.is_finite() && p_l > 0.0) {
+                    continue;
+                }
+                let denom = self.n_l as f64 * p_l + self.n_b as f64 * p_b;
+                let c = f * le * (1.0 / denom) as f32;
+                let err = Vec3::splat(gamma(6)) * (pv[0].abs() + pv[1].abs() + pv[2].abs()).as_vec3();
+                tally.add(self.scene, si, k, c, &LightPoint { p: xp.as_vec3(), p_error: err, n: ne }, stats);
+            }
+        }
+    }
+}
+
+impl LightBound {
+    /// Whether the half-line from `o` along unit `wd` may meet the sphere.
+    fn may_hit(&self, o: DVec3, wd: DVec3) -> bool {
+        // Distance from the bounding sphere's centre to the ray.
+        let oc = self.c - o;
+        let t = oc.dot(wd);
+        let dist2 = (oc - wd * t).length_squared();
+        !(dist2 > self.r * self.r || (t < 0.0 && oc.length_squared() > self.r * self.r))
+    }
+}
+
+/// `(S_N, U_N)` for the area light `group` at `hit` (BRDF `lobes`), from the 2D samples `us`.
+fn stochastic(
+    scene: &Scene,
+    hit: &SurfaceHit,
+    lobes: &Lobes,
+    group: &SampleGroup,
+    us: &[Vec2],
+    per_sample: &mut [(f32, f32)],
+    stats: &mut ThreadStats,
+) -> (Rgb, Rgb) {
+    let mut tally = Tally { s: Rgb::ZERO, u: Rgb::ZERO, per_sample };
+    if group.light.area().is_none_or(|g| scene.meshes.get(g.mesh as usize).is_none()) {
+        return (tally.s, tally.u);
+    }
+    let total = us.len();
+    let n_b = if lobes.w_d + lobes.w_s > 0.0 { total / 2 } else { 0 };
+    let n_l = total - n_b;
+    let sampling = Sampling { scene, si: &hit.si, bsdf: &hit.bsdf, group, lobes, n_l, n_b };
+    sampling.light_samples(&us[..n_l], &mut tally, stats);
+    if n_b > 0 {
+        sampling.brdf_samples(&us[n_l..], &mut tally, stats);
+    }
+    (tally.s, tally.u)
+}
+
+impl Estimator<'_> {
+    /// Radiance (everything but the area lights' shaded part) from the first surface `hit`
+    /// of `ray`, and what it writes to the film's channels (`U`, `S_N`, `U_N`, the guides);
+    /// `area` is the analytic unshadowed area lighting (form factor, glossy) when already
+    /// computed for the pixel.
+    fn shade(
+        &self,
+        ray: &Ray,
+        hit: &SurfaceHit,
+        area: Option<AreaLighting>,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+    ) -> (Rgb, RatioSample) {
+        let SurfaceHit { si, le, .. } = hit;
+        let mut rest = *le;
+        let desc = LtcShader::lobes(scene, si);
+        let nf = if si.n.dot(si.wo) < 0.0 { -si.n } else { si.n };
+        let (mut u, mut s, mut un) = (Rgb::ZERO, Rgb::ZERO, Rgb::ZERO);
+        let mut us = Vec::new();
+        // Per stochastic sample index, its luminance contributions (shadowed, unshadowed) summed
+        // over the lights: the noise estimate.
+        let mut per_sample = vec![(0.0f32, 0.0f32); self.n as usize];
+        if let Some(d) = &desc {
+            u = match area {
+                Some((diffuse, specular)) => d.diffuse * diffuse + specular,
+                None => self.shader.area_lights(scene, si, d, false, &mut Vec::new()),
+            };
+        }
+        let lobes = desc.as_ref().map(|d| Lobes::of(si, d));
+        for g in &self.groups {
+            // Always drawn, so that every light gets its own array whatever the material.
+            us.clear();
+            match sampler.get_2d_array(self.n) {
+                Some(a) => us.extend_from_slice(a),
+                None => us.extend((0..self.n).map(|_| sampler.get_2d())),
+            }
+            if let Some(lobes) = &lobes {
+                let (sk, uk) = stochastic(scene, hit, lobes, g, &us, &mut per_sample, stats);
+                s += sk;
+                un += uk;
+            }
+        }
+        add_other_lights(&mut rest, hit, desc.is_some(), scene, sampler, stats, &self.fallback);
+        let finite = |c: Rgb| if c.is_finite() { c.max(Rgb::ZERO) } else { Rgb::ZERO };
+        let (ss, uu, su) = moments(&per_sample);
+        let sample = RatioSample {
+            u: finite(u),
+            s: finite(s),
+            un: finite(un),
+            ss,
+            uu,
+            su,
+            depth: (si.p - ray.o).length(),
+            n: nf,
+            plane: nf.dot(si.p),
+        };
+        (rest, sample)
+    }
+}
+
+/// Moments `(⟨S²⟩, ⟨U²⟩, ⟨S·U⟩)` of the single-sample estimates `n·(contribution of sample
+/// k)` (0 where not finite).
+fn moments(per_sample: &[(f32, f32)]) -> (f32, f32, f32) {
+    let n = per_sample.len().max(1) as f32;
+    let (mut ss, mut uu, mut su) = (0.0f32, 0.0f32, 0.0f32);
+    for &(ys, yu) in per_sample {
+        let (ys, yu) = (n * ys, n * yu);
+        ss += ys * ys;
+        uu += yu * yu;
+        su += ys * yu;
+    }
+    let finite1 = |v: f32| if v.is_finite() { v } else { 0.0 };
+    (finite1(ss / n), finite1(uu / n), finite1(su / n))
+}
+
+impl PixelEstimator for Estimator<'_> {
+    fn request_samples(&self, sampler: &mut dyn Sampler) {
+        for _ in &self.groups {
+            sampler.request_2d_array(self.n);
+        }
+    }
+
+    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+        let (first, queries) = scene.first_surface(ray);
+        stats.rays += queries;
+        match first {
+            Ok(h) => {
+                let (rest, sample) = self.shade(ray, &h, None, scene, sampler, stats);
+                sample.write(aov);
+                rest
+            }
+            Err(escaped) => escaped,
+        }
+    }
+
+    fn shares_pixel_work(&self) -> bool {
+        self.pixel_shading
+    }
+
+    /// `U` once per surface seen in the pixel (as `ltc`'s pixel shading, unshadowed); the
+    /// stochastic `S_N`, `U_N` stay per camera sample.
+    fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<PixelShared> {
+        Some(Box::new(self.shader.trace_pixel(rays, scene, false, stats)))
+    }
+
+    fn li_shared(
+        &self,
+        ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        aov: &mut [f32],
+        shared: &PixelShared,
+        index: usize,
+    ) -> Rgb {
+        match SharedPixel::<AreaLighting>::sample(shared, index) {
+            Some((Ok(pt), area)) => match pt.with_bsdf(scene) {
+                Some(h) => {
+                    let (rest, sample) = self.shade(ray, &h, area, scene, sampler, stats);
+                    sample.write(aov);
+                    rest
+                }
+                None => Rgb::ZERO, // (first_point returns only surfaces with a material)
+            },
+            Some((Err(escaped), _)) => *escaped,
+            None => self.li(ray, scene, sampler, stats, aov),
+        }
+    }
+}

@@ -1,0 +1,382 @@
+//! `ratio`: analytic direct illumination × denoised stochastic shadows (Heitz, Hill &
+//! McGuire 2018, "Combining Analytic Direct Illumination and Stochastic Shadows"), the ratio
+//! estimator of seed 004 (`../shared/seeds/004_*`), built on `ltc`'s analytic shading.
+//!
+//! For every area light and every point whose material has an LTC form, three terms:
+//!
+//! * `U`: the analytic unshadowed radiance, from `ltc` with `shadows = false`;
+//! * `S_N`, `U_N`: Monte Carlo estimates of the shadowed and the unshadowed radiance from
+//!   the *same* samples (same directions, same points on the light, same weights; `S_N`
+//!   multiplies each by its visibility), with the real BSDF and the light's radiance.
+//!
+//! Per camera sample and area light, `nsamples` samples are drawn: `⌈n/2⌉` from the light
+//! (a triangle of the emitting mesh in proportion to its area, then a point uniformly on it:
+//! pbrt-v3's per-triangle lights of one mesh are sampled as one light, so that a sample costs
+//! one shadow ray whatever the number of triangles) and `⌊n/2⌋` from the point's BRDF as LTCs
+//! (the clamped cosine for the diffuse part, the GGX LTC for the glossy part, chosen in
+//! proportion to their luminance weights `Kd` and `scale · F(θo) · magnitude`), combined
+//! with the balance heuristic (every sample is weighted by `1 / (n_l p_light + n_b p_brdf)`,
+//! densities at the sample's point on the light). A BRDF-sampled direction counts every
+//! light triangle it crosses (ignoring occluders), as `U` integrates every triangle, so
+//! that `E[U_N]` is the unshadowed integral whatever the light's shape.
+//!
+//! `U` is `ltc`'s: with `"string shading" "pixel"` (default) once per surface seen in a pixel
+//! (see `ltc`), with `"sample"` per camera sample. The film's extra channels hold, per pixel,
+//! `U`, `S_N`, `U_N` (RGB), the luminance moments `⟨S²⟩`, `⟨U²⟩`, `⟨S·U⟩` of the
+//! single-sample estimates `n · (contribution of stochastic sample k)` (summed over the
+//! lights; the noise estimate, over camera × stochastic samples, so that one camera sample
+//! per pixel still has one), the depth, the normal facing the viewer and the plane offset
+//! `n·p`. After the pass the
+//! image is `rest + U · D(S_N) / D(U_N)` per channel, where `rest` is everything else
+//! (emission seen directly, delta lights with one shadow ray, infinite lights and
+//! materials without LTC form through `directlighting`'s estimator, as in `ltc`) and `D`
+//! is [`filter::cross_bilateral`] with the same weights for both. The kernel radius per pixel
+//! comes from the delta-method standard deviation `σ_r` of the pixel's ratio estimate:
+//! the smallest `R ≤ maxradius` with `σ_r / (2R + 1) ≤ noisetarget`, dilated by one pixel.
+//!
+//! Guard: `S_N ≤ U_N` sample by sample, so with non-negative weights the ratio is in
+//! `[0, 1]`; it is clamped there. Where `D(U_N)` is zero or not positive-finite, the raw
+//! `S_N / U_N` is used if `U_N > 0`, and otherwise the shadowing is unknown (no sample
+//! reached the light) and the ratio is taken as 1 (the analytic `U` unchanged). The
+//! output is never NaN or infinite.
+//!
+//! Files: `estimator.rs` (the per-pixel estimator writing [`RatioSample`]s), `filter.rs` (the
+//! denoiser: a plain function over [`ImageBuffer`]s), this file (parameters, channels and the
+//! whole-image pass).
+
+mod estimator;
+pub mod filter;
+
+pub use filter::{cross_bilateral, guarded_ratio, noise_radius, FilterParams, Guide};
+
+use crate::common::image_pass::ImageBuffer;
+use crate::common::other_lights::{warn_infinite_lights, FallbackWarning};
+use crate::common::pixel_shading::parse_shading;
+use crate::ltc::{FresnelMode, LtcIntegrator, LtcShader, Mode};
+use estimator::{Estimator, SampleGroup};
+use penumbra_core::film::Film;
+use penumbra_core::integrator::{render_pixels, Integrator, RenderContext, RenderError, RenderStats};
+use penumbra_core::scene::{Requirements, Scene};
+use penumbra_core::spectrum::luminance;
+use penumbra_core::{Rgb, Vec3};
+use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
+
+pub struct RatioIntegrator {
+    /// The analytic part (`shadows` is false).
+    pub ltc: LtcIntegrator,
+    pub nsamples: u32,
+    pub denoise: bool,
+    pub max_radius: u32,
+    pub noise_target: f32,
+    pub filter: FilterParams,
+}
+
+impl RatioIntegrator {
+    pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
+        let nsamples = params.get_one_int("nsamples", 4);
+        if !(1..=1024).contains(&nsamples) {
+            return Err(Diagnostic::error(
+                params.loc_of("nsamples").cloned(),
+                format!("ratio: \"nsamples\" must be in 1..=1024, got {nsamples}"),
+            ));
+        }
+        let max_radius = params.get_one_int("maxradius", 8);
+        if !(0..=64).contains(&max_radius) {
+            return Err(Diagnostic::error(
+                params.loc_of("maxradius").cloned(),
+                format!("ratio: \"maxradius\" must be in 0..=64, got {max_radius}"),
+            ));
+        }
+        let d = FilterParams::default();
+        let positive = |name: &str, default: f32| -> Result<f32, Diagnostic> {
+            let v = params.get_one_float(name, default);
+            if v > 0.0 && v.is_finite() {
+                Ok(v)
+            } else {
+                Err(Diagnostic::error(
+                    params.loc_of(name).cloned(),
+                    format!("ratio: \"{name}\" must be positive and finite, got {v}"),
+                ))
+            }
+        };
+        let noise_target = positive("noisetarget", 0.05)?;
+        let filter = FilterParams {
+            sigma_depth: positive("sigmadepth", d.sigma_depth)?,
+            normal_exponent: positive("normalexponent", d.normal_exponent)?,
+            sigma_plane: positive("sigmaplane", d.sigma_plane)?,
+            sigma_u: positive("sigmau", d.sigma_u)?,
+            ratio_k: {
+                let v = params.get_one_float("ratiok", d.ratio_k);
+                if v >= 0.0 && v.is_finite() {
+                    v
+                } else {
+                    return Err(Diagnostic::error(
+                        params.loc_of("ratiok").cloned(),
+                        format!("ratio: \"ratiok\" must be non-negative and finite, got {v}"),
+                    ));
+                }
+            },
+            ratio_floor: positive("ratiofloor", d.ratio_floor)?,
+        };
+        let fresnel = match params.get_one_string("fresnel", "average").as_str() {
+            "schlick" => FresnelMode::Schlick,
+            "average" => FresnelMode::Average,
+            other => {
+                warnings.warn(
+                    params.loc_of("fresnel").cloned(),
+                    format!("ratio: unknown fresnel \"{other}\" (expected average or schlick): using \"average\""),
+                );
+                FresnelMode::Average
+            }
+        };
+        Ok(Box::new(RatioIntegrator {
+            ltc: LtcIntegrator {
+                mode: Mode::Auto, // shadows off: only the lights' shapes (one polygon where possible)
+                shadows: false,
+                fresnel,
+                pixel_shading: parse_shading("ratio", params, warnings),
+                merge_occluders: true,
+                coverage_samples: 1, // ratio's camera samples are its stochastic budget
+            },
+            nsamples: nsamples as u32,
+            denoise: params.get_one_bool("denoise", true),
+            max_radius: max_radius as u32,
+            noise_target,
+            filter,
+        }))
+    }
+}
+
+/// Extra film channels, in this order.
+pub const CHANNELS: [&str; 17] = [
+    "U.R",
+    "U.G",
+    "U.B",
+    "S.R",
+    "S.G",
+    "S.B",
+    "UN.R",
+    "UN.G",
+    "UN.B",
+    "moment.SS",
+    "moment.UU",
+    "moment.SU",
+    "depth",
+    "N.X",
+    "N.Y",
+    "N.Z",
+    "plane",
+];
+const C_U: usize = 0;
+const C_S: usize = 3;
+const C_UN: usize = 6;
+const C_SS: usize = 9;
+const C_UU: usize = 10;
+const C_SU: usize = 11;
+const C_DEPTH: usize = 12;
+const C_N: usize = 13;
+const C_PLANE: usize = 16;
+
+/// What one camera sample writes to the extra channels (the film averages them per pixel).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct RatioSample {
+    /// The analytic unshadowed radiance.
+    pub(crate) u: Rgb,
+    /// The stochastic shadowed and unshadowed estimates.
+    pub(crate) s: Rgb,
+    pub(crate) un: Rgb,
+    /// Luminance moments `⟨S²⟩`, `⟨U²⟩`, `⟨S·U⟩` of the single-sample estimates.
+    pub(crate) ss: f32,
+    pub(crate) uu: f32,
+    pub(crate) su: f32,
+    /// Guides: depth along the ray, normal facing the viewer, plane offset `n·p`.
+    pub(crate) depth: f32,
+    pub(crate) n: Vec3,
+    pub(crate) plane: f32,
+}
+
+impl RatioSample {
+    /// Into `aov` in [`CHANNELS`] order (nothing when it has another length).
+    pub(crate) fn write(&self, aov: &mut [f32]) {
+        if aov.len() != CHANNELS.len() {
+            return;
+        }
+        aov[C_U..C_U + 3].copy_from_slice(&self.u.to_array());
+        aov[C_S..C_S + 3].copy_from_slice(&self.s.to_array());
+        aov[C_UN..C_UN + 3].copy_from_slice(&self.un.to_array());
+        aov[C_SS] = self.ss;
+        aov[C_UU] = self.uu;
+        aov[C_SU] = self.su;
+        aov[C_DEPTH] = self.depth;
+        aov[C_N..C_N + 3].copy_from_slice(&self.n.to_array());
+        aov[C_PLANE] = self.plane;
+    }
+
+    /// From [`CHANNELS`]-ordered values.
+    fn read(ch: &[f32]) -> RatioSample {
+        let rgb = |c: usize| Rgb::new(ch[c], ch[c + 1], ch[c + 2]);
+        RatioSample {
+            u: rgb(C_U),
+            s: rgb(C_S),
+            un: rgb(C_UN),
+            ss: ch[C_SS],
+            uu: ch[C_UU],
+            su: ch[C_SU],
+            depth: ch[C_DEPTH],
+            n: Vec3::new(ch[C_N], ch[C_N + 1], ch[C_N + 2]),
+            plane: ch[C_PLANE],
+        }
+    }
+}
+
+/// One pixel of the film after the render pass: the mean of everything but the area lights'
+/// shaded part (`rest`) with the variance of that mean, its own sample count, and the mean of
+/// its [`RatioSample`]s.
+#[derive(Clone, Copy, Debug, Default)]
+struct FilmPixel {
+    rest: Rgb,
+    rest_var: [f64; 3],
+    count: f64,
+    mean: RatioSample,
+}
+
+impl Integrator for RatioIntegrator {
+    fn name(&self) -> &str {
+        "ratio"
+    }
+    fn requirements(&self) -> Requirements {
+        Requirements { accel: true, lights: true, materials: true, ..Default::default() }
+    }
+    fn extra_channels(&self) -> Vec<String> {
+        CHANNELS.iter().map(|c| format!("ratio.{c}")).collect()
+    }
+    fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+        warn_infinite_lights("ratio", scene, ctx.warnings);
+        let shader = LtcShader::new(&self.ltc, scene);
+        let groups = SampleGroup::of(&shader, scene);
+        let est = Estimator {
+            shader,
+            n: scene.sampler.round_count(self.nsamples).max(1),
+            groups,
+            pixel_shading: self.ltc.pixel_shading,
+            fallback: FallbackWarning::new("ratio", ctx.warnings),
+        };
+        let mut stats = render_pixels(&est, scene, ctx, film)?;
+        let t = std::time::Instant::now();
+        let filtered = self.resolve(film, est.n);
+        stats.counters.insert("denoise_seconds".into(), t.elapsed().as_secs_f64());
+        stats.counters.insert("mean_radius".into(), filtered);
+        stats.render_seconds += t.elapsed().as_secs_f64();
+        Ok(stats)
+    }
+}
+
+impl RatioIntegrator {
+    /// The whole-image pass: reads the channels back, denoises, writes `rest + U·ratio`.
+    /// Returns the mean kernel radius over pixels with area-light shading.
+    fn resolve(&self, film: &mut Film, n_stochastic: u32) -> f64 {
+        if film.extra_channel_names.len() != CHANNELS.len() {
+            return 0.0;
+        }
+        let px = read_film(film);
+        let (w, h) = (px.width(), px.height());
+        let sigma = px.map(|p| ratio_sigma(p, n_stochastic));
+        let guides = ImageBuffer::from_fn(w, h, |i| guide(&px[i].mean, sigma[i]));
+        let su = px.map(|p| {
+            let (s, un) = (p.mean.s, p.mean.un);
+            [s[0], s[1], s[2], un[0], un[1], un[2]]
+        });
+        let radius = if self.denoise {
+            noise_radius(&sigma, self.noise_target, self.max_radius)
+        } else {
+            ImageBuffer::filled(w, h, 0)
+        };
+        let (d, reduction) = cross_bilateral(&guides, &radius, &su, &self.filter);
+        let (mut rsum, mut rcount) = (0.0f64, 0usize);
+        for (i, p) in film.pixel_bounds().iter().enumerate() {
+            let FilmPixel { rest, rest_var: mut var, mean, .. } = px[i];
+            let mut out = rest;
+            if mean.u != Rgb::ZERO {
+                rsum += radius[i] as f64;
+                rcount += 1;
+                for c in 0..3 {
+                    let ratio = guarded_ratio(d[i][c], d[i][3 + c], mean.s[c], mean.un[c]);
+                    out[c] += mean.u[c] * ratio;
+                    let sr = sigma[i] as f64 * mean.u[c] as f64;
+                    var[c] += sr * sr * reduction[i] as f64;
+                }
+            }
+            if !out.is_finite() {
+                out = if rest.is_finite() { rest } else { Rgb::ZERO };
+            }
+            film.set_pixel_rgb(p, out.max(Rgb::ZERO), var);
+        }
+        if rcount > 0 {
+            rsum / rcount as f64
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The film's pixels (within its pixel bounds) as [`FilmPixel`]s; pixels without weight stay
+/// zero.
+fn read_film(film: &Film) -> ImageBuffer<FilmPixel> {
+    let pb = film.pixel_bounds();
+    let (w, h) = (pb.width().max(0) as usize, pb.height().max(0) as usize);
+    let mut px = ImageBuffer::filled(w, h, FilmPixel::default());
+    for (i, p) in pb.iter().enumerate() {
+        let (Some(ps), Some(ex)) = (film.pixel_sums(p), film.pixel_extra(p)) else { continue };
+        if !(ps.weight != 0.0) {
+            continue;
+        }
+        let inv = 1.0 / ps.weight;
+        let q = &mut px[i];
+        q.rest = Rgb::new((ps.rgb[0] * inv) as f32, (ps.rgb[1] * inv) as f32, (ps.rgb[2] * inv) as f32);
+        let m = ps.own_count as f64;
+        q.count = m;
+        if m > 1.0 {
+            for (c, v) in q.rest_var.iter_mut().enumerate() {
+                let mean = ps.own_sum[c] / m;
+                *v = ((ps.own_sum_sq[c] / m - mean * mean).max(0.0) * m / (m - 1.0)) / m;
+            }
+        }
+        let ch: Vec<f32> = ex.iter().map(|v| (v * inv) as f32).collect();
+        q.mean = RatioSample::read(&ch);
+    }
+    px
+}
+
+/// Delta-method standard deviation of a pixel's ratio estimate (luminance), over its camera
+/// samples × `n_stochastic` stochastic samples.
+fn ratio_sigma(p: &FilmPixel, n_stochastic: u32) -> f32 {
+    let s = luminance(p.mean.s) as f64;
+    let u = luminance(p.mean.un) as f64;
+    if !(u > 0.0) || p.count < 1.0 {
+        return 0.0;
+    }
+    let r = s / u;
+    let var_s = p.mean.ss as f64 - s * s;
+    let var_u = p.mean.uu as f64 - u * u;
+    let cov = p.mean.su as f64 - s * u;
+    let count = p.count * n_stochastic as f64;
+    let v = (var_s - 2.0 * r * cov + r * r * var_u).max(0.0) / (count.max(2.0) - 1.0) / (u * u);
+    let sd = v.sqrt() as f32;
+    if sd.is_finite() {
+        sd
+    } else {
+        0.0
+    }
+}
+
+/// The filter's guide of a pixel with mean channels `m` and ratio deviation `sigma`.
+fn guide(m: &RatioSample, sigma: f32) -> Guide {
+    Guide {
+        depth: m.depth,
+        normal: m.n,
+        plane: m.plane,
+        u: luminance(m.u),
+        ratio: guarded_ratio(f32::NAN, 0.0, luminance(m.s), luminance(m.un)),
+        ratio_sigma: sigma,
+    }
+}
