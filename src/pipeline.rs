@@ -108,13 +108,7 @@ pub fn render(desc: &SceneDescription, opts: &RenderOptions, warnings: &DiagSink
     let integrator = choose_integrator(desc, opts.integrator, opts.params, warnings)?;
     let scene = Scene::build(desc, integrator.requirements(), &opts.build, warnings)?;
     let mut film = Film::new(scene.film.clone(), scene.filter.radius(), integrator.extra_channels());
-    let ctx = RenderContext {
-        threads: opts.threads,
-        seed: opts.build.seed,
-        cancel: opts.cancel,
-        progress: opts.progress,
-        warnings,
-    };
+    let ctx = RenderContext { threads: opts.threads, cancel: opts.cancel, progress: opts.progress, warnings };
     let stats = integrator.render(&scene, &ctx, &mut film)?;
     Ok(Rendered {
         integrator: integrator.name().to_string(),

@@ -29,7 +29,6 @@ pub enum RenderError {
 pub struct RenderContext<'a> {
     /// Worker threads (0: one per core).
     pub threads: usize,
-    pub seed: u64,
     /// Set (e.g. by Ctrl-C) to stop early; the render then returns `RenderError::Cancelled`.
     pub cancel: &'a AtomicBool,
     /// Called with (work done, work total) as tiles finish.

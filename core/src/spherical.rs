@@ -52,49 +52,6 @@ use crate::mesh::{EdgeAdjacency, TriangleMesh, BOUNDARY};
 
 pub mod cone;
 
-/// A spherical polygon: one loop of directions seen from the shading point
-/// (see the module conventions).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct SphericalPolygon {
-    pub vertices: Vec<DVec3>,
-}
-
-impl SphericalPolygon {
-    pub fn new(vertices: Vec<DVec3>) -> Self {
-        SphericalPolygon { vertices }
-    }
-
-    /// The polygon with world-space corners `points` seen from `p`.
-    pub fn from_world(p: DVec3, points: &[DVec3]) -> Self {
-        SphericalPolygon { vertices: project(p, points) }
-    }
-
-    /// The part with `z ≥ 0` ([`clip_to_horizon`]).
-    pub fn clip_to_horizon(&self) -> SphericalPolygon {
-        SphericalPolygon { vertices: clip_to_horizon(&self.vertices) }
-    }
-
-    /// Signed clamped-cosine form factor ([`form_factor`]).
-    pub fn form_factor(&self) -> f64 {
-        form_factor(&self.vertices)
-    }
-
-    /// Signed solid angle ([`solid_angle`]).
-    pub fn solid_angle(&self) -> f64 {
-        solid_angle(&self.vertices)
-    }
-
-    /// Vector form factor, unclipped ([`vector_form_factor`]).
-    pub fn vector_form_factor(&self) -> DVec3 {
-        vector_form_factor(&self.vertices)
-    }
-
-    /// Whether `d` lies inside ([`contains`]).
-    pub fn contains(&self, d: DVec3) -> bool {
-        contains(&self.vertices, d)
-    }
-}
-
 /// Unit directions from `p` to each of `points` (a point equal to `p` gives a
 /// zero vector, which the other functions treat as degenerate).
 pub fn project(p: DVec3, points: &[DVec3]) -> Vec<DVec3> {

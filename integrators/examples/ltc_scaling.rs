@@ -91,7 +91,7 @@ fn render_once(text: &str, res: u32) -> (f64, f64) {
     let scene = Scene::build(desc, integrator.requirements(), &build, &warnings).expect("scene builds");
     let mut film = Film::new(scene.film.clone(), scene.filter.radius(), integrator.extra_channels());
     let cancel = AtomicBool::new(false);
-    let ctx = RenderContext { threads: 1, seed: 0, cancel: &cancel, progress: None, warnings: &warnings };
+    let ctx = RenderContext { threads: 1, cancel: &cancel, progress: None, warnings: &warnings };
     let t0 = Instant::now();
     integrator.render(&scene, &ctx, &mut film).expect("render");
     let t = t0.elapsed().as_secs_f64();

@@ -10,7 +10,7 @@ use crate::geometry::{Bounds2i, Bounds3};
 use crate::interaction::SceneObject;
 use crate::light::Lights;
 use crate::material::Materials;
-use crate::mesh::TriangleMesh;
+use crate::mesh::{EdgeAdjacency, TriangleMesh};
 use crate::sampler::{create_sampler, Sampler};
 use crate::shapes::{build_shape, ShapeContext, Tessellation};
 use crate::texture::Textures;
@@ -62,6 +62,7 @@ impl Scene {
         } else {
             None
         };
+        let adjacency = if req.adjacency { adjacency(&meshes, &mut report) } else { Vec::new() };
         let lights = if req.lights {
             let t = Instant::now();
             let l = Lights::build(desc, &meshes, &objects, bounds, warnings)?;
@@ -84,6 +85,7 @@ impl Scene {
             meshes,
             objects,
             accel,
+            adjacency,
             lights,
             materials,
             textures,
@@ -239,6 +241,15 @@ fn add_shape(
         });
     }
     Ok(())
+}
+
+/// Every mesh's edge adjacency (timed into `report`).
+fn adjacency(meshes: &[TriangleMesh], report: &mut BuildReport) -> Vec<EdgeAdjacency> {
+    let t = Instant::now();
+    let adjacency: Vec<EdgeAdjacency> = meshes.iter().map(TriangleMesh::build_adjacency).collect();
+    let edges: usize = adjacency.iter().map(|a| a.edges.len()).sum();
+    report.stages.push(("adjacency".into(), t.elapsed().as_secs_f64(), format!("{edges} edges")));
+    adjacency
 }
 
 /// The materials some object uses and the textures they reference (timed into `report`).

@@ -10,7 +10,7 @@ use crate::geometry::{face_forward, gamma, interpolate, Bounds3, Frame, Ray};
 use crate::interaction::{SceneObject, SurfaceInteraction};
 use crate::light::{Light, Lights};
 use crate::material::{BsdfOptions, Material, Materials, ShadingGeometry};
-use crate::mesh::TriangleMesh;
+use crate::mesh::{EdgeAdjacency, TriangleMesh};
 use crate::sampler::Sampler;
 use crate::texture::{TextureEvalContext, Textures};
 use glam::Vec3;
@@ -28,10 +28,8 @@ pub struct Requirements {
     pub lights: bool,
     /// Materials and the textures they reference.
     pub materials: bool,
-    /// Per-mesh edge adjacency (silhouette methods).
+    /// Per-mesh edge adjacency ([`Scene::adjacency`]: silhouettes, closedness, outlines).
     pub adjacency: bool,
-    /// Light geometry as polygons (analytic area-light methods).
-    pub light_polygons: bool,
     /// At least this many camera samples per pixel, and the integrator's reason (said in the
     /// warning when the scene's or the command line's count is raised).
     pub min_pixel_samples: Option<(u32, &'static str)>,
@@ -105,6 +103,8 @@ pub struct Scene {
     pub meshes: Vec<TriangleMesh>,
     pub objects: Vec<SceneObject>,
     pub accel: Option<Accel>,
+    /// Edge adjacency of every mesh (built when `Requirements::adjacency`, else empty).
+    pub adjacency: Vec<EdgeAdjacency>,
     /// Lights (built when `Requirements::lights`).
     pub lights: Option<Lights>,
     /// Built when `Requirements::materials`: only materials some object uses.
@@ -122,6 +122,11 @@ pub struct Scene {
 const BUNDLE_LIMIT: usize = 12;
 
 impl Scene {
+    /// The edge adjacency of mesh `mesh` (`None` unless `Requirements::adjacency`).
+    pub fn adjacency(&self, mesh: usize) -> Option<&EdgeAdjacency> {
+        self.adjacency.get(mesh)
+    }
+
     /// Closest hit (requires `Requirements::accel`).
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         self.accel.as_ref().and_then(|a| a.intersect(ray))

@@ -256,9 +256,10 @@ impl Integrator for LtcIntegrator {
             accel: true,
             lights: true,
             materials: true,
+            // Light shapes and silhouettes (every mode but per-triangle) and occluder outlines.
+            adjacency: self.mode != Mode::PerTriangle || (self.shadows && self.merge_occluders),
             min_pixel_samples: (self.pixel_shading && self.coverage_samples > 1)
                 .then_some((self.coverage_samples, COVERAGE_REASON)),
-            ..Default::default()
         }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
@@ -274,8 +275,52 @@ impl Integrator for LtcIntegrator {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
     use glam::DVec3;
+    use penumbra_core::scene::BuildOptions;
     use penumbra_core::spherical;
+
+    /// `ltc` asks the scene build for adjacency (built once there, per mesh, equal to the
+    /// mesh's own), except in per-triangle mode without outlines; without the request the
+    /// scene has none.
+    #[test]
+    fn adjacency_is_built_once_by_the_scene_when_asked() {
+        let text = "Camera \"perspective\" Film \"rgb\" \"integer xresolution\" 4 \"integer yresolution\" 4
+            WorldBegin
+            AttributeBegin AreaLightSource \"diffuse\" Translate 0 3 0 Shape \"sphere\" \"float radius\" 0.5 AttributeEnd
+            Shape \"trianglemesh\" \"point3 P\" [-1 0 -1 1 0 -1 1 0 1 -1 0 1] \"integer indices\" [0 1 2 0 2 3]
+            WorldEnd";
+        let parsed = penumbra_parser::parse_str(text, "<test>", None).unwrap();
+        let warnings = DiagSink::new();
+        let params = ParamSet::default();
+        let build = |integrator: &dyn Integrator| {
+            Scene::build(&parsed.scene, integrator.requirements(), &BuildOptions::default(), &warnings).unwrap()
+        };
+        let ltc = LtcIntegrator::create(&params, &warnings).unwrap();
+        let scene = build(ltc.as_ref());
+        assert_eq!(scene.meshes.len(), 2);
+        for (i, mesh) in scene.meshes.iter().enumerate() {
+            assert_eq!(scene.adjacency(i), Some(&mesh.build_adjacency()));
+        }
+        assert!(scene.report.stages.iter().any(|s| s.0 == "adjacency"));
+        let per_triangle =
+            LtcIntegrator { mode: Mode::PerTriangle, merge_occluders: false, ..ltc_settings(&params, &warnings) };
+        assert!(!per_triangle.requirements().adjacency);
+        let scene = Scene::build(&parsed.scene, Requirements::default(), &BuildOptions::default(), &warnings).unwrap();
+        assert_eq!(scene.adjacency(0), None);
+    }
+
+    fn ltc_settings(params: &ParamSet, warnings: &DiagSink) -> LtcIntegrator {
+        let pixel_shading = parse_shading("ltc", params, warnings);
+        LtcIntegrator {
+            mode: Mode::Auto,
+            shadows: true,
+            fresnel: FresnelMode::Average,
+            pixel_shading,
+            merge_occluders: true,
+            coverage_samples: 16,
+        }
+    }
 
     #[test]
     /// A coplanar light triangle sharing an edge (the other half of a quad light) does not

@@ -189,7 +189,12 @@ impl<'a> LtcShader<'a> {
     /// the objects its mode takes as silhouettes).
     pub fn new(settings: &'a LtcIntegrator, scene: &Scene) -> LtcShader<'a> {
         let cells: Vec<OnceCell<EdgeAdjacency>> = scene.meshes.iter().map(|_| OnceCell::new()).collect();
-        let adjacency = |i: usize| cells[i].get_or_init(|| scene.meshes[i].build_adjacency());
+        // The scene's (built once when the integrator asks: `ltc` does); `ratio` asks for none
+        // and builds only its light meshes' here.
+        let adjacency = |i: usize| match scene.adjacency(i) {
+            Some(a) => a,
+            None => cells[i].get_or_init(|| scene.meshes[i].build_adjacency()),
+        };
         let mut objects = Vec::with_capacity(scene.meshes.len());
         let mut boxes = Vec::new();
         for (i, mesh) in scene.meshes.iter().enumerate() {
