@@ -3,5 +3,6 @@
 //! call exactly what `penumbra render` runs.
 
 pub mod cli_params;
+pub mod output;
 pub mod pipeline;
 pub mod relight;

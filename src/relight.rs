@@ -116,6 +116,7 @@ pub struct RelightTimes {
 
 /// The whole command: read, project, shade, write.
 pub fn relight_files(args: &RelightArgs, warnings: &DiagSink) -> Result<RelightTimes, String> {
+    crate::output::prepare(&args.output, crate::output::MissingDir::Fail)?;
     let t = Instant::now();
     let img = image::read(&args.image).map_err(|e| e.to_string())?;
     let layout = TransferLayout::find(&img.channels).map_err(|e| format!("{}: {e}", args.image.display()))?;

@@ -1,6 +1,7 @@
 //! `penumbra render`.
 
 use penumbra::cli_params;
+use penumbra::output::{self, MissingDir};
 use penumbra::pipeline::{self, RenderOptions};
 use penumbra_core::image::Image;
 use penumbra_core::scene::{BuildOptions, Crop};
@@ -107,6 +108,17 @@ pub fn run(args: RenderArgs) -> ExitCode {
         Ok(i) => i,
         Err(e) => return fail(e),
     };
+    // `-o` names a file the user typed: a missing directory is an error. The scene's own
+    // `Film "filename"` gets its directories created (several public scenes point into one).
+    let missing = if args.output.is_some() { MissingDir::Fail } else { MissingDir::Create };
+    match output::prepare(&inputs.output, missing) {
+        Ok(created) => {
+            for d in created {
+                eprintln!("created directory {} for the scene's Film \"filename\"", d.display());
+            }
+        }
+        Err(e) => return fail(e),
+    }
     let cancel = cancel_on_interrupt();
     let bar = (!args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(progress_bar);
     let progress = |done: u64, total: u64| {
