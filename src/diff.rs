@@ -30,7 +30,8 @@ Extra metrics over finite pairs: MSE, relative MSE = mean (A-B)^2/(B^2+0.01) (B 
 SMAPE = mean 2|A-B|/(|A|+|B|), and LDR-FLIP of the sRGB-clamped images when built with it.
 
 Exit codes (as idiff): 0 pass, 1 warning, 2 failure, 3 different sizes or channel sets,
-4 unreadable file or bad option value. Unlike idiff, which pads the smaller image with black,
+4 unreadable file or bad option value; 64 command-line usage error (unknown option, missing or
+malformed argument). Unlike idiff, which pads the smaller image with black,
 images of different sizes (or with different channel names) are refused with code 3.
 PNGs are compared on their raw code values v/255 (not linearised; colour premultiplied by alpha),
 as idiff reads them.")]

@@ -6,3 +6,13 @@ pub mod cli_params;
 pub mod output;
 pub mod pipeline;
 pub mod relight;
+
+/// Exit statuses shared by every subcommand (`diff` adds idiff's 1–4 for its verdicts).
+pub mod exit {
+    /// Something could not be used: a scene, an input or an output.
+    pub const ERROR: u8 = 1;
+    /// Command-line usage error (sysexits' `EX_USAGE`): distinct from every `diff` verdict.
+    pub const USAGE: u8 = 64;
+    /// Interrupted by Ctrl-C (as a shell reports SIGINT: 128 + 2).
+    pub const INTERRUPTED: u8 = 130;
+}

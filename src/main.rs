@@ -12,7 +12,14 @@ mod sweep;
 #[command(
     name = "penumbra",
     version,
-    about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes"
+    about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes",
+    long_about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes.\n\n\
+        With no subcommand, `penumbra` renders the embedded default scene to penumbra.exr \
+        (the same as `penumbra render`).",
+    after_help = "Exit status (every subcommand): 0 success; 1 error (a scene, input or output that \
+        cannot be used); 64 command-line usage error (unknown option, missing or malformed argument); \
+        130 interrupted (Ctrl-C). `diff` adds OpenImageIO idiff's 1 warning, 2 failure, 3 different \
+        sizes or channel sets, 4 unreadable file or bad option value."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -34,7 +41,15 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            // Help and version requests are not errors; clap's own code for usage errors (2)
+            // is `diff`'s FAIL, so usage errors get their own.
+            return if e.use_stderr() { ExitCode::from(penumbra::exit::USAGE) } else { ExitCode::SUCCESS };
+        }
+    };
     match cli.command {
         Some(Command::Info(a)) => info::run(a),
         Some(Command::Diff(a)) => diff::run(a),

@@ -152,7 +152,8 @@ pub fn run(args: RenderArgs) -> ExitCode {
                 }
             );
             if cancel.load(Ordering::SeqCst) {
-                eprintln!("nothing was written");
+                eprintln!("interrupted: nothing was written");
+                return ExitCode::from(penumbra::exit::INTERRUPTED);
             }
             return ExitCode::FAILURE;
         }
@@ -208,14 +209,14 @@ impl Inputs {
     }
 }
 
-/// A flag set by the first Ctrl-C (renders stop at the next tile); a second one exits with
-/// status 130 (as a shell reports SIGINT).
+/// A flag set by the first Ctrl-C (renders stop at the next tile, then exit with status 130,
+/// as a shell reports SIGINT); a second one exits with 130 at once.
 pub fn cancel_on_interrupt() -> Arc<AtomicBool> {
     let cancel = Arc::new(AtomicBool::new(false));
     let c = cancel.clone();
     let _ = ctrlc::set_handler(move || {
         if c.swap(true, Ordering::SeqCst) {
-            std::process::exit(130);
+            std::process::exit(penumbra::exit::INTERRUPTED.into());
         }
     });
     cancel

@@ -57,3 +57,69 @@ fn the_scenes_own_film_filename_gets_its_directories() {
     assert!(d.join("sub/dir/out.stats.json").is_file());
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// Starts `penumbra args…`, sends SIGINT after `after` seconds and returns its exit code.
+fn interrupted(cwd: &Path, args: &[&str], after: f64) -> (Option<i32>, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .current_dir(cwd)
+        .args(args)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run penumbra");
+    std::thread::sleep(std::time::Duration::from_secs_f64(after));
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(kill.success());
+    let t0 = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if t0.elapsed().as_secs() > 120 {
+            child.kill().ok();
+            panic!("penumbra {args:?} did not stop within 120 s of SIGINT");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let out = child.wait_with_output().unwrap();
+    (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+#[test]
+fn ctrl_c_exits_130_from_render_and_sweep() {
+    let d = dir("sigint");
+    // Seconds of small tiles (each stops the render within milliseconds): the interrupt lands
+    // mid-render.
+    let (code, e) = interrupted(&d, &["render", "--spp", "16", "--resolution", "2048x2048", "-q", "-o", "x.exr"], 1.5);
+    assert_eq!(code, Some(130), "{e}");
+    assert!(e.contains("interrupted: nothing was written"), "{e}");
+    assert!(!d.join("x.exr").exists());
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/suite/ltc/quad-cube.pbrt");
+    let args = ["sweep", scene, "--reference-spp", "64", "--resolution", "1024x1024", "-i", "ltc", "-o", "sw"];
+    let (code, e) = interrupted(&d, &args, 1.5);
+    assert_eq!(code, Some(130), "{e}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn usage_errors_exit_64_distinct_from_diff_verdicts() {
+    let d = dir("usage");
+    for args in [
+        &["diff", "--bogus", "a.exr", "b.exr"][..],
+        &["diff", "a.exr"],
+        &["diff", "--fail", "abc", "a.exr", "b.exr"],
+        &["render", "--spp", "many"],
+        &["sweep"],
+        &["nosuchcommand"],
+    ] {
+        let o = penumbra(&d, args);
+        assert_eq!(o.status.code(), Some(64), "penumbra {args:?}: {}", stderr(&o));
+    }
+    for args in [&["--help"][..], &["diff", "--help"], &["--version"]] {
+        let o = penumbra(&d, args);
+        assert_eq!(o.status.code(), Some(0), "penumbra {args:?}: {}", stderr(&o));
+    }
+    // The help documents the scheme, and that no subcommand renders the default scene.
+    let help = String::from_utf8_lossy(&penumbra(&d, &["--help"]).stdout).into_owned();
+    assert!(help.contains("64 command-line usage error") && help.contains("130 interrupted"), "{help}");
+    assert!(help.contains("With no subcommand, `penumbra` renders the embedded default scene"), "{help}");
+    let dhelp = String::from_utf8_lossy(&penumbra(&d, &["diff", "--help"]).stdout).into_owned();
+    assert!(dhelp.contains("64 command-line usage error"), "{dhelp}");
+    std::fs::remove_dir_all(&d).ok();
+}

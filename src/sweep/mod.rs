@@ -37,7 +37,7 @@ use std::time::Instant;
 use summary::fmt_num;
 
 /// Exit status when interrupted (as a shell reports SIGINT).
-const EXIT_CANCELLED: u8 = 130;
+const EXIT_CANCELLED: u8 = penumbra::exit::INTERRUPTED;
 
 struct Failure {
     code: u8,
