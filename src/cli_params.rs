@@ -32,6 +32,18 @@ pub fn parse_param(arg: &str) -> Result<Param, Diagnostic> {
     Ok(p)
 }
 
+/// `--threads N` (0: all cores). More threads than the machine has cores add nothing (images
+/// are bit-identical whatever the count): clamped, with the warning to print.
+pub fn thread_count(requested: usize) -> (usize, Option<String>) {
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    if requested > cores {
+        let w = format!("warning: --threads {requested} is more than this machine's {cores} cores: using {cores}");
+        (cores, Some(w))
+    } else {
+        (requested, None)
+    }
+}
+
 /// `base` with every command-line parameter added (replacing same-named ones).
 pub fn merge(base: &ParamSet, cli: &[Param]) -> ParamSet {
     let mut ps = base.clone();

@@ -61,8 +61,9 @@ pub struct DiffArgs {
     /// Print one JSON object instead of text (non-finite numbers as "inf"/"nan" strings).
     #[arg(long)]
     pub json: bool,
-    /// Write a heat map of the per-pixel error (max over channels) to this PNG.
-    #[arg(long, value_name = "OUT.png")]
+    /// Write the per-pixel error (max over channels): .png a colour-mapped heat map with a legend,
+    /// .exr or .pfm the error values themselves (float, in R, G and B).
+    #[arg(long, value_name = "OUT")]
     pub heatmap: Option<PathBuf>,
     /// Compare only pixels x0 <= x < x1, y0 <= y < y1.
     #[arg(long, value_name = "x0,x1,y0,y1")]
@@ -146,6 +147,11 @@ fn run_inner(args: &DiffArgs) -> Result<u8, Failure> {
             return Err(fail(EXIT_FILE, format!("--{name} must be a non-negative number")));
         }
     }
+    if let Some(out) = &args.heatmap {
+        if image::Format::from_extension(out).is_none() {
+            return Err(fail(EXIT_FILE, format!("--heatmap {}: must end in .png, .exr or .pfm", out.display())));
+        }
+    }
     let a = image::read(&args.a).map_err(|e| fail(EXIT_FILE, e.to_string()))?;
     let b = image::read(&args.b).map_err(|e| fail(EXIT_FILE, e.to_string()))?;
     let a = prepare(a, &args.a, args, crop)?;
@@ -174,7 +180,12 @@ fn run_inner(args: &DiffArgs) -> Result<u8, Failure> {
     let heatmap = match &args.heatmap {
         Some(out) => {
             let errs = metrics::error_map(&a, &b).map_err(metrics_failure)?;
-            let (lo, hi) = write_heatmap(out, a.width, a.height, &errs).map_err(|e| fail(EXIT_FILE, e.to_string()))?;
+            let written = if image::Format::from_extension(out) == Some(image::Format::Png) {
+                write_heatmap(out, a.width, a.height, &errs)
+            } else {
+                write_error_image(out, a.width, a.height, &errs)
+            };
+            let (lo, hi) = written.map_err(|e| fail(EXIT_FILE, e.to_string()))?;
             Some((out.clone(), lo, hi))
         }
         None => None,
@@ -460,6 +471,17 @@ impl Canvas {
 
 fn text_width(text: &str, s: i64) -> i64 {
     text.chars().count() as i64 * 4 * s
+}
+
+/// Writes the per-pixel error itself (R = G = B = the value the PNG heat map colours) as a
+/// float image (.exr or .pfm). Returns the (min, max) finite per-pixel error.
+fn write_error_image(out: &Path, w: u32, h: u32, errs: &[f32]) -> Result<(f64, f64), image::ImageError> {
+    let finite = errs.iter().filter(|e| e.is_finite()).map(|&e| e as f64);
+    let (lo, hi) = finite.fold((f64::INFINITY, 0.0f64), |(lo, hi), e| (lo.min(e), hi.max(e)));
+    let data = errs.iter().flat_map(|&e| [e; 3]).collect();
+    let img = Image::from_data(w, h, image::channel_names(&["R", "G", "B"]), data)?;
+    image::write(&img, out)?;
+    Ok((if lo.is_finite() { lo } else { 0.0 }, hi))
 }
 
 /// Writes the heat map: the error image on top, mapped linearly from 0 to the

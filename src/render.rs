@@ -33,7 +33,7 @@ pub struct RenderArgs {
     pub threads: usize,
     /// Crop `x0,x1,y0,y1`: pixel bounds (integers, half-open) or, if any value has a
     /// decimal point, fractions of the image as pbrt-v3's `cropwindow`.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub crop: Option<String>,
     /// Override the film resolution `WxH` (e.g. for quick previews).
     #[arg(long)]
@@ -65,6 +65,37 @@ pub fn parse_crop(s: &str) -> Result<Crop, String> {
     }
 }
 
+/// The film's full resolution: `--resolution`, else the scene's (pbrt-v3's default 1280×720).
+pub fn full_resolution(scene: &SceneDescription, resolution: Option<(u32, u32)>) -> (i32, i32) {
+    match resolution {
+        Some((w, h)) => (w as i32, h as i32),
+        None => {
+            let p = &scene.film.params;
+            (p.get_one_int("xresolution", 1280), p.get_one_int("yresolution", 720))
+        }
+    }
+}
+
+/// A `--crop` must lie inside the image and contain a pixel (as `diff --crop`): not clamped.
+pub fn check_crop(crop: Crop, (w, h): (i32, i32)) -> Result<(), String> {
+    let bad = match crop {
+        Crop::Pixels([x0, x1, y0, y1]) => !(0 <= x0 && x0 < x1 && x1 <= w && 0 <= y0 && y0 < y1 && y1 <= h),
+        Crop::Fraction([x0, x1, y0, y1]) => !(0.0 <= x0 && x0 < x1 && x1 <= 1.0 && 0.0 <= y0 && y0 < y1 && y1 <= 1.0),
+    };
+    if !bad || w <= 0 || h <= 0 {
+        // (An out-of-range film resolution is the scene build's located error.)
+        return Ok(());
+    }
+    Err(match crop {
+        Crop::Pixels([x0, x1, y0, y1]) => format!(
+            "--crop {x0},{x1},{y0},{y1} is outside the {w}x{h} image: pixel bounds need 0 <= x0 < x1 <= {w} and 0 <= y0 < y1 <= {h}"
+        ),
+        Crop::Fraction([x0, x1, y0, y1]) => format!(
+            "--crop {x0},{x1},{y0},{y1}: fractions need 0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1"
+        ),
+    })
+}
+
 pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("--resolution expects WxH, got \"{s}\""))?;
     let w: u32 = w.trim().parse().map_err(|_| format!("--resolution: bad width in \"{s}\""))?;
@@ -86,13 +117,22 @@ fn fail(msg: impl std::fmt::Display) -> ExitCode {
     ExitCode::FAILURE
 }
 
+fn has_extension(path: &Path, ext: &str) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext))
+}
+
 /// `out.exr` → `out.stats.json`.
 pub fn stats_path(image: &Path) -> PathBuf {
     let stem = image.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "penumbra".into());
     image.with_file_name(format!("{stem}.stats.json"))
 }
 
-pub fn run(args: RenderArgs) -> ExitCode {
+pub fn run(mut args: RenderArgs) -> ExitCode {
+    let (threads, warning) = cli_params::thread_count(args.threads);
+    if let Some(w) = warning {
+        eprintln!("{w}");
+    }
+    args.threads = threads;
     let warnings = DiagSink::new();
     let t0 = Instant::now();
     let parsed = match pipeline::load_scene(args.scene.as_deref()) {
@@ -118,6 +158,12 @@ pub fn run(args: RenderArgs) -> ExitCode {
             }
         }
         Err(e) => return fail(e),
+    }
+    if args.variance && !has_extension(&inputs.output, "exr") {
+        eprintln!(
+            "warning: --variance: {} has no room for the variance channels (only .exr has): writing R, G, B only",
+            inputs.output.display()
+        );
     }
     let cancel = cancel_on_interrupt();
     let bar = (!args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(progress_bar);
@@ -195,6 +241,9 @@ impl Inputs {
         let params = params.map_err(|e| e.message)?;
         let crop = args.crop.as_deref().map(parse_crop).transpose()?;
         let resolution = args.resolution.as_deref().map(parse_resolution).transpose()?;
+        if let Some(c) = crop {
+            check_crop(c, full_resolution(scene, resolution))?;
+        }
         let output = args
             .output
             .clone()
@@ -256,7 +305,7 @@ fn stats_json(args: &RenderArgs, r: &pipeline::Rendered, output: &Path, parse_se
 
 /// Writes the image (R, G, B only unless it is an EXR), then `stats` beside it; returns the image written.
 fn write_outputs(mut image: Image, output: &Path, stats: &serde_json::Value) -> Result<Image, String> {
-    if !output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) && image.channels.len() > 3 {
+    if !has_extension(output, "exr") && image.channels.len() > 3 {
         image = image.select_channels(&["R", "G", "B"]).map_err(|e| e.to_string())?;
     }
     penumbra_core::image::write(&image, output).map_err(|e| e.to_string())?;

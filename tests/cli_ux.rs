@@ -123,3 +123,63 @@ fn usage_errors_exit_64_distinct_from_diff_verdicts() {
     assert!(dhelp.contains("64 command-line usage error"), "{dhelp}");
     std::fs::remove_dir_all(&d).ok();
 }
+
+#[test]
+fn out_of_range_crops_are_errors_and_ignored_flags_are_said() {
+    let d = dir("strict");
+    std::fs::write(d.join("s.pbrt"), scene("out.exr", "0 1 2")).unwrap();
+    for (crop, says) in [
+        ("0,9,0,4", "--crop 0,9,0,4 is outside the 8x8 image"),
+        ("4,4,0,8", "is outside the 8x8 image"),
+        ("-1,4,0,8", "is outside the 8x8 image"),
+        ("0.0,1.5,0,1", "fractions need 0 <= x0 < x1 <= 1"),
+    ] {
+        let o = penumbra(&d, &["render", "s.pbrt", "-q", "--crop", crop, "-o", "c.exr"]);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "--crop {crop}: {e}");
+        assert!(e.contains(says), "--crop {crop}: {e}");
+    }
+    // sweep checks the same, before anything renders.
+    let o = penumbra(
+        &d,
+        &["sweep", "s.pbrt", "--reference-spp", "4", "-i", "ambientocclusion", "--crop", "0,16,0,8", "-o", "sw"],
+    );
+    assert!(stderr(&o).contains("is outside the 8x8 image"), "{}", stderr(&o));
+    assert!(!d.join("sw").exists());
+    // --variance with a PNG is said, not silently dropped.
+    let o = penumbra(&d, &["render", "s.pbrt", "-q", "--variance", "-o", "v.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--variance: v.png has no room for the variance channels"), "{}", stderr(&o));
+    // --threads beyond the machine's cores is clamped with a warning.
+    let o = penumbra(&d, &["render", "s.pbrt", "-q", "--threads", "100000", "-o", "t.exr"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("warning: --threads 100000 is more than this machine's"), "{}", stderr(&o));
+    let stats: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("t.stats.json")).unwrap()).unwrap();
+    let cores = std::thread::available_parallelism().unwrap().get() as u64;
+    assert!(stats["threads"].as_u64().unwrap() <= cores, "{stats}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn diff_heatmap_honours_the_extension() {
+    use penumbra_core::image::{self, channel_names, Image};
+    let d = dir("heat-ext");
+    let a = Image::from_data(4, 2, channel_names(&["R", "G", "B"]), vec![0.5; 24]).unwrap();
+    let mut b = a.clone();
+    b.set(3, 1, 1, 0.75);
+    image::write(&a, d.join("a.exr")).unwrap();
+    image::write(&b, d.join("b.exr")).unwrap();
+    for name in ["h.exr", "h.pfm"] {
+        let o = penumbra(&d, &["diff", "a.exr", "b.exr", "--heatmap", name]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        // The error values themselves, at the image's size (no legend band).
+        let h = image::read(d.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!((h.width, h.height), (4, 2), "{name}");
+        assert_eq!(h.pixel(3, 1), &[0.25, 0.25, 0.25][..], "{name}");
+        assert_eq!(h.pixel(0, 0), &[0.0, 0.0, 0.0][..], "{name}");
+    }
+    let o = penumbra(&d, &["diff", "a.exr", "b.exr", "--heatmap", "h.tiff"]);
+    assert_eq!(o.status.code(), Some(4), "{}", stderr(&o));
+    assert!(stderr(&o).contains("must end in .png, .exr or .pfm"), "{}", stderr(&o));
+    std::fs::remove_dir_all(&d).ok();
+}

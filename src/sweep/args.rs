@@ -3,7 +3,7 @@
 
 use super::output::Row;
 use super::{fail, print_new_warnings, Failure};
-use crate::render::{parse_crop, parse_resolution};
+use crate::render::{check_crop, full_resolution, parse_crop, parse_resolution};
 use penumbra::cli_params;
 use penumbra::pipeline;
 use penumbra_core::metrics;
@@ -67,7 +67,7 @@ pub struct SweepArgs {
     #[arg(long)]
     pub resolution: Option<String>,
     /// Crop `x0,x1,y0,y1` (as `penumbra render --crop`).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub crop: Option<String>,
     /// Output directory.
     #[arg(short = 'o', long = "output", default_value = "sweep-out")]
@@ -205,6 +205,9 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
     let scene_bytes =
         std::fs::read(&args.scene).map_err(|e| fail(format!("cannot read scene {}: {e}", args.scene.display())))?;
     let parsed = pipeline::load_scene(Some(&args.scene)).map_err(|d| Failure { code: 1, message: d.to_string() })?;
+    if let Some(c) = crop {
+        check_crop(c, full_resolution(&parsed.scene, resolution)).map_err(fail)?;
+    }
     let warnings = DiagSink::new();
     warnings.extend(parsed.warnings);
     // Create each integrator once with its parameters, so that bad values fail before any render.

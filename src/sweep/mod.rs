@@ -108,7 +108,12 @@ fn flip_of(a: &Image, b: &Image) -> Option<f64> {
     }
 }
 
-pub fn run(args: SweepArgs) -> ExitCode {
+pub fn run(mut args: SweepArgs) -> ExitCode {
+    let (threads, warning) = penumbra::cli_params::thread_count(args.threads);
+    if let Some(w) = warning {
+        eprintln!("{w}");
+    }
+    args.threads = threads;
     match run_inner(&args) {
         Ok(code) => ExitCode::from(code),
         Err(f) => {
