@@ -30,7 +30,7 @@ struct Cli {
 enum Command {
     /// Render a scene (default: the embedded default scene).
     Render(render::RenderArgs),
-    /// Parse a scene and print what it contains, with every warning.
+    /// Check a scene as `render` would (every warning and error, no rendering) and print what it contains.
     Info(info::InfoArgs),
     /// Compare two images with OpenImageIO idiff's metrics and exit codes.
     Diff(diff::DiffArgs),

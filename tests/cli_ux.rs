@@ -183,3 +183,53 @@ fn diff_heatmap_honours_the_extension() {
     assert!(stderr(&o).contains("must end in .png, .exr or .pfm"), "{}", stderr(&o));
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// `info` reports what `render` reports before rendering — the same text on stderr, the same
+/// exit status — for build-time errors and warnings the parser cannot see.
+#[test]
+fn info_checks_the_scene_as_render_does() {
+    let d = dir("info-check");
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+               element face 1\nproperty list uchar int vertex_indices\nend_header\n-1 -1 0\n1 -1 0\n";
+    std::fs::write(d.join("short.ply"), ply).unwrap();
+    let head = "LookAt 0 0 -5 0 0 0 0 1 0\nCamera \"perspective\"\n\
+                Film \"image\" \"integer xresolution\" 8 \"integer yresolution\" 8\n\
+                Sampler \"random\" \"integer pixelsamples\" 1\nWorldBegin\nLightSource \"point\" \"rgb I\" [1 1 1]\n";
+    let cases = [
+        (
+            "index",
+            "Shape \"trianglemesh\" \"integer indices\" [0 1 7] \"point P\" [-1 -1 0 1 -1 0 0 1 0]",
+            1,
+            "vertex index 7",
+        ),
+        ("shortp", "Shape \"trianglemesh\" \"integer indices\" [0 1 2] \"point P\" [-1 -1 0 1 -1 0 0 1]", 1, "multiple of 3"),
+        ("ply", "Shape \"plymesh\" \"string filename\" \"short.ply\"", 1, "short.ply"),
+        ("misspelled", "Shape \"sphere\" \"float radiuss\" 2", 0, "\"float radiuss\" unused"),
+        ("unknown", "Shape \"blob\"", 0, "blob"),
+        ("light", "LightSource \"spot\" \"float conedelta\" 5 \"float coneangel\" 30", 0, "coneangel"),
+    ];
+    for (name, body, code, says) in cases {
+        let file = format!("{name}.pbrt");
+        std::fs::write(d.join(&file), format!("{head}{body}\nWorldEnd\n")).unwrap();
+        let render = penumbra(&d, &["render", &file, "-q", "-o", "r.exr"]);
+        let info = penumbra(&d, &["info", &file]);
+        let (re, ie) = (stderr(&render), stderr(&info));
+        assert!(ie.contains(says), "{name}: info says\n{ie}");
+        assert_eq!(ie, re, "{name}: info and render differ");
+        assert_eq!(info.status.code(), Some(code), "{name}: {ie}");
+        assert_eq!(render.status.code(), Some(code), "{name}: {re}");
+    }
+    // -i NAME: that integrator's parameters and what it would build.
+    let o = penumbra(&d, &["info", "misspelled.pbrt", "-i", "ambientocclusion", "--param", "nsample=4"]);
+    let (out, e) = (String::from_utf8_lossy(&o.stdout).into_owned(), stderr(&o));
+    assert!(e.contains("\"integer nsample\" unused by integrator \"ambientocclusion\""), "{e}");
+    assert!(out.contains("ambientocclusion builds: bvh (1 spp)") && out.contains("bvh: not built by info"), "{out}");
+    let o = penumbra(&d, &["info", "misspelled.pbrt", "-i", "ltc"]);
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(out.contains("ltc builds: bvh, lights, materials"), "{out}");
+    assert!(out.contains("lights: 0.") && out.contains("(1 lights)"), "{out}");
+    let o = penumbra(&d, &["info", "misspelled.pbrt", "-i", "nosuch"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("unknown integrator \"nosuch\""), "{}", stderr(&o));
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -96,6 +96,19 @@ impl Scene {
     }
 }
 
+impl Scene {
+    /// Everything [`Scene::build`] checks for `req` — the same warnings and errors, at the same
+    /// locations — without building the acceleration structure (`penumbra info`).
+    pub fn check(
+        desc: &SceneDescription,
+        req: Requirements,
+        opts: &BuildOptions,
+        warnings: &DiagSink,
+    ) -> Result<Scene, Diagnostic> {
+        Scene::build(desc, Requirements { accel: false, ..req }, opts, warnings)
+    }
+}
+
 fn film_spec(desc: &SceneDescription, opts: &BuildOptions, warnings: &DiagSink) -> Result<FilmSpec, Diagnostic> {
     let e = &desc.film;
     let p = &e.params;
