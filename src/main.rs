@@ -3,6 +3,7 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+mod convert;
 mod diff;
 mod info;
 mod render;
@@ -38,6 +39,8 @@ enum Command {
     Sweep(sweep::SweepArgs),
     /// Re-shade an image's SH transfer channels (sh.*, albedo.*) under new distant lighting.
     Relight(penumbra::relight::RelightArgs),
+    /// Convert an image between EXR, PNG and PFM, with an exposure in stops (e.g. EXR to PNG to look at it).
+    Convert(convert::ConvertArgs),
 }
 
 fn main() -> ExitCode {
@@ -56,6 +59,7 @@ fn main() -> ExitCode {
         Some(Command::Render(a)) => render::run(a),
         Some(Command::Sweep(a)) => sweep::run(a),
         Some(Command::Relight(a)) => penumbra::relight::run(a),
+        Some(Command::Convert(a)) => convert::run(a),
         None => render::run(render::RenderArgs::default()),
     }
 }

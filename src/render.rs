@@ -41,6 +41,10 @@ pub struct RenderArgs {
     /// Sampler seed.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// PNG output: multiply by 2^S before the sRGB encoding (stops; EXR and PFM keep the
+    /// rendered values).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
     /// Also write per-pixel variance channels (EXR only).
     #[arg(long)]
     pub variance: bool,
@@ -165,6 +169,12 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
             inputs.output.display()
         );
     }
+    if args.exposure != 0.0 && !has_extension(&inputs.output, "png") {
+        eprintln!(
+            "warning: --exposure applies to PNG output: {} keeps the rendered values (see penumbra convert)",
+            inputs.output.display()
+        );
+    }
     let cancel = cancel_on_interrupt();
     let bar = (!args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(progress_bar);
     let progress = |done: u64, total: u64| {
@@ -206,7 +216,7 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
     };
     let output = &inputs.output;
     let stats = stats_json(&args, &r, output, parse_seconds);
-    let image = match write_outputs(r.image, output, &stats) {
+    let image = match write_outputs(r.image, output, args.exposure, &stats) {
         Ok(i) => i,
         Err(e) => return fail(e),
     };
@@ -294,6 +304,7 @@ fn stats_json(args: &RenderArgs, r: &pipeline::Rendered, output: &Path, parse_se
         "pixel_bounds": [r.film.pixel_bounds.min.x, r.film.pixel_bounds.max.x, r.film.pixel_bounds.min.y, r.film.pixel_bounds.max.y],
         "spp": r.stats.spp,
         "seed": args.seed,
+        "exposure": args.exposure,
         "threads": r.stats.threads,
         "parse_seconds": parse_seconds,
         "build_seconds": r.build.total_seconds(),
@@ -303,12 +314,18 @@ fn stats_json(args: &RenderArgs, r: &pipeline::Rendered, output: &Path, parse_se
     })
 }
 
-/// Writes the image (R, G, B only unless it is an EXR), then `stats` beside it; returns the image written.
-fn write_outputs(mut image: Image, output: &Path, stats: &serde_json::Value) -> Result<Image, String> {
+/// Writes the image (R, G, B only unless it is an EXR; a PNG with `exposure` stops), then `stats`
+/// beside it; returns the image written.
+fn write_outputs(mut image: Image, output: &Path, exposure: f32, stats: &serde_json::Value) -> Result<Image, String> {
     if !has_extension(output, "exr") && image.channels.len() > 3 {
         image = image.select_channels(&["R", "G", "B"]).map_err(|e| e.to_string())?;
     }
-    penumbra_core::image::write(&image, output).map_err(|e| e.to_string())?;
+    if has_extension(output, "png") {
+        penumbra_core::image::write_png(&image, output, exposure)
+    } else {
+        penumbra_core::image::write(&image, output)
+    }
+    .map_err(|e| e.to_string())?;
     let sp = stats_path(output);
     let text = serde_json::to_string_pretty(stats).unwrap_or_default();
     penumbra_core::image::write_atomic(&sp, |w| w.write_all(text.as_bytes())).map_err(|e| e.to_string())?;

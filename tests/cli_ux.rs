@@ -25,8 +25,8 @@ fn scene(filename: &str, indices: &str) -> String {
         "LookAt 0 0 -5 0 0 0 0 1 0\nCamera \"perspective\"\n\
          Film \"image\" \"integer xresolution\" 8 \"integer yresolution\" 8 \"string filename\" \"{filename}\"\n\
          Sampler \"random\" \"integer pixelsamples\" 1\n\
-         WorldBegin\nLightSource \"point\" \"rgb I\" [1 1 1]\n\
-         Shape \"trianglemesh\" \"integer indices\" [{indices}] \"point P\" [-1 -1 0 1 -1 0 0 1 0]\nWorldEnd\n"
+         WorldBegin\nLightSource \"point\" \"point from\" [0 0 -3] \"rgb I\" [9 9 9]\n\
+         Shape \"trianglemesh\" \"integer indices\" [{indices}] \"point P\" [-4 -4 0 4 -4 0 0 4 0]\nWorldEnd\n"
     )
 }
 
@@ -202,7 +202,12 @@ fn info_checks_the_scene_as_render_does() {
             1,
             "vertex index 7",
         ),
-        ("shortp", "Shape \"trianglemesh\" \"integer indices\" [0 1 2] \"point P\" [-1 -1 0 1 -1 0 0 1]", 1, "multiple of 3"),
+        (
+            "shortp",
+            "Shape \"trianglemesh\" \"integer indices\" [0 1 2] \"point P\" [-1 -1 0 1 -1 0 0 1]",
+            1,
+            "multiple of 3",
+        ),
         ("ply", "Shape \"plymesh\" \"string filename\" \"short.ply\"", 1, "short.ply"),
         ("misspelled", "Shape \"sphere\" \"float radiuss\" 2", 0, "\"float radiuss\" unused"),
         ("unknown", "Shape \"blob\"", 0, "blob"),
@@ -231,5 +236,35 @@ fn info_checks_the_scene_as_render_does() {
     let o = penumbra(&d, &["info", "misspelled.pbrt", "-i", "nosuch"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("unknown integrator \"nosuch\""), "{}", stderr(&o));
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn exposure_for_render_png_and_convert() {
+    use penumbra_core::image;
+    let d = dir("exposure");
+    std::fs::write(d.join("s.pbrt"), scene("out.exr", "0 1 2")).unwrap();
+    for (out, stops) in [("a.exr", "0"), ("dark.png", "-1"), ("plain.png", "0")] {
+        let o = penumbra(&d, &["render", "s.pbrt", "-q", "--exposure", stops, "-o", out]);
+        assert!(o.status.success(), "{out}: {}", stderr(&o));
+    }
+    // Said when it does not apply.
+    let o = penumbra(&d, &["render", "s.pbrt", "-q", "--exposure", "2", "-o", "b.exr"]);
+    assert!(stderr(&o).contains("--exposure applies to PNG output"), "{}", stderr(&o));
+    // convert EXR → PNG at the same exposure gives the render's own PNG, byte for byte.
+    let o = penumbra(&d, &["convert", "a.exr", "conv.png", "--exposure", "-1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read(d.join("conv.png")).unwrap(), std::fs::read(d.join("dark.png")).unwrap());
+    let (dark, plain) = (image::read(d.join("dark.png")).unwrap(), image::read(d.join("plain.png")).unwrap());
+    let sum = |i: &image::Image| i.data.iter().map(|&v| v as f64).sum::<f64>();
+    assert!(sum(&plain) > 0.0 && sum(&dark) < 0.9 * sum(&plain), "{} {}", sum(&dark), sum(&plain));
+    // convert to a float format scales the values by 2^S exactly.
+    let o = penumbra(&d, &["convert", "a.exr", "twice.pfm", "--exposure", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (a, twice) = (image::read(d.join("a.exr")).unwrap(), image::read(d.join("twice.pfm")).unwrap());
+    let a = a.select_channels(&["R", "G", "B"]).unwrap();
+    assert_eq!(twice.data, a.data.iter().map(|v| v * 2.0).collect::<Vec<_>>());
+    let o = penumbra(&d, &["convert", "a.exr", "x.tga"]);
+    assert_eq!(o.status.code(), Some(1));
     std::fs::remove_dir_all(&d).ok();
 }
