@@ -65,7 +65,6 @@ fn check(desc: &SceneDescription, args: &InfoArgs, warnings: &DiagSink) -> Resul
         (req.lights, "lights"),
         (req.materials, "materials"),
         (req.adjacency, "adjacency"),
-        (req.light_polygons, "light polygons"),
     ] {
         if on {
             builds.push(what);
