@@ -24,23 +24,12 @@ fn every_integrator_is_finite_on_the_stiff_scenes() {
     }
 }
 
-/// Integrators whose crops are known not to reproduce the full image (issue 20 item 4: `ratio`'s
-/// denoiser sees a different neighbourhood at a crop's edge; 27 of 4320 values differ here).
-/// Only the thread check runs for them. The list must shrink, never grow.
-const KNOWN_CROP_DEFECTS: &[&str] = &["ratio"];
-
 #[test]
 fn every_integrator_is_bit_identical_across_threads_and_crops() {
     // Two lights, a glossy receiver and occluders: every integrator's paths are exercised.
     let path = scene("suite/ltc/two-lights-metal.pbrt");
     for e in REGISTRY {
         eprintln!("{}", e.name);
-        if KNOWN_CROP_DEFECTS.contains(&e.name) {
-            // Threads only, until the crop defect is fixed.
-            let r = |threads| render_path(&path, &Opts { threads, ..opts(e.name, 4, (40, 36)) });
-            assert_same(&r(1).image.data, &r(2).image.data, "1 vs 2 threads");
-            continue;
-        }
         assert_deterministic(40, 36, |threads, crop| {
             render_path(&path, &Opts { threads, crop, ..opts(e.name, 4, (40, 36)) })
         });

@@ -187,6 +187,47 @@ impl Film {
         }
     }
 
+    /// An empty film like this one whose pixel bounds are grown by `margin` pixels on every
+    /// side, clipped to the full image: for image-space passes whose output at a pixel reads
+    /// the film up to `margin` pixels away, so that a crop sees the neighbourhood the full
+    /// image would (see [`crate::integrator::render_pixels_with_margin`]).
+    pub fn grown(&self, margin: u32) -> Film {
+        let m = IVec2::splat(margin.min(i32::MAX as u32) as i32);
+        let full = IVec2::new(self.spec.full_resolution.0 as i32, self.spec.full_resolution.1 as i32);
+        let pb = self.spec.pixel_bounds;
+        // Clipped to the full image, but never smaller than the film itself.
+        let grown = if pb.is_empty() {
+            pb
+        } else {
+            Bounds2i::new(
+                pb.min.saturating_sub(m).max(IVec2::ZERO).min(pb.min),
+                pb.max.saturating_add(m).min(full).max(pb.max),
+            )
+        };
+        let spec = FilmSpec { pixel_bounds: grown, ..self.spec.clone() };
+        Film::new(spec, self.filter_radius, self.extra_channel_names.clone())
+    }
+
+    /// Copies every accumulator (sums, own-sample statistics, extra channels) of the pixels
+    /// this film shares with `src`, which must have the same extra channels (else nothing is
+    /// copied and `false` is returned).
+    pub fn copy_pixels_from(&mut self, src: &Film) -> bool {
+        if src.extra_channel_names != self.extra_channel_names {
+            return false;
+        }
+        let (pb, ne) = (self.spec.pixel_bounds, self.extra_channel_names.len());
+        for (i, p) in pb.iter().enumerate() {
+            let sb = src.spec.pixel_bounds;
+            if !sb.contains(p) {
+                continue;
+            }
+            let j = ((p.y - sb.min.y) * sb.width() + (p.x - sb.min.x)) as usize;
+            self.pixels[i] = src.pixels[j].clone();
+            self.extra[i * ne..(i + 1) * ne].copy_from_slice(&src.extra[j * ne..(j + 1) * ne]);
+        }
+        true
+    }
+
     pub fn pixel_sums(&self, p: IVec2) -> Option<&PixelSums> {
         let pb = self.spec.pixel_bounds;
         pb.contains(p).then(|| &self.pixels[((p.y - pb.min.y) * pb.width() + (p.x - pb.min.x)) as usize])
@@ -320,6 +361,38 @@ mod tests {
         // R G B a var.R var.G var.B per pixel; the film's scale (2) applies to values and variances (×4).
         assert_eq!(&img.data[0..7], &[1.0, 2.0, 8.0, 3.0, 1.0, 0.0, 4.0]);
         assert_eq!(&img.data[7..14], &[10.0, 10.0, 10.0, 7.0, 0.0, 0.0, 0.0]);
+    }
+
+    /// `grown` clips to the full image and never shrinks the film; `copy_pixels_from` brings
+    /// back exactly the film's own pixels, sums and extra channels alike.
+    #[test]
+    fn grown_film_round_trips_its_pixels() {
+        let spec = FilmSpec {
+            full_resolution: (10, 6),
+            pixel_bounds: Bounds2i::new(IVec2::new(1, 2), IVec2::new(5, 4)),
+            filename: String::new(),
+            scale: 1.0,
+            max_sample_luminance: f32::INFINITY,
+        };
+        let b = BoxFilter { radius: Vec2::splat(0.5) };
+        let mut film = Film::new(spec, b.radius(), vec!["a".into()]);
+        let mut grown = film.grown(3);
+        assert_eq!(grown.pixel_bounds(), Bounds2i::new(IVec2::new(0, 0), IVec2::new(8, 6)));
+        assert_eq!(film.grown(0).pixel_bounds(), film.pixel_bounds());
+        let mut tile = grown.make_tile(grown.pixel_bounds());
+        for p in grown.pixel_bounds().iter() {
+            let v = (p.x * 10 + p.y) as f32;
+            tile.add_sample(&b, p.as_vec2() + Vec2::splat(0.5), Rgb::splat(v), &[2.0 * v]);
+        }
+        grown.merge_tile(&tile);
+        assert!(film.copy_pixels_from(&grown));
+        let img = film.to_image(false);
+        for (i, p) in film.pixel_bounds().iter().enumerate() {
+            let v = (p.x * 10 + p.y) as f32;
+            assert_eq!(&img.data[i * 4..i * 4 + 4], &[v, v, v, 2.0 * v], "pixel {p}");
+        }
+        let other = Film::new(film.spec.clone(), b.radius(), Vec::new());
+        assert!(!film.copy_pixels_from(&other), "different extra channels are refused");
     }
 
     /// A sample exactly on a pixel border reaches one pixel under the box filter (the one it

@@ -285,6 +285,27 @@ pub fn render_pixels(
     Ok(stats)
 }
 
+/// [`render_pixels`] for image-space integrators whose output at a pixel reads the rendered
+/// film up to `margin` pixels away (a denoiser's kernel, a sheared filter's footprint):
+/// renders `film`'s pixels grown by `margin` (clipped to the full image) into a film of their
+/// own, runs `pass` on it, then copies the film's own pixels back. A crop or a tile therefore
+/// sees the neighbourhood the full image would and reproduces it bit for bit; with no crop
+/// the grown film is the film itself. `pass` returns what the integrator wants to report.
+pub fn render_pixels_with_margin<R>(
+    est: &dyn PixelEstimator,
+    scene: &Scene,
+    ctx: &RenderContext,
+    film: &mut Film,
+    margin: u32,
+    pass: impl FnOnce(&mut Film) -> R,
+) -> Result<(RenderStats, R), RenderError> {
+    let mut grown = film.grown(margin);
+    let stats = render_pixels(est, scene, ctx, &mut grown)?;
+    let out = pass(&mut grown);
+    film.copy_pixels_from(&grown);
+    Ok((stats, out))
+}
+
 fn rayon_threads(requested: usize) -> usize {
     if requested > 0 {
         requested

@@ -55,7 +55,7 @@ use crate::common::pixel_shading::parse_shading;
 use crate::ltc::{FresnelMode, LtcIntegrator, LtcShader, Mode};
 use estimator::{Estimator, SampleGroup};
 use penumbra_core::film::Film;
-use penumbra_core::integrator::{render_pixels, Integrator, RenderContext, RenderError, RenderStats};
+use penumbra_core::integrator::{render_pixels_with_margin, Integrator, RenderContext, RenderError, RenderStats};
 use penumbra_core::scene::{Requirements, Scene};
 use penumbra_core::spectrum::luminance;
 use penumbra_core::{Rgb, Vec3};
@@ -261,17 +261,26 @@ impl Integrator for RatioIntegrator {
             pixel_shading: self.ltc.pixel_shading,
             fallback: FallbackWarning::new("ratio", ctx.warnings),
         };
-        let mut stats = render_pixels(&est, scene, ctx, film)?;
-        let t = std::time::Instant::now();
-        let filtered = self.resolve(film, est.n);
-        stats.counters.insert("denoise_seconds".into(), t.elapsed().as_secs_f64());
+        let (mut stats, (filtered, seconds)) =
+            render_pixels_with_margin(&est, scene, ctx, film, self.margin(), |grown| {
+                let t = std::time::Instant::now();
+                let filtered = self.resolve(grown, est.n);
+                (filtered, t.elapsed().as_secs_f64())
+            })?;
+        stats.counters.insert("denoise_seconds".into(), seconds);
         stats.counters.insert("mean_radius".into(), filtered);
-        stats.render_seconds += t.elapsed().as_secs_f64();
+        stats.render_seconds += seconds;
         Ok(stats)
     }
 }
 
 impl RatioIntegrator {
+    /// How far the denoiser reads: a pixel's kernel radius is the maximum over its 3×3
+    /// neighbourhood (one pixel), and its kernel reaches `maxradius` pixels.
+    fn margin(&self) -> u32 {
+        self.max_radius.max(1)
+    }
+
     /// The whole-image pass: reads the channels back, denoises, writes `rest + U·ratio`.
     /// Returns the mean kernel radius over pixels with area-light shading.
     fn resolve(&self, film: &mut Film, n_stochastic: u32) -> f64 {
