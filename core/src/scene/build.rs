@@ -77,6 +77,7 @@ impl Scene {
         } else {
             (None, None)
         };
+        let dual_edges = req.dual_edges.then(|| dual_edges(&meshes, &objects, &mut report));
         Ok(Scene {
             camera,
             film,
@@ -89,6 +90,7 @@ impl Scene {
             lights,
             materials,
             textures,
+            dual_edges,
             bounds,
             integrator: desc.integrator.clone(),
             report,
@@ -292,4 +294,26 @@ fn materials(
         ),
     ));
     Ok((materials, textures))
+}
+
+/// The dual-edge hierarchy over the objects that occlude (`silhouette`).
+fn dual_edges(
+    meshes: &[TriangleMesh],
+    objects: &[SceneObject],
+    report: &mut BuildReport,
+) -> crate::silhouette::DualEdges {
+    let occluders: Vec<bool> = objects.iter().map(|o| o.occluder).collect();
+    let d = crate::silhouette::DualEdges::build(meshes, &occluders);
+    report.stages.push((
+        "dual edges".into(),
+        d.build_seconds,
+        format!(
+            "{} edges ({} boundary, {} non-manifold, {} tested at every point)",
+            d.edge_count(),
+            d.boundary_edges,
+            d.non_manifold_edges,
+            d.always_tested()
+        ),
+    ));
+    d
 }

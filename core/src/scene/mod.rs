@@ -30,6 +30,8 @@ pub struct Requirements {
     pub materials: bool,
     /// Per-mesh edge adjacency ([`Scene::adjacency`]: silhouettes, closedness, outlines).
     pub adjacency: bool,
+    /// The 4D dual-edge hierarchy of every occluder's edges (`silhouette`).
+    pub dual_edges: bool,
     /// At least this many camera samples per pixel, and the integrator's reason (said in the
     /// warning when the scene's or the command line's count is raised).
     pub min_pixel_samples: Option<(u32, &'static str)>,
@@ -111,6 +113,8 @@ pub struct Scene {
     pub materials: Option<Materials>,
     /// Built when `Requirements::materials`: only textures a built material references.
     pub textures: Option<Textures>,
+    /// Built when `Requirements::dual_edges`: contour-edge queries over the occluders.
+    pub dual_edges: Option<crate::silhouette::DualEdges>,
     pub bounds: Bounds3,
     /// The scene's own `Integrator` directive.
     pub integrator: Entity,

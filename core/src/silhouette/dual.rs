@@ -1,0 +1,418 @@
+//! The 4D dual-edge hierarchy: every edge between two triangles is a segment between the
+//! triangles' (signed) plane equations, in a bounding-volume hierarchy over 4D; a shading
+//! point `p` is the hyperplane `{x : x·(p, 1) = 0}`, and an edge is a contour edge of `p`
+//! exactly where its segment crosses that hyperplane (Nowrouzezahrai et al. 2014, §3.1,
+//! Eq. 6; Hertzmann & Zorin 2000).
+//!
+//! Orientation does not matter: for an edge `(a, b)` and an incident triangle with opposite
+//! vertex `c`, `side = orient3d(a, b, c, p)` says on which side of the plane through `p, a,
+//! b` the triangle lies, and `w = Σ side` over the incident triangles is the edge's weight:
+//! 0 (not a contour), ±1 (boundary, or `p` on a plane), ±2 (one triangle front-facing, one
+//! back-facing). Crossing the edge's arc away from the side `m = (a−p)×(b−p)` points to
+//! changes the depth complexity by `−w` ([`Contour::delta_w`]). For two triangles the
+//! signed planes `g_t` with `g_t·(p, 1) ∝ side_t` make the dual segment `[g₁, −g₂]`, which
+//! crosses the hyperplane iff `side₁ = side₂`; boundary edges, edges of three or more
+//! triangles and edges of degenerate triangles are tested at every point instead.
+//!
+//! The hierarchy only filters: its boxes are padded by a bound on the rounding of the plane
+//! equations, a node survives when the hyperplane can touch its padded box, and every
+//! surviving edge is decided by the exact predicate of [`super::orient`], so
+//! [`DualEdges::contours`] returns exactly [`DualEdges::contours_brute_force`]'s set
+//! (property-tested). Nodes also keep the primal box of their edges: a node wholly behind the
+//! shading point's tangent plane is skipped, and so is every edge with both ends behind it.
+//!
+//! Geometry is translated to its centre and scaled by a power of two to an extent of about 1
+//! (exact for the f32 input in all but pathological cases), so every tolerance is relative
+//! to the scene and scaled scenes give the same contours.
+
+use super::orient::orient3d;
+use crate::mesh::TriangleMesh;
+use glam::{DVec3, Vec3};
+
+/// Edges per leaf.
+const LEAF: usize = 4;
+/// Absolute slack (normalised units) of the box-versus-hyperplane test, for its own rounding.
+const BOX_SLACK: f64 = 1e-12;
+
+/// A contour edge of a shading point, in normalised scene coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Contour {
+    /// The edge's index in [`DualEdges`] (stable: the order of meshes, then of their edges).
+    pub edge: u32,
+    pub a: DVec3,
+    pub b: DVec3,
+    /// `Σ orient3d(a, b, c_t, p)` over the incident triangles (never 0).
+    pub w: i32,
+}
+
+impl Contour {
+    /// The change of the depth complexity when a direction from `p` crosses the edge's arc
+    /// from the side of the great circle containing `from` to the other side (`from` not on
+    /// that great circle): `−w · sign(m·from)`, `m = (a−p)×(b−p)`.
+    pub fn delta_w(&self, p: DVec3, from: DVec3) -> i32 {
+        let m = (self.a - p).cross(self.b - p);
+        let s = m.dot(from);
+        if s > 0.0 {
+            -self.w
+        } else if s < 0.0 {
+            self.w
+        } else {
+            0
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct EdgeRec {
+    a: u32,
+    b: u32,
+    /// Range into `opposite`.
+    start: u32,
+    count: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    lo: [f64; 4],
+    hi: [f64; 4],
+    plo: DVec3,
+    phi: DVec3,
+    /// Leaf: `count > 0`, items `first..first+count` of `order`; inner: children `first`, `first+1`.
+    first: u32,
+    count: u32,
+}
+
+/// The dual-edge hierarchy of a scene (built once, when the `silhouette` integrator asks).
+#[derive(Clone, Debug, Default)]
+pub struct DualEdges {
+    center: DVec3,
+    inv_scale: f64,
+    /// Welded vertices of all meshes, normalised.
+    verts: Vec<DVec3>,
+    edges: Vec<EdgeRec>,
+    /// Opposite vertex of each incident triangle, per edge.
+    opposite: Vec<u32>,
+    /// Edges tested at every point: boundary, non-manifold, degenerate incident triangle.
+    always: Vec<u32>,
+    nodes: Vec<Node>,
+    /// Edges of the hierarchy in leaf order, with their dual endpoints and rounding pad.
+    order: Vec<u32>,
+    dual: Vec<[[f64; 4]; 2]>,
+    pad: Vec<f64>,
+    pub boundary_edges: usize,
+    pub non_manifold_edges: usize,
+    pub build_seconds: f64,
+}
+
+/// The signed plane `g` of triangle `(a, b, c)` seen from edge `(a, b)`, with `g·(p, 1)`
+/// of the sign of `orient3d(a, b, c, p)` (up to rounding), and a bound on that rounding for
+/// `|p| ≤ 4`; `None` for a degenerate triangle.
+fn signed_plane(a: DVec3, b: DVec3, c: DVec3) -> Option<([f64; 4], f64)> {
+    let (e1, e2) = (b - a, c - a);
+    let n = e1.cross(e2);
+    let len = n.length();
+    // orient3d(a,b,c,p) = −(p−a)·n.
+    let scale = e1.length() * e2.length();
+    if !(len > 1e-12 * scale) || !len.is_finite() {
+        return None;
+    }
+    let u = -n / len;
+    let g = [u.x, u.y, u.z, -u.dot(a)];
+    // Direction error of a normalised cross product ~ ε |e1||e2| / |n|; times |p − a| ≤ ~6.
+    let pad = 64.0 * f64::EPSILON * (scale / len + 1.0);
+    Some((g, pad))
+}
+
+fn dot4(g: &[f64; 4], p: DVec3) -> f64 {
+    g[0] * p.x + g[1] * p.y + g[2] * p.z + g[3]
+}
+
+impl DualEdges {
+    /// Builds the hierarchy over the meshes whose `include` flag is set (welding each mesh's
+    /// bit-identical positions, as [`TriangleMesh::build_adjacency`] does).
+    pub fn build(meshes: &[TriangleMesh], include: &[bool]) -> DualEdges {
+        let t0 = std::time::Instant::now();
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for (m, _) in meshes.iter().zip(include).filter(|(_, &i)| i) {
+            for p in &m.positions {
+                lo = lo.min(p.as_dvec3());
+                hi = hi.max(p.as_dvec3());
+            }
+        }
+        let mut out = DualEdges::default();
+        if !(lo.x <= hi.x) {
+            out.inv_scale = 1.0;
+            return out;
+        }
+        // An f32 centre and a power-of-two scale keep the normalisation exact.
+        let center = ((lo + hi) * 0.5).as_vec3().as_dvec3();
+        let extent = (hi - lo).max_element().max(f64::MIN_POSITIVE);
+        let inv_scale = 2f64.powi(-(extent.log2().ceil() as i32));
+        out.center = center;
+        out.inv_scale = inv_scale;
+        for (m, _) in meshes.iter().zip(include).filter(|(_, &i)| i) {
+            out.add_mesh(m);
+        }
+        out.build_hierarchy();
+        out.build_seconds = t0.elapsed().as_secs_f64();
+        out
+    }
+
+    fn add_mesh(&mut self, mesh: &TriangleMesh) {
+        let adj = mesh.build_adjacency();
+        let base = self.verts.len() as u32;
+        let mut pos = vec![DVec3::ZERO; adj.welded_count];
+        for (i, &w) in adj.weld.iter().enumerate() {
+            pos[w as usize] = self.normalise(mesh.positions[i]);
+        }
+        self.verts.extend_from_slice(&pos);
+        // Incident triangles of every edge, as opposite welded vertices (tri_edges lists every
+        // incident triangle, also past the two `Edge::tris` keeps).
+        let mut incident: Vec<Vec<u32>> = vec![Vec::new(); adj.edges.len()];
+        for (t, te) in adj.tri_edges.iter().enumerate() {
+            let w = mesh.indices[t].map(|i| adj.weld[i as usize]);
+            for k in 0..3 {
+                if let Some(e) = incident.get_mut(te[k] as usize) {
+                    e.push(w[(k + 2) % 3]);
+                }
+            }
+        }
+        for (e, opp) in adj.edges.iter().zip(incident) {
+            let id = self.edges.len() as u32;
+            self.edges.push(EdgeRec {
+                a: base + e.v[0],
+                b: base + e.v[1],
+                start: self.opposite.len() as u32,
+                count: opp.len() as u32,
+            });
+            self.opposite.extend(opp.iter().map(|o| base + o));
+            match e.count {
+                1 => self.boundary_edges += 1,
+                2 => {}
+                _ => self.non_manifold_edges += 1,
+            }
+            if e.count != 2 {
+                self.always.push(id);
+            }
+        }
+    }
+
+    fn build_hierarchy(&mut self) {
+        let mut items: Vec<(u32, [[f64; 4]; 2], f64)> = Vec::new();
+        for (id, e) in self.edges.iter().enumerate() {
+            if e.count != 2 {
+                continue;
+            }
+            let (a, b) = (self.verts[e.a as usize], self.verts[e.b as usize]);
+            let c1 = self.verts[self.opposite[e.start as usize] as usize];
+            let c2 = self.verts[self.opposite[e.start as usize + 1] as usize];
+            match (signed_plane(a, b, c1), signed_plane(a, b, c2)) {
+                (Some((g1, p1)), Some((g2, p2))) => {
+                    let neg = [-g2[0], -g2[1], -g2[2], -g2[3]];
+                    items.push((id as u32, [g1, neg], p1.max(p2)));
+                }
+                _ => self.always.push(id as u32),
+            }
+        }
+        self.always.sort_unstable();
+        self.nodes.clear();
+        if items.is_empty() {
+            return;
+        }
+        self.nodes.push(Node { lo: [0.0; 4], hi: [0.0; 4], plo: DVec3::ZERO, phi: DVec3::ZERO, first: 0, count: 0 });
+        let mut stack = vec![(0usize, 0usize, items.len())];
+        while let Some((node, begin, end)) = stack.pop() {
+            let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
+            let (mut plo, mut phi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            for (id, d, pad) in &items[begin..end] {
+                for g in d {
+                    for k in 0..4 {
+                        lo[k] = lo[k].min(g[k]);
+                        hi[k] = hi[k].max(g[k]);
+                    }
+                }
+                lo[3] = lo[3].min(d[0][3].min(d[1][3]) - pad);
+                hi[3] = hi[3].max(d[0][3].max(d[1][3]) + pad);
+                let e = self.edges[*id as usize];
+                for v in [e.a, e.b] {
+                    plo = plo.min(self.verts[v as usize]);
+                    phi = phi.max(self.verts[v as usize]);
+                }
+            }
+            let n = end - begin;
+            if n <= LEAF {
+                self.nodes[node] = Node { lo, hi, plo, phi, first: self.order.len() as u32, count: n as u32 };
+                for (id, d, pad) in &items[begin..end] {
+                    self.order.push(*id);
+                    self.dual.push(*d);
+                    self.pad.push(*pad);
+                }
+                continue;
+            }
+            // Split at the median of the widest of the 4 dual and 3 primal extents (the primal
+            // ones make the tangent-plane cull effective).
+            let ext: [f64; 7] = [
+                hi[0] - lo[0],
+                hi[1] - lo[1],
+                hi[2] - lo[2],
+                hi[3] - lo[3],
+                phi.x - plo.x,
+                phi.y - plo.y,
+                phi.z - plo.z,
+            ];
+            let axis = (0..7).fold(0, |b, k| if ext[k] > ext[b] { k } else { b });
+            let key = |it: &(u32, [[f64; 4]; 2], f64)| -> f64 {
+                if axis < 4 {
+                    it.1[0][axis] + it.1[1][axis]
+                } else {
+                    let e = self.edges[it.0 as usize];
+                    (self.verts[e.a as usize] + self.verts[e.b as usize])[axis - 4]
+                }
+            };
+            let mid = n / 2;
+            items[begin..end].select_nth_unstable_by(mid, |x, y| key(x).total_cmp(&key(y)).then(x.0.cmp(&y.0)));
+            let first = self.nodes.len();
+            let empty = Node { lo, hi, plo, phi, first: 0, count: 0 };
+            self.nodes.push(empty);
+            self.nodes.push(empty);
+            self.nodes[node] = Node { lo, hi, plo, phi, first: first as u32, count: 0 };
+            stack.push((first + 1, begin + mid, end));
+            stack.push((first, begin, begin + mid));
+        }
+    }
+
+    /// A world point in the hierarchy's normalised coordinates.
+    pub fn normalise(&self, p: Vec3) -> DVec3 {
+        (p.as_dvec3() - self.center) * self.inv_scale
+    }
+
+    /// World length to normalised length.
+    pub fn inv_scale(&self) -> f64 {
+        self.inv_scale
+    }
+
+    pub fn edge_count(&self) -> usize {
+        self.edges.len()
+    }
+
+    /// Edges tested at every point (boundary, non-manifold, degenerate).
+    pub fn always_tested(&self) -> usize {
+        self.always.len()
+    }
+
+    /// The exact weight of edge `id` at `p` (normalised).
+    fn weight(&self, id: u32, p: DVec3) -> i32 {
+        let e = self.edges[id as usize];
+        let (a, b) = (self.verts[e.a as usize], self.verts[e.b as usize]);
+        self.opposite[e.start as usize..(e.start + e.count) as usize]
+            .iter()
+            .map(|&c| orient3d(a, b, self.verts[c as usize], p) as i32)
+            .sum()
+    }
+
+    fn emit(&self, id: u32, p: DVec3, cull: &Cull, out: &mut Vec<Contour>) {
+        let e = self.edges[id as usize];
+        let (a, b) = (self.verts[e.a as usize], self.verts[e.b as usize]);
+        if cull.behind(a) && cull.behind(b) {
+            return;
+        }
+        let w = self.weight(id, p);
+        if w != 0 {
+            out.push(Contour { edge: id, a, b, w });
+        }
+    }
+
+    /// The contour edges of `p` (normalised coordinates) not wholly behind the plane through
+    /// `p` with normal `n` (within `tol`, see [`Cull`]), appended to `out` sorted by edge index.
+    /// Returns the number of edges the hierarchy did not reject (each tested exactly, or by a
+    /// certain f64 filter).
+    pub fn contours(&self, p: DVec3, n: DVec3, tol: f64, out: &mut Vec<Contour>) -> usize {
+        let start = out.len();
+        let mut examined = self.always.len();
+        let cull = Cull { p, n, tol };
+        for &id in &self.always {
+            self.emit(id, p, &cull, out);
+        }
+        if self.nodes.is_empty() {
+            return examined;
+        }
+        let mut stack = [0u32; 128];
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let node = &self.nodes[stack[sp] as usize];
+            // The hyperplane x·(p,1) = 0 against the padded box.
+            let (mut mn, mut mx) = (node.lo[3], node.hi[3]);
+            for k in 0..3 {
+                let (l, h) = (node.lo[k] * p[k], node.hi[k] * p[k]);
+                mn += l.min(h);
+                mx += l.max(h);
+            }
+            if mn > BOX_SLACK || mx < -BOX_SLACK || cull.box_behind(node.plo, node.phi) {
+                continue;
+            }
+            if node.count > 0 {
+                examined += node.count as usize;
+                for i in node.first..node.first + node.count {
+                    let i = i as usize;
+                    let [g1, g2] = &self.dual[i];
+                    let (v1, v2) = (dot4(g1, p), dot4(g2, p));
+                    let pad = self.pad[i];
+                    // Both ends certainly on one side: not a contour.
+                    if (v1 > pad && v2 > pad) || (v1 < -pad && v2 < -pad) {
+                        continue;
+                    }
+                    self.emit(self.order[i], p, &cull, out);
+                }
+            } else if sp + 2 <= stack.len() {
+                stack[sp] = node.first;
+                stack[sp + 1] = node.first + 1;
+                sp += 2;
+            } else {
+                // Deeper than the stack (impossible for a median split of < 2^120 edges).
+                unreachable!("dual-edge hierarchy deeper than its traversal stack");
+            }
+        }
+        out[start..].sort_unstable_by_key(|c| c.edge);
+        examined
+    }
+
+    /// [`contours`](Self::contours) by testing every edge (the oracle).
+    pub fn contours_brute_force(&self, p: DVec3, n: DVec3, tol: f64, out: &mut Vec<Contour>) {
+        let cull = Cull { p, n, tol };
+        for id in 0..self.edges.len() as u32 {
+            self.emit(id, p, &cull, out);
+        }
+    }
+}
+
+/// The tangent-plane cull: a point `x` is behind when `n·(x−p) ≤ tol·|x−p|₁` (an elevation
+/// below ~`tol` radians; `tol` absorbs the rounding of a normal given in f32).
+#[derive(Clone, Copy, Debug)]
+pub struct Cull {
+    pub p: DVec3,
+    pub n: DVec3,
+    pub tol: f64,
+}
+
+impl Cull {
+    pub fn behind(&self, x: DVec3) -> bool {
+        let d = x - self.p;
+        self.n.dot(d) <= self.tol * (d.x.abs() + d.y.abs() + d.z.abs())
+    }
+    /// Whether the whole box is behind (its corner farthest along `n` is).
+    fn box_behind(&self, lo: DVec3, hi: DVec3) -> bool {
+        if self.tol < 0.0 {
+            return false;
+        }
+        let far = DVec3::new(
+            if self.n.x > 0.0 { hi.x } else { lo.x },
+            if self.n.y > 0.0 { hi.y } else { lo.y },
+            if self.n.z > 0.0 { hi.z } else { lo.z },
+        );
+        // Every point of the box is at most the far corner's elevation; the margin keeps this
+        // test from rounding differently from `behind` at elevation ≈ 0.
+        self.n.dot(far - self.p) <= -1e-14
+    }
+}

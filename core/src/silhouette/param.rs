@@ -1,0 +1,259 @@
+//! The sphere parameterisation the traversal integrates in: `(φ, v = cos θ)` about a pole
+//! axis, `ω = √(1−v²)(cos φ e₁ + sin φ e₂) + v·pole`.
+//!
+//! Its Jacobian is 1 (Archimedes: `dω = dφ dv`), so a table of `f` along an isoline needs no
+//! weight, and isolines are meridians, which all start at the pole: one start value of the
+//! depth complexity serves every isoline (the paper's octahedral map needs a special bucket
+//! for its many starts). With the pole `sign(n_k) e_k` for the largest `|n_k|`, the pole is
+//! visible (`n·pole ≥ 1/√3`) and along each meridian `n·ω = k sin θ + n_p cos θ` has exactly
+//! one zero in `(0, π)`: the visible part of a meridian is the single interval
+//! `v ∈ (v_h, 1]` containing the pole, so a meridian never leaves the visible half-space and
+//! comes back (the paper's caveat 2, and why it swaps axes for its octahedral map).
+//! Crossing `v` of an edge with a meridian is a linear solve and one square root; only the
+//! azimuths of an edge's two endpoints need `atan2`.
+//!
+//! The tests also check the two corrections the implementation digest makes to the seed's
+//! octahedral parameterisation: its Jacobian is `|q|⁻³` (exponent −1.5 of `|q|²`, not +1.5),
+//! and traversal from the octahedron's `z` vertex is safe iff `|n_z| ≥ |n_y|` (the seed's
+//! "can only happen if `|n_y| < |n_z|`" is reversed).
+
+use glam::DVec3;
+use std::f64::consts::TAU;
+
+/// A pole axis and the azimuth frame around it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoleFrame {
+    /// The coordinate axis (0, 1, 2) the pole lies on.
+    pub axis: usize,
+    /// +1 or −1: the pole is `sign · e_axis`.
+    pub sign: f64,
+    pub e1: DVec3,
+    pub e2: DVec3,
+    pub pole: DVec3,
+}
+
+impl PoleFrame {
+    /// The frame about `sign · e_axis`; `(e₁, e₂)` are the next two axes cyclically (the same
+    /// for both signs, so `ω₋(φ, v) = ω₊(φ, −v)`: tables for `+e_axis` serve `−e_axis` read
+    /// from the other end).
+    pub fn new(axis: usize, sign: f64) -> PoleFrame {
+        let e = |k: usize| DVec3::AXES[k % 3];
+        PoleFrame { axis, sign, e1: e(axis + 1), e2: e(axis + 2), pole: e(axis) * sign }
+    }
+
+    /// The frame whose pole is the coordinate axis most aligned with `n`, on its side.
+    pub fn for_normal(n: DVec3) -> PoleFrame {
+        let a = n.abs();
+        let axis = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        PoleFrame::new(axis, if n[axis] < 0.0 { -1.0 } else { 1.0 })
+    }
+
+    /// `(d·e₁, d·e₂, d·pole)`.
+    pub fn local(&self, d: DVec3) -> DVec3 {
+        DVec3::new(d.dot(self.e1), d.dot(self.e2), d.dot(self.pole))
+    }
+
+    /// The direction at azimuth `(cos φ, sin φ)` and `v = cos θ`.
+    pub fn direction(&self, cos_phi: f64, sin_phi: f64, v: f64) -> DVec3 {
+        let s = (1.0 - v * v).max(0.0).sqrt();
+        (self.e1 * cos_phi + self.e2 * sin_phi) * s + self.pole * v
+    }
+}
+
+/// `n` meridians at the cell centres `φ_i = (i + ½) 2π/n`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Meridians {
+    pub n: usize,
+    pub dphi: f64,
+    pub cos: Vec<f64>,
+    pub sin: Vec<f64>,
+}
+
+impl Meridians {
+    pub fn new(n: usize) -> Meridians {
+        let n = n.max(1);
+        let dphi = TAU / n as f64;
+        let phi = |i: usize| (i as f64 + 0.5) * dphi;
+        Meridians { n, dphi, cos: (0..n).map(|i| phi(i).cos()).collect(), sin: (0..n).map(|i| phi(i).sin()).collect() }
+    }
+
+    /// The first meridian index at or after azimuth `phi ∈ [0, 2π]` (possibly `n`): with it,
+    /// an azimuth range `[φ_a, φ_b)` covers the meridians `key(φ_a) .. key(φ_b)` — half-open,
+    /// so a chain of edges through a shared vertex counts a meridian through it once.
+    pub fn key(&self, phi: f64) -> i64 {
+        (phi / self.dphi - 0.5).ceil() as i64
+    }
+
+    /// `v` of the horizon of normal `n_local` (local coordinates, `n_local.z > 0`) on meridian `i`.
+    pub fn horizon(&self, i: usize, n_local: DVec3) -> f64 {
+        let k = n_local.x * self.cos[i] + n_local.y * self.sin[i];
+        -k / (k * k + n_local.z * n_local.z).sqrt()
+    }
+}
+
+/// The azimuth of a local direction in `[0, 2π)` (`None` on the pole axis).
+pub fn azimuth(d: DVec3) -> Option<f64> {
+    if d.x == 0.0 && d.y == 0.0 {
+        return None;
+    }
+    let a = d.y.atan2(d.x);
+    let a = if a < 0.0 { a + TAU } else { a };
+    Some(if a >= TAU { 0.0 } else { a })
+}
+
+/// `∫_{v_a}^{v_b} √(1−v²) dv` (the antiderivative `(v√(1−v²) + asin v)/2`).
+pub fn sine_integral(v_a: f64, v_b: f64) -> f64 {
+    let g = |v: f64| {
+        let v = v.clamp(-1.0, 1.0);
+        0.5 * (v * (1.0 - v * v).sqrt() + v.asin())
+    };
+    g(v_b) - g(v_a)
+}
+
+/// `∫ ω dv` over `v ∈ [v_a, v_b]` on meridian `i` (world axes; times `Δφ` it is the
+/// meridian wedge's share of `∫ ω dω`, up to the azimuth discretisation).
+pub fn moment(frame: &PoleFrame, m: &Meridians, i: usize, v_a: f64, v_b: f64) -> DVec3 {
+    let s = sine_integral(v_a, v_b);
+    (frame.e1 * m.cos[i] + frame.e2 * m.sin[i]) * s + frame.pole * (0.5 * (v_b * v_b - v_a * v_a))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    fn rng(seed: u64) -> impl FnMut() -> f64 {
+        let mut s = seed;
+        move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// `‖∂ω/∂φ × ∂ω/∂v‖ = 1` by finite differences, and the cells sum to 4π.
+    #[test]
+    fn jacobian_is_one_and_integrates_to_four_pi() {
+        let f = PoleFrame::new(1, -1.0);
+        let mut r = rng(3);
+        for _ in 0..200 {
+            let (phi, v) = (r() * TAU, r() * 1.8 - 0.9);
+            let w = |phi: f64, v: f64| f.direction(phi.cos(), phi.sin(), v);
+            let h = 1e-6;
+            let du = (w(phi + h, v) - w(phi - h, v)) / (2.0 * h);
+            let dv = (w(phi, v + h) - w(phi, v - h)) / (2.0 * h);
+            assert!((du.cross(dv).length() - 1.0).abs() < 1e-8);
+        }
+        let m = Meridians::new(64);
+        let total: f64 = (0..m.n).map(|_| m.dphi * 2.0).sum();
+        assert!((total - 4.0 * PI).abs() < 1e-12);
+    }
+
+    /// The octahedral map `q = (u, v, 1−|u|−|v|)`, `ω = q/|q|`: `dω = |q|⁻³ du dv`, so the seed's
+    /// printed `(u²+v²+(1−|u|−|v|)²)^{1.5}` has the wrong sign of exponent. Checked pointwise
+    /// by finite differences and by integrating the +z diamond (2π with −1.5, not with +1.5).
+    #[test]
+    fn octahedral_jacobian_exponent_is_minus_one_and_a_half() {
+        let omega = |u: f64, v: f64| DVec3::new(u, v, 1.0 - u.abs() - v.abs()).normalize();
+        let q2 = |u: f64, v: f64| u * u + v * v + (1.0 - u.abs() - v.abs()).powi(2);
+        let mut r = rng(5);
+        for _ in 0..200 {
+            let (u, v) = (r() * 0.9 - 0.45, r() * 0.9 - 0.45);
+            if u.abs() < 1e-3 || v.abs() < 1e-3 || u.abs() + v.abs() > 0.98 {
+                continue;
+            }
+            let h = 1e-6;
+            let du = (omega(u + h, v) - omega(u - h, v)) / (2.0 * h);
+            let dv = (omega(u, v + h) - omega(u, v - h)) / (2.0 * h);
+            let j = du.cross(dv).length();
+            assert!((j - q2(u, v).powf(-1.5)).abs() < 1e-6 * j, "J = {j}, |q|^-3 = {}", q2(u, v).powf(-1.5));
+        }
+        let n = 800;
+        let (mut minus, mut plus) = (0.0, 0.0);
+        for i in 0..n {
+            for k in 0..n {
+                let (u, v) = (-1.0 + (i as f64 + 0.5) * 2.0 / n as f64, -1.0 + (k as f64 + 0.5) * 2.0 / n as f64);
+                if u.abs() + v.abs() < 1.0 {
+                    let da = (2.0 / n as f64).powi(2);
+                    minus += q2(u, v).powf(-1.5) * da;
+                    plus += q2(u, v).powf(1.5) * da;
+                }
+            }
+        }
+        assert!((minus - TAU).abs() < 0.01, "−1.5 gives {minus}");
+        assert!((plus - TAU).abs() > 1.0, "+1.5 gives {plus}");
+    }
+
+    /// On the octahedral isoline `x = u` (the loop `|y| + |z| = 1 − |u|`), walking from the
+    /// `+z` vertex (`v = 0`) misses visible parts exactly when that vertex is not the loop's
+    /// most visible point: brute force over random normals with `n_z > 0` finds misses only
+    /// when `|n_y| > |n_z|`, and finds some there.
+    #[test]
+    fn octahedral_axis_swap_condition_is_reversed_in_the_seed() {
+        let mut r = rng(11);
+        let (mut misses_yz, mut misses_zy, mut tried_yz) = (0, 0, 0);
+        for _ in 0..600 {
+            let n = DVec3::new(r() * 2.0 - 1.0, r() * 2.0 - 1.0, r()).normalize();
+            if n.y.abs() > n.z {
+                tried_yz += 1;
+            }
+            let mut missed = false;
+            for j in 0..20 {
+                let u = -0.95 + 1.9 * j as f64 / 19.0;
+                let c = 1.0 - u.abs();
+                let start = DVec3::new(u, 0.0, c);
+                let start_visible = n.dot(start) > 0.0;
+                // Any visible point on the loop?
+                let any = (0..400).any(|s| {
+                    let t = s as f64 / 400.0 * 4.0; // perimeter parameter
+                    let (y, z) = match t as u32 {
+                        0 => (c * t, c * (1.0 - t)),
+                        1 => (c * (2.0 - t), -c * (t - 1.0)),
+                        2 => (-c * (t - 2.0), -c * (3.0 - t)),
+                        _ => (-c * (4.0 - t), c * (t - 3.0)),
+                    };
+                    n.dot(DVec3::new(u, y, z)) > 0.0
+                });
+                missed |= any && !start_visible;
+            }
+            if missed {
+                if n.y.abs() > n.z {
+                    misses_yz += 1;
+                } else {
+                    misses_zy += 1;
+                }
+            }
+        }
+        assert_eq!(misses_zy, 0, "a miss with |n_y| ≤ |n_z|");
+        assert!(misses_yz > tried_yz / 2, "{misses_yz} misses of {tried_yz} normals with |n_y| > |n_z|");
+    }
+
+    #[test]
+    fn moments_integrate_the_hemisphere() {
+        // ∫_{v>0} ω dω = π·pole.
+        let f = PoleFrame::new(2, 1.0);
+        let m = Meridians::new(32);
+        let total: DVec3 = (0..m.n).map(|i| moment(&f, &m, i, 0.0, 1.0) * m.dphi).sum();
+        assert!((total - DVec3::Z * PI).length() < 1e-12, "{total}");
+        let f = PoleFrame::for_normal(DVec3::new(0.1, -0.9, 0.3));
+        assert_eq!((f.axis, f.sign), (1, -1.0));
+    }
+
+    #[test]
+    fn keys_are_half_open() {
+        let m = Meridians::new(8);
+        let c = |i: usize| (i as f64 + 0.5) * m.dphi;
+        assert_eq!(m.key(0.0), 0);
+        assert_eq!(m.key(c(3)), 3);
+        assert_eq!(m.key(c(3) + 1e-9), 4);
+        assert_eq!(m.key(TAU), 8);
+        assert_eq!(azimuth(DVec3::new(1.0, -1e-300, 0.0)).map(|a| a < TAU), Some(true));
+    }
+}
