@@ -7,6 +7,7 @@ pub mod directlighting;
 pub mod ltc;
 pub mod path;
 pub mod ratio;
+pub mod silhouette;
 pub mod whitted;
 
 use penumbra_core::integrator::Integrator;
@@ -46,6 +47,11 @@ pub const REGISTRY: &[Entry] = &[
         name: "ratio",
         method: "analytic LTC shading × denoised stochastic shadow ratio S_N/U_N (Heitz, Hill & McGuire 2018)",
         create: ratio::RatioIntegrator::create,
+    },
+    Entry {
+        name: "silhouette",
+        method: "semi-analytic integration along visibility silhouettes: 4D dual-edge contours, depth complexity along meridians (seed 000)",
+        create: silhouette::Silhouette::create,
     },
     Entry {
         name: "ambientocclusion",

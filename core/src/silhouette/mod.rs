@@ -5,6 +5,7 @@
 //!   contour edges (exactly the brute-force set), culled behind the tangent plane;
 //! - [`param`]: the `(φ, cos θ)` sphere parameterisation (Jacobian 1, one shared start for
 //!   every isoline) used instead of the paper's octahedral map;
+//! - [`table`]: prefix sums of radiance-weighted moments along meridians (environment lighting);
 //! - [`traverse`]: per-meridian crossing buckets, the depth-complexity walk and the intervals
 //!   of minimal depth complexity;
 //! - [`orient`]: the orientation predicate everything is decided by.
@@ -12,10 +13,12 @@
 pub mod dual;
 pub mod orient;
 pub mod param;
+pub mod table;
 pub mod traverse;
 
 pub use dual::{Contour, Cull, DualEdges};
 pub use param::{Meridians, PoleFrame};
+pub use table::MomentTable;
 pub use traverse::{Interval, Traversal, Visibility};
 
 #[cfg(test)]

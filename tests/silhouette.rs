@@ -1,0 +1,160 @@
+//! `silhouette` (seed 000) end to end: closed forms (open hemisphere, spheres over a plane,
+//! inside a closed box), pbrt-v3's references of the AO and environment scenes, and
+//! determinism.
+
+mod common;
+use common::*;
+use std::f64::consts::PI;
+
+/// One pixel looking straight down at `(x, z)` on the plane y = 0 through a tiny window:
+/// the pixel is the value at that point.
+fn point_on_plane(x: f64, z: f64, world: &str, params: &[&str]) -> f64 {
+    let text = format!(
+        "LookAt {x} 5 {z}  {x} 0 {z}  0 0 1\nCamera \"orthographic\" \"float screenwindow\" [-1e-4 1e-4 -1e-4 1e-4]\n\
+         Film \"image\" \"integer xresolution\" [1] \"integer yresolution\" [1]\nSampler \"halton\" \"integer pixelsamples\" [1]\n\
+         WorldBegin\nMaterial \"matte\"\n{world}\
+         Shape \"trianglemesh\" \"integer indices\" [0 1 2 0 2 3] \"point P\" [-6 0 -6 -6 0 6 6 0 6 6 0 -6]\nWorldEnd\n"
+    );
+    let r =
+        render_text(&text, &Opts { integrator: Some("silhouette"), params, resolution: None, ..Default::default() });
+    r.image.data[0] as f64
+}
+
+#[test]
+fn open_plane_ao_is_pi() {
+    for (x, z) in [(0.0, 0.0), (1.3, -2.2), (5.9, 5.9)] {
+        let ao = point_on_plane(x, z, "", &["mode=ao", "resolution=16"]);
+        assert!((ao - PI).abs() < 1e-5, "at ({x}, {z}): {ao}");
+    }
+}
+
+/// The AO test's closed form (`tests/ao.rs`): at horizontal distance d from the foot of a
+/// sphere of radius r centred at height h, the cosine-weighted unoccluded fraction is
+/// 1 − r²h/(d²+h²)^{3/2}. Tolerance: the spheres' tessellation (relative error 1e-3 of the
+/// radius, ~2e-3 here) plus the azimuth discretisation at 128 meridians.
+#[test]
+fn spheres_over_plane_closed_form() {
+    let spheres = [([-1.0f64, 0.5, 0.0], 0.5f64), ([1.0, 0.8, 0.5], 0.4)];
+    let world = "AttributeBegin\nTranslate -1 0.5 0\nShape \"sphere\" \"float radius\" [0.5]\nAttributeEnd\n\
+                 AttributeBegin\nTranslate 1 0.8 0.5\nShape \"sphere\" \"float radius\" [0.4]\nAttributeEnd\n";
+    let mut worst = 0.0f64;
+    for p in [[-1.0f64, -1.0], [0.0, -0.2], [1.0, -0.5], [2.0, 0.5], [-1.0, 1.2], [1.6, 1.4]] {
+        let expected: f64 = 1.0
+            - spheres
+                .iter()
+                .map(|(c, r)| {
+                    let d2 = (c[0] - p[0]).powi(2) + (c[2] - p[1]).powi(2);
+                    r * r * c[1] / (d2 + c[1] * c[1]).powf(1.5)
+                })
+                .sum::<f64>();
+        let got = point_on_plane(p[0], p[1], world, &["mode=ao"]) / PI;
+        eprintln!("({}, {}): {got:.5} vs closed form {expected:.5}", p[0], p[1]);
+        worst = worst.max((got - expected).abs());
+    }
+    assert!(worst < 2e-3, "worst difference {worst}");
+}
+
+/// A closed box (welded cube, consistently wound) around the camera and the shading points:
+/// no edge is a contour from inside, the depth complexity is 1 everywhere, and only the
+/// start ray can tell: every pixel is 0 (the paper's "shift the minimum to 0" would report
+/// open sky). With one face removed the same points see light.
+#[test]
+fn inside_a_closed_box_is_black() {
+    let cube = |faces: &str| {
+        format!(
+            "LookAt 0 0.5 0  0 -1 0.3  0 1 0\nCamera \"perspective\" \"float fov\" [60]\n\
+             Film \"image\" \"integer xresolution\" [8] \"integer yresolution\" [8]\nSampler \"halton\" \"integer pixelsamples\" [1]\n\
+             WorldBegin\nLightSource \"infinite\" \"rgb L\" [1 1 1]\nMaterial \"matte\" \"rgb Kd\" [0.5 0.5 0.5]\n\
+             Shape \"trianglemesh\" \"point P\" [-1 -1 -1  1 -1 -1  1 1 -1  -1 1 -1  -1 -1 1  1 -1 1  1 1 1  -1 1 1]\n\
+             \"integer indices\" [{faces}]\nWorldEnd\n"
+        )
+    };
+    let all = "0 2 1 0 3 2  4 5 6 4 6 7  0 1 5 0 5 4  3 7 6 3 6 2  0 4 7 0 7 3  1 2 6 1 6 5";
+    let open_top = "0 2 1 0 3 2  4 5 6 4 6 7  0 1 5 0 5 4  0 4 7 0 7 3  1 2 6 1 6 5";
+    for mode in ["mode=ao", "mode=shade"] {
+        let opts = Opts { integrator: Some("silhouette"), params: &[mode], resolution: None, ..Default::default() };
+        let closed = render_text(&cube(all), &opts);
+        assert!(closed.image.data.iter().all(|v| *v == 0.0), "{mode}: closed box not black");
+        let open = render_text(&cube(open_top), &opts);
+        assert!(open.image.data.iter().all(|v| *v > 0.0), "{mode}: open box has black pixels");
+    }
+}
+
+/// pbrt-v3's `ambientocclusion` references (64×64, box-downsampled from 256×256 at 4096 spp):
+/// the image mean within 0.5 % and every 8×8 region within 5σ of the camera-sample noise
+/// (+0.5 %).
+#[test]
+fn ao_matches_pbrt_v3_references() {
+    for name in ["spheres-on-plane", "blinds"] {
+        let ours = render_path(
+            &scene(&format!("suite/ao/{name}.pbrt")),
+            &Opts { integrator: Some("silhouette"), params: &["mode=ao"], spp: Some(16), ..Default::default() },
+        );
+        let reference = reference(&format!("ao/{name}.ambientocclusion.exr"));
+        let (mo, mr) = (mean(&ours.image), mean(&reference));
+        eprintln!("{name}: mean {mo:.5} vs pbrt-v3 {mr:.5} ({:+.3} %)", (mo / mr - 1.0) * 100.0);
+        assert!((mo / mr - 1.0).abs() < 0.005, "{name}: mean {mo} vs {mr}");
+        assert_regions_match(name, &ours, &reference, 16.0 / (16.0 * 4096.0), 8);
+    }
+}
+
+/// `shade` (the default: the AO scenes have a white sky) against pbrt-v3's `directlighting`
+/// of the same scenes, which is 0.5 × cosine-weighted AO; and the studio scene, whose
+/// Lambertian objects are shaded through the vector irradiance (its plastic one by the
+/// estimator fallback).
+#[test]
+fn shade_matches_pbrt_v3_directlighting() {
+    for name in ["ao/spheres-on-plane", "ao/blinds", "env/objects-studio"] {
+        let ours = render_path(
+            &scene(&format!("suite/{name}.pbrt")),
+            &Opts { integrator: Some("silhouette"), spp: Some(16), ..Default::default() },
+        );
+        let reference = reference(&format!("{name}.exr"));
+        let (mo, mr) = (mean(&ours.image), mean(&reference));
+        eprintln!("{name}: mean {mo:.5} vs pbrt-v3 {mr:.5} ({:+.3} %)", (mo / mr - 1.0) * 100.0);
+        assert!((mo / mr - 1.0).abs() < 0.01, "{name}: mean {mo} vs {mr}");
+        assert_regions_match(name, &ours, &reference, 16.0 / (16.0 * 1024.0), 8);
+    }
+}
+
+/// Same seed → bit-identical images with 1 or 2 threads and from assembled crops.
+#[test]
+fn deterministic_across_threads_and_crops() {
+    let path = scene("suite/env/objects-studio.pbrt");
+    let opts = |threads, crop| Opts {
+        integrator: Some("silhouette"),
+        params: &["resolution=48"],
+        spp: Some(2),
+        resolution: Some((40, 32)),
+        threads,
+        seed: 3,
+        crop,
+        sampler: None,
+    };
+    assert_deterministic(40, 32, |threads, crop| render_path(&path, &opts(threads, crop)));
+}
+
+/// Every stiff scene renders finite values (no NaN/Inf, none replaced by the driver) in both
+/// modes (`tests/conformance.rs` checks the default mode, and scale invariance).
+#[test]
+fn stiff_scenes_are_finite_in_both_modes() {
+    let dir = root().join("scenes/suite/stiff");
+    let mut names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
+    names.sort();
+    for path in names.iter().filter(|p| p.extension().is_some_and(|e| e == "pbrt")) {
+        for mode in ["mode=ao", "mode=shade"] {
+            let r = render_path(
+                path,
+                &Opts {
+                    integrator: Some("silhouette"),
+                    params: &[mode, "resolution=32"],
+                    spp: Some(1),
+                    resolution: Some((24, 24)),
+                    ..Default::default()
+                },
+            );
+            assert!(r.image.data.iter().all(|v| v.is_finite()), "{path:?} {mode}: non-finite values");
+            assert!(!r.warnings.iter().any(|w| w.contains("NaN")), "{path:?} {mode}: {:?}", r.warnings);
+        }
+    }
+}
