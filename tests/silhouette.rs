@@ -158,3 +158,58 @@ fn stiff_scenes_are_finite_in_both_modes() {
         }
     }
 }
+
+/// `prt`: relit by `penumbra relight` under the scene's own (constant white) sky, the transfer
+/// gives `shade`'s image (albedo/π · ∫ V cos: the constant sky's SH projection is exact) to
+/// float rounding; `sh.0` is `Y_0^0` times the AO value but for the shading normal (within
+/// 1 % on the image mean: the spheres' interpolated normals).
+#[test]
+fn prt_transfer_relights_to_shade() {
+    let dir = std::env::temp_dir().join(format!("penumbra-silhouette-prt-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bin = env!("CARGO_BIN_EXE_penumbra");
+    let scene_path = scene("suite/ao/spheres-on-plane.pbrt");
+    let run = |args: &[&str]| {
+        let out = std::process::Command::new(bin).args(args).output().unwrap();
+        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    };
+    let (prt, relit, shade, ao) =
+        (dir.join("prt.exr"), dir.join("relit.exr"), dir.join("shade.exr"), dir.join("ao.exr"));
+    let common = ["--resolution", "32x32", "--spp", "4", "-q", "-i", "silhouette", "--param", "resolution=64"];
+    let s = scene_path.to_str().unwrap();
+    for (mode, out) in [("mode=prt", &prt), ("mode=shade", &shade), ("mode=ao", &ao)] {
+        let mut args = vec!["render", s];
+        args.extend(common);
+        args.extend(["--param", mode, "-o", out.to_str().unwrap()]);
+        run(&args);
+    }
+    run(&["relight", prt.to_str().unwrap(), "--scene", s, "-o", relit.to_str().unwrap(), "-q"]);
+    let read = |p: &std::path::Path| penumbra_core::image::read(p).unwrap();
+    let (prt_img, relit, shade, ao) = (read(&prt), read(&relit), read(&shade), read(&ao));
+    let nc = prt_img.channels.len();
+    let sh0 = prt_img.channels.iter().position(|c| c == "sh.0").expect("sh.0");
+    assert!(prt_img.channels.iter().any(|c| c == "sh.8") && prt_img.channels.iter().any(|c| c == "albedo.G"));
+    let albedo = prt_img.channels.iter().position(|c| c == "albedo.G").unwrap();
+    let y00 = 0.5 / PI.sqrt();
+    let (mut sum_sh0, mut sum_ao, mut worst_relit, mut geometry) = (0.0f64, 0.0f64, 0.0f64, 0);
+    for px in 0..(32 * 32) {
+        sum_ao += ao.data[px * ao.channels.len()] as f64 * y00;
+        sum_sh0 += prt_img.data[px * nc + sh0] as f64;
+        // Pixels wholly on geometry (albedo 0.5 in every sample): `shade` also shows the sky.
+        if prt_img.data[px * nc + albedo] != 0.5 {
+            continue;
+        }
+        geometry += 1;
+        for c in 0..3 {
+            let (r, d) =
+                (relit.data[px * relit.channels.len() + c] as f64, shade.data[px * shade.channels.len() + c] as f64);
+            worst_relit = worst_relit.max((r - d).abs());
+        }
+    }
+    let rel = sum_sh0 / sum_ao - 1.0;
+    eprintln!("mean sh.0 / (AO·Y00) − 1 = {rel:e}, |relit − shade| ≤ {worst_relit:e} over {geometry} pixels");
+    assert!(rel.abs() < 0.01, "sh.0 vs AO: {rel}");
+    assert!(geometry > 500, "{geometry} geometry pixels");
+    assert!(worst_relit < 1e-4, "relit vs shade: {worst_relit}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -129,7 +129,7 @@ impl PixelEstimator for Estimator<'_> {
 }
 
 /// The diffuse reflectance at `si` (0 where the material has none, or none was built).
-fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Rgb {
+pub(crate) fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Rgb {
     let Some((material, _, textures)) = scene.material_of(si) else { return Rgb::ZERO };
     match material {
         Material::Matte { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),

@@ -13,6 +13,10 @@
 //! the radiance, in prefix-sum tables along the meridians).
 //!
 //! Modes (`"string mode"`):
+//! - `prt`: the `ao` image plus SH transfer channels (`core::sh`'s convention, order
+//!   `"integer shorder"`, 3): `∫_{V·H} max(0, n_s·ω) Y_i(ω) dω` over the same visible
+//!   intervals (Gauss–Legendre in θ along each), `n_s` the face-forwarded shading normal, and
+//!   `albedo.*`; `penumbra relight` of them under the scene's sky reproduces `shade`.
 //! - `ao` (default without an infinite light): pbrt-v3's `ambientocclusion` value, the
 //!   integral of `V·cos θ` over the hemisphere of the face-forwarded geometric normal
 //!   (π for an open hemisphere), from the analytic moment `∫ ω dω` of the visible intervals.
@@ -38,7 +42,10 @@ use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
-use penumbra_core::silhouette::{param::moment, Contour, DualEdges, Meridians, MomentTable, PoleFrame, Traversal};
+use penumbra_core::sh::{basis, quadrature::gauss_legendre, transfer::TransferChannels, ShOrder, MAX_ORDER};
+use penumbra_core::silhouette::{
+    param::moment, Contour, DualEdges, Interval, Meridians, MomentTable, PoleFrame, Traversal,
+};
 use penumbra_core::{Rgb, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use std::cell::RefCell;
@@ -48,6 +55,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub enum Mode {
     Ao,
     Shade,
+    Prt,
 }
 
 /// The tangent-plane cull's tolerance: edges below an elevation of ~1e-6 rad are dropped
@@ -60,6 +68,8 @@ pub struct Silhouette {
     /// `"integer resolution"` (√k): meridians, and table cells per meridian.
     pub resolution: usize,
     pub max_depth: u32,
+    /// `"integer shorder"` (3): the order of the `prt` transfer channels.
+    pub sh_order: ShOrder,
 }
 
 impl Silhouette {
@@ -68,13 +78,17 @@ impl Silhouette {
             "" => None,
             "ao" => Some(Mode::Ao),
             "shade" => Some(Mode::Shade),
+            "prt" => Some(Mode::Prt),
             other => {
                 return Err(Diagnostic::error(
                     params.loc_of("mode").cloned(),
-                    format!("silhouette: unknown \"mode\" \"{other}\" (expected \"ao\" or \"shade\")"),
+                    format!("silhouette: unknown \"mode\" \"{other}\" (expected \"ao\", \"shade\" or \"prt\")"),
                 ))
             }
         };
+        let order = params.get_one_int("shorder", 3);
+        let sh_order = ShOrder::new(order.max(0) as usize)
+            .map_err(|e| Diagnostic::error(params.loc_of("shorder").cloned(), format!("\"shorder\": {e}")))?;
         let resolution = params.get_one_int("resolution", 128);
         if !(4..=4096).contains(&resolution) {
             return Err(Diagnostic::error(
@@ -83,7 +97,7 @@ impl Silhouette {
             ));
         }
         let max_depth = max_depth_param(params, 1024)?;
-        Ok(Box::new(Silhouette { mode, resolution: resolution as usize, max_depth }))
+        Ok(Box::new(Silhouette { mode, resolution: resolution as usize, max_depth, sh_order }))
     }
 }
 
@@ -113,31 +127,32 @@ struct Estimator<'a> {
     meridians: Meridians,
     /// The infinite lights' radiance moments (`shade`).
     table: Option<MomentTable>,
+    /// `prt`: the transfer order and Gauss–Legendre nodes in θ per interval.
+    sh: Option<(ShOrder, Vec<f64>, Vec<f64>)>,
     counters: Counters,
 }
 
-/// What the visible part of a point's hemisphere integrates to.
-enum Visible {
-    /// `∫_{V·H} ω dω` (world axes).
-    Moment(glam::DVec3),
-    /// `∫_{V·H} L ω dω` per colour.
-    Radiance([glam::DVec3; 3]),
-}
-
 impl Estimator<'_> {
-    /// Integrates over the visible part of the hemisphere of `n` (unit, world) at `si`.
-    fn visible(&self, scene: &Scene, si: &SurfaceInteraction, n: Vec3, stats: &mut ThreadStats) -> Visible {
+    /// Calls `f` with every visible interval of the hemisphere of `n` (unit, world) at `si`
+    /// (none when the point sees nothing).
+    fn visible(
+        &self,
+        scene: &Scene,
+        si: &SurfaceInteraction,
+        n: Vec3,
+        stats: &mut ThreadStats,
+        mut f: impl FnMut(&PoleFrame, &Interval),
+    ) {
         let dual = self.dual;
         // Offset off the surface by its error bound, as rays are: the surface itself and its
         // coplanar neighbours are then strictly behind the tangent plane, never contours.
         let p = dual.normalise(offset_ray_origin(si.p, si.p_error, n, n));
         let nd = n.as_dvec3().normalize();
         let frame = PoleFrame::for_normal(nd);
-        let m = &self.meridians;
         SCRATCH.with_borrow_mut(|s| {
             s.contours.clear();
             dual.contours(p, nd, CULL_TOL, &mut s.contours);
-            let vis = s.traversal.run(&s.contours, p, nd, &frame, m);
+            let vis = s.traversal.run(&s.contours, p, nd, &frame, &self.meridians);
             self.counters.points.fetch_add(1, Ordering::Relaxed);
             self.counters.contours.fetch_add(s.contours.len() as u64, Ordering::Relaxed);
             self.counters.crossings.fetch_add(vis.crossings as u64, Ordering::Relaxed);
@@ -145,49 +160,65 @@ impl Estimator<'_> {
             // longest of them escapes (inside a closed box no edge is a contour, W is 1
             // everywhere, and only the ray tells).
             stats.shadow_rays += 1;
-            let occluded = scene.occluded(&si.spawn_ray(vis.probe.as_vec3()));
-            if occluded {
+            if scene.occluded(&si.spawn_ray(vis.probe.as_vec3())) {
                 self.counters.occluded_points.fetch_add(1, Ordering::Relaxed);
+                return;
             }
-            let min_w = vis.min_w;
-            match &self.table {
-                Some(t) => {
-                    let mut out = [glam::DVec3::ZERO; 3];
-                    if !occluded {
-                        for iv in s.traversal.with_w(min_w) {
-                            t.add(&frame, m, iv.meridian as usize, iv.lo, iv.hi, &mut out);
-                        }
-                    }
-                    Visible::Radiance(out.map(|v| v * m.dphi))
-                }
-                None => {
-                    let mut out = glam::DVec3::ZERO;
-                    if !occluded {
-                        for iv in s.traversal.with_w(min_w) {
-                            out += moment(&frame, m, iv.meridian as usize, iv.lo, iv.hi);
-                        }
-                    }
-                    Visible::Moment(out * m.dphi)
-                }
+            for iv in s.traversal.with_w(vis.min_w) {
+                f(&frame, iv);
             }
         })
     }
 
-    fn ao(&self, ray: &Ray, scene: &Scene, stats: &mut ThreadStats) -> Rgb {
+    /// The first surface with a material along `ray` (pbrt-v3's AO passes through the others).
+    fn first_surface(scene: &Scene, ray: &Ray, stats: &mut ThreadStats) -> Option<SurfaceInteraction> {
         let mut ray = *ray;
         for _ in 0..64 {
-            let Some(hit) = scene.intersect(&ray) else { return Rgb::ZERO };
+            let hit = scene.intersect(&ray)?;
             let si = scene.interaction(&ray, &hit);
-            if scene.objects[hit.mesh as usize].material.is_none() {
-                ray = si.spawn_ray(ray.d);
-                stats.rays += 1;
-                continue;
+            if scene.objects[hit.mesh as usize].material.is_some() {
+                return Some(si);
             }
-            let n = face_forward(si.n, -ray.d);
-            let Visible::Moment(v) = self.visible(scene, &si, n, stats) else { return Rgb::ZERO };
-            return Rgb::splat(n.as_dvec3().dot(v).max(0.0) as f32);
+            ray = si.spawn_ray(ray.d);
+            stats.rays += 1;
         }
-        Rgb::ZERO
+        None
+    }
+
+    fn ao(&self, ray: &Ray, scene: &Scene, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+        let Some(si) = Self::first_surface(scene, ray, stats) else { return Rgb::ZERO };
+        let n = face_forward(si.n, -ray.d);
+        let (nd, m) = (n.as_dvec3(), &self.meridians);
+        let mut sum = glam::DVec3::ZERO;
+        let k = self.sh.as_ref().map_or(0, |s| s.0.coeffs());
+        // The transfer's cosine is the shading normal's (bumped; face-forwarded), as `shade`
+        // and pbrt-v3's BSDFs use it, so that relighting reproduces `shade`.
+        let ns = match (&self.sh, scene.material_of(&si)) {
+            (Some(_), Some((material, _, textures))) => material.ltc_lobes(&si, textures).map_or(si.shading.z, |d| d.n),
+            _ => si.shading.z,
+        };
+        let ns = face_forward(ns, n).as_dvec3();
+        let (mut transfer, mut y) = ([0.0f64; MAX_ORDER * MAX_ORDER], [0.0f64; MAX_ORDER * MAX_ORDER]);
+        self.visible(scene, &si, n, stats, |frame, iv| {
+            let i = iv.meridian as usize;
+            sum += moment(frame, m, i, iv.lo, iv.hi);
+            if let Some((order, x, w)) = &self.sh {
+                // ∫ Y(ω) n·ω dv = ∫ Y n·ω sin θ dθ, Gauss–Legendre in θ.
+                let (t0, t1) = (iv.hi.clamp(-1.0, 1.0).acos(), iv.lo.clamp(-1.0, 1.0).acos());
+                let (mid, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0));
+                for (xj, wj) in x.iter().zip(w) {
+                    let t = mid + half * xj;
+                    let d = frame.direction(m.cos[i], m.sin[i], t.cos());
+                    basis::eval(*order, d, &mut y[..k]);
+                    let weight = wj * half * t.sin() * ns.dot(d).max(0.0) * m.dphi;
+                    transfer[..k].iter_mut().zip(&y[..k]).for_each(|(tr, yi)| *tr += weight * yi);
+                }
+            }
+        });
+        if let Some((order, ..)) = &self.sh {
+            TransferChannels::new(*order, 0).write(aov, &transfer[..k], crate::ao::diffuse_albedo(scene, &si));
+        }
+        Rgb::splat((nd.dot(sum) * m.dphi).max(0.0) as f32)
     }
 
     fn shade(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
@@ -214,14 +245,17 @@ impl Estimator<'_> {
             let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
             l += estimate_direct(si, bsdf, u_scatter, k, light, u_light, scene, stats);
         }
-        if let Some(d) = lambertian {
+        if let (Some(d), Some(table)) = (lambertian, &self.table) {
             let ng = face_forward(si.n, si.wo);
-            if let Visible::Radiance(v) = self.visible(scene, si, ng, stats) {
-                // pbrt-v3's |cos| with the shading normal: on the visible side.
-                let ns = face_forward(d.n, ng).as_dvec3();
-                let e = Rgb::new(ns.dot(v[0]) as f32, ns.dot(v[1]) as f32, ns.dot(v[2]) as f32);
-                l += d.diffuse * e.max(Rgb::ZERO) * std::f32::consts::FRAC_1_PI;
-            }
+            let mut v = [glam::DVec3::ZERO; 3];
+            let m = &self.meridians;
+            self.visible(scene, si, ng, stats, |frame, iv| {
+                table.add(frame, m, iv.meridian as usize, iv.lo, iv.hi, &mut v)
+            });
+            // pbrt-v3's |cos| with the shading normal: on the visible side.
+            let ns = face_forward(d.n, ng).as_dvec3() * m.dphi;
+            let e = Rgb::new(ns.dot(v[0]) as f32, ns.dot(v[1]) as f32, ns.dot(v[2]) as f32);
+            l += d.diffuse * e.max(Rgb::ZERO) * std::f32::consts::FRAC_1_PI;
         }
         if depth + 1 < self.max_depth {
             for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
@@ -235,16 +269,9 @@ impl Estimator<'_> {
 }
 
 impl PixelEstimator for Estimator<'_> {
-    fn li(
-        &self,
-        ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
         match self.mode {
-            Mode::Ao => self.ao(ray, scene, stats),
+            Mode::Ao | Mode::Prt => self.ao(ray, scene, stats, aov),
             Mode::Shade => self.shade(ray, scene, sampler, stats, 0),
         }
     }
@@ -256,6 +283,12 @@ impl Integrator for Silhouette {
     }
     fn requirements(&self) -> Requirements {
         Requirements { accel: true, lights: true, materials: true, dual_edges: true, ..Default::default() }
+    }
+    fn extra_channels(&self) -> Vec<String> {
+        match self.mode {
+            Some(Mode::Prt) => TransferChannels::new(self.sh_order, 0).names(),
+            _ => Vec::new(),
+        }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         let dual = scene
@@ -272,7 +305,15 @@ impl Integrator for Silhouette {
                 [l.x as f64, l.y as f64, l.z as f64]
             })
         });
-        let est = Estimator { mode, max_depth: self.max_depth, dual, meridians, table, counters: Counters::default() };
+        let sh = (mode == Mode::Prt).then(|| {
+            // Per interval the integrand is a trigonometric polynomial of degree ≤ order + 1 in
+            // θ (the clamp is inactive in the visible hemisphere); 2n + 6 Gauss nodes leave
+            // ~1e-12 over a quarter meridian at order 3.
+            let (x, w) = gauss_legendre(2 * self.sh_order.n() + 6);
+            (self.sh_order, x, w)
+        });
+        let est =
+            Estimator { mode, max_depth: self.max_depth, dual, meridians, table, sh, counters: Counters::default() };
         let mut stats = render_pixels(&est, scene, ctx, film)?;
         let c = &est.counters;
         let get = |a: &AtomicU64| a.load(Ordering::Relaxed) as f64;
