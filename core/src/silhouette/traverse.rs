@@ -42,12 +42,21 @@ pub struct Visibility {
     pub crossings: usize,
     /// Arcs after clipping.
     pub arcs: usize,
+    /// Meridian pairs whose depth complexities at the horizon disagree with the arcs that
+    /// meet the horizon between them (a missed or spurious crossing); 0 when consistent.
+    pub mismatches: usize,
 }
 
 /// Per-thread buffers of a traversal.
 #[derive(Clone, Debug, Default)]
 pub struct Traversal {
     buckets: Vec<Vec<(f64, i32)>>,
+    /// Arcs ending on the horizon: (meridian key of the end's azimuth, ΔW walking the horizon
+    /// towards increasing azimuth).
+    horizon: Vec<(i64, i32)>,
+    /// Relative W at each meridian's horizon end, and the expected steps between them.
+    end_w: Vec<i32>,
+    steps: Vec<i32>,
     pub intervals: Vec<Interval>,
 }
 
@@ -60,12 +69,11 @@ impl Traversal {
         }
         self.buckets.iter_mut().for_each(Vec::clear);
         self.intervals.clear();
+        self.horizon.clear();
+        self.end_w.clear();
         let (mut crossings, mut arcs) = (0, 0);
         for c in contours {
             let dw = c.delta_w(p, frame.pole);
-            if dw == 0 {
-                continue;
-            }
             let (mut da, mut db) = (c.a - p, c.b - p);
             let (ha, hb) = (n.dot(da), n.dot(db));
             if ha <= 0.0 && hb <= 0.0 {
@@ -79,6 +87,19 @@ impl Traversal {
             }
             let (la, lb) = (frame.local(da), frame.local(db));
             let (Some(pa), Some(pb)) = (azimuth(la), azimuth(lb)) else { continue };
+            // An end on the horizon: walking the horizon (just above it) past that end crosses
+            // the arc; the tangent there towards increasing azimuth is n × q.
+            for (h, q, phi) in [(ha, da, pa), (hb, db, pb)] {
+                if h <= 0.0 {
+                    let t = n.cross(q);
+                    let t = if frame.local(t).cross(frame.local(q)).z > 0.0 { -t } else { t };
+                    self.horizon.push((m.key(phi), c.delta_w(p, -t)));
+                }
+            }
+            // An arc in a meridian plane (its great circle through the pole) crosses no meridian.
+            if dw == 0 {
+                continue;
+            }
             // The arc spans the shorter azimuth range between its ends (it does not contain
             // the pole axis, or `delta_w` would be 0).
             let mut d = pb - pa;
@@ -140,7 +161,16 @@ impl Traversal {
                 top = v;
             }
             push(vh, top, w, &mut self.intervals);
+            self.end_w.push(w);
         }
+        // Around the horizon: W at consecutive meridian ends differs by the ΔW of the arcs
+        // ending between them (key k: between meridians k − 1 and k).
+        self.steps.clear();
+        self.steps.resize(m.n, 0);
+        for &(key, dw) in &self.horizon {
+            self.steps[key.rem_euclid(m.n as i64) as usize] += dw;
+        }
+        let mismatches = (0..m.n).filter(|&k| self.end_w[k] - self.end_w[(k + m.n - 1) % m.n] != self.steps[k]).count();
         let (min_w, _, mi, v) = best;
         let (ci, si) = (m.cos[mi as usize], m.sin[mi as usize]);
         Visibility {
@@ -148,6 +178,7 @@ impl Traversal {
             probe: frame.direction(ci, si, v),
             crossings,
             arcs,
+            mismatches,
         }
     }
 
@@ -286,7 +317,7 @@ mod tests {
         let mut t = Traversal::default();
         let m = Meridians::new(48);
         let mut contours = Vec::new();
-        let mut checked = 0;
+        let (mut checked, mut mismatched) = (0, 0);
         for _ in 0..60 {
             let p =
                 dual.normalise(Vec3::new((r() * 2.4 - 1.2) as f32, (r() * 2.4 - 1.2) as f32, (r() * 2.0 - 0.3) as f32));
@@ -294,7 +325,8 @@ mod tests {
             contours.clear();
             dual.contours(p, n, 1e-9, &mut contours);
             let frame = PoleFrame::for_normal(n);
-            t.run(&contours, p, n, &frame, &m);
+            let vis = t.run(&contours, p, n, &frame, &m);
+            mismatched += (vis.mismatches > 0) as usize;
             let w_pole = hit_count(&meshes, &dual, p, frame.pole);
             for iv in t.intervals.iter().step_by(7) {
                 if iv.hi - iv.lo < 1e-3 {
@@ -310,6 +342,64 @@ mod tests {
             }
         }
         assert!(checked > 500, "only {checked} intervals checked");
+        assert_eq!(mismatched, 0, "points whose horizon check failed");
+    }
+
+    /// Dropping one contour whose arc ends on the horizon (a missed crossing) is caught by the
+    /// horizon check at nearly every point.
+    #[test]
+    fn horizon_check_catches_a_missing_contour() {
+        let meshes = scene();
+        let dual = DualEdges::build(&meshes, &vec![true; meshes.len()]);
+        let mut r = rng(4);
+        let m = Meridians::new(48);
+        let mut t = Traversal::default();
+        let (mut tried, mut caught) = (0, 0);
+        for _ in 0..80 {
+            let p =
+                dual.normalise(Vec3::new((r() * 2.4 - 1.2) as f32, (r() * 2.4 - 1.2) as f32, (r() * 2.0 - 0.3) as f32));
+            let n = DVec3::new(r() * 2.0 - 1.0, r() * 2.0 - 1.0, r() * 2.0 - 1.0).normalize();
+            let mut contours = Vec::new();
+            dual.contours(p, n, 1e-9, &mut contours);
+            let frame = PoleFrame::for_normal(n);
+            // A contour with one end behind the plane and one well in front.
+            let Some(k) = contours.iter().position(|c| {
+                let (ha, hb) = (n.dot(c.a - p), n.dot(c.b - p));
+                ha.min(hb) < -0.05 && ha.max(hb) > 0.05
+            }) else {
+                continue;
+            };
+            contours.remove(k);
+            tried += 1;
+            caught += (t.run(&contours, p, n, &frame, &m).mismatches > 0) as usize;
+        }
+        assert!(tried > 20 && caught * 10 >= tried * 9, "caught {caught} of {tried}");
+    }
+
+    /// A vertical quad through the horizon: two arcs end on it, and the meridian ends inside
+    /// the quad's azimuth range have W = 1.
+    #[test]
+    fn horizon_check_on_a_quad_through_the_tangent_plane() {
+        let meshes = vec![quad([
+            Vec3::new(1.0, -0.5, -0.5),
+            Vec3::new(1.0, 0.5, -0.5),
+            Vec3::new(1.0, 0.5, 0.5),
+            Vec3::new(1.0, -0.5, 0.5),
+        ])];
+        let dual = DualEdges::build(&meshes, &[true]);
+        let p = dual.normalise(Vec3::new(0.0, 0.1, 0.0));
+        let mut contours = Vec::new();
+        let m = Meridians::new(16);
+        let mut t = Traversal::default();
+        for n in [DVec3::Z, DVec3::new(-0.3, 0.2, 1.0).normalize()] {
+            contours.clear();
+            dual.contours(p, n, 1e-9, &mut contours);
+            let frame = PoleFrame::for_normal(n);
+            let vis = t.run(&contours, p, n, &frame, &m);
+            assert_eq!(vis.mismatches, 0, "{vis:?} {:?} {:?}", t.end_w, t.horizon);
+            assert_eq!(t.horizon.len(), 2, "two arcs end on the horizon");
+            assert!(t.end_w.iter().any(|w| *w != t.end_w[0]), "the quad covers some meridian ends");
+        }
     }
 
     /// With nothing in front, the visible intervals integrate `n·ω` to π (exact in `v`, the

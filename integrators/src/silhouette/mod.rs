@@ -34,19 +34,20 @@ use crate::common::direct::{estimate_direct, specular};
 use crate::common::max_depth_param;
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{face_forward, offset_ray_origin, Ray};
+use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray};
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
+use penumbra_core::sampling::uniform_sample_hemisphere;
 use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
 use penumbra_core::sh::{basis, quadrature::gauss_legendre, transfer::TransferChannels, ShOrder, MAX_ORDER};
 use penumbra_core::silhouette::{
     param::moment, Contour, DualEdges, Interval, Meridians, MomentTable, PoleFrame, Traversal,
 };
-use penumbra_core::{Rgb, Vec3};
+use penumbra_core::{Rgb, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -118,6 +119,17 @@ struct Counters {
     crossings: AtomicU64,
     occluded_points: AtomicU64,
     estimator_fallbacks: AtomicU64,
+    fallbacks: AtomicU64,
+}
+
+/// Rays per side of the stratified grid of the Monte Carlo fallback.
+const FALLBACK_RAYS: usize = 16;
+
+/// A piece of the visible hemisphere: an interval of a meridian, or (Monte Carlo fallback) an
+/// unoccluded direction and its solid angle.
+enum Piece<'a> {
+    Interval(&'a PoleFrame, &'a Interval),
+    Ray(glam::DVec3, f64),
 }
 
 struct Estimator<'a> {
@@ -134,14 +146,17 @@ struct Estimator<'a> {
 
 impl Estimator<'_> {
     /// Calls `f` with every visible interval of the hemisphere of `n` (unit, world) at `si`
-    /// (none when the point sees nothing).
+    /// (none when the point sees nothing). When the traversal's horizon check finds a missed
+    /// crossing, calls `g` instead with the unoccluded directions of a stratified
+    /// `FALLBACK_RAYS`² uniform sampling of the hemisphere and their solid angle (counted as
+    /// `silhouette.fallbacks`).
     fn visible(
         &self,
         scene: &Scene,
         si: &SurfaceInteraction,
         n: Vec3,
         stats: &mut ThreadStats,
-        mut f: impl FnMut(&PoleFrame, &Interval),
+        mut f: impl FnMut(Piece),
     ) {
         let dual = self.dual;
         // Offset off the surface by its error bound, as rays are: the surface itself and its
@@ -156,6 +171,23 @@ impl Estimator<'_> {
             self.counters.points.fetch_add(1, Ordering::Relaxed);
             self.counters.contours.fetch_add(s.contours.len() as u64, Ordering::Relaxed);
             self.counters.crossings.fetch_add(vis.crossings as u64, Ordering::Relaxed);
+            if vis.mismatches > 0 {
+                self.counters.fallbacks.fetch_add(1, Ordering::Relaxed);
+                let frame = Frame::from_z(n);
+                let k = FALLBACK_RAYS;
+                let w = std::f64::consts::TAU / (k * k) as f64;
+                for a in 0..k {
+                    for b in 0..k {
+                        let u = Vec2::new((a as f32 + 0.5) / k as f32, (b as f32 + 0.5) / k as f32);
+                        let d = frame.from_local(uniform_sample_hemisphere(u));
+                        stats.shadow_rays += 1;
+                        if !scene.occluded(&si.spawn_ray(d)) {
+                            f(Piece::Ray(d.as_dvec3(), w));
+                        }
+                    }
+                }
+                return;
+            }
             // The intervals of minimal relative W are the visible ones iff one ray through the
             // longest of them escapes (inside a closed box no edge is a contour, W is 1
             // everywhere, and only the ray tells).
@@ -165,7 +197,7 @@ impl Estimator<'_> {
                 return;
             }
             for iv in s.traversal.with_w(vis.min_w) {
-                f(&frame, iv);
+                f(Piece::Interval(&frame, iv));
             }
         })
     }
@@ -189,7 +221,7 @@ impl Estimator<'_> {
         let Some(si) = Self::first_surface(scene, ray, stats) else { return Rgb::ZERO };
         let n = face_forward(si.n, -ray.d);
         let (nd, m) = (n.as_dvec3(), &self.meridians);
-        let mut sum = glam::DVec3::ZERO;
+        let (mut sum, mut sum_mc) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
         let k = self.sh.as_ref().map_or(0, |s| s.0.coeffs());
         // The transfer's cosine is the shading normal's (bumped; face-forwarded), as `shade`
         // and pbrt-v3's BSDFs use it, so that relighting reproduces `shade`.
@@ -199,18 +231,28 @@ impl Estimator<'_> {
         };
         let ns = face_forward(ns, n).as_dvec3();
         let (mut transfer, mut y) = ([0.0f64; MAX_ORDER * MAX_ORDER], [0.0f64; MAX_ORDER * MAX_ORDER]);
-        self.visible(scene, &si, n, stats, |frame, iv| {
-            let i = iv.meridian as usize;
-            sum += moment(frame, m, i, iv.lo, iv.hi);
-            if let Some((order, x, w)) = &self.sh {
-                // ∫ Y(ω) n·ω dv = ∫ Y n·ω sin θ dθ, Gauss–Legendre in θ.
-                let (t0, t1) = (iv.hi.clamp(-1.0, 1.0).acos(), iv.lo.clamp(-1.0, 1.0).acos());
-                let (mid, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0));
-                for (xj, wj) in x.iter().zip(w) {
-                    let t = mid + half * xj;
-                    let d = frame.direction(m.cos[i], m.sin[i], t.cos());
+        self.visible(scene, &si, n, stats, |piece| match piece {
+            Piece::Interval(frame, iv) => {
+                let i = iv.meridian as usize;
+                sum += moment(frame, m, i, iv.lo, iv.hi);
+                if let Some((order, x, w)) = &self.sh {
+                    // ∫ Y(ω) n·ω dv = ∫ Y n·ω sin θ dθ, Gauss–Legendre in θ.
+                    let (t0, t1) = (iv.hi.clamp(-1.0, 1.0).acos(), iv.lo.clamp(-1.0, 1.0).acos());
+                    let (mid, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0));
+                    for (xj, wj) in x.iter().zip(w) {
+                        let t = mid + half * xj;
+                        let d = frame.direction(m.cos[i], m.sin[i], t.cos());
+                        basis::eval(*order, d, &mut y[..k]);
+                        let weight = wj * half * t.sin() * ns.dot(d).max(0.0) * m.dphi;
+                        transfer[..k].iter_mut().zip(&y[..k]).for_each(|(tr, yi)| *tr += weight * yi);
+                    }
+                }
+            }
+            Piece::Ray(d, w) => {
+                sum_mc += d * w;
+                if let Some((order, ..)) = &self.sh {
                     basis::eval(*order, d, &mut y[..k]);
-                    let weight = wj * half * t.sin() * ns.dot(d).max(0.0) * m.dphi;
+                    let weight = w * ns.dot(d).max(0.0);
                     transfer[..k].iter_mut().zip(&y[..k]).for_each(|(tr, yi)| *tr += weight * yi);
                 }
             }
@@ -218,7 +260,7 @@ impl Estimator<'_> {
         if let Some((order, ..)) = &self.sh {
             TransferChannels::new(*order, 0).write(aov, &transfer[..k], crate::ao::diffuse_albedo(scene, &si));
         }
-        Rgb::splat((nd.dot(sum) * m.dphi).max(0.0) as f32)
+        Rgb::splat((nd.dot(sum * m.dphi + sum_mc)).max(0.0) as f32)
     }
 
     fn shade(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
@@ -247,13 +289,23 @@ impl Estimator<'_> {
         }
         if let (Some(d), Some(table)) = (lambertian, &self.table) {
             let ng = face_forward(si.n, si.wo);
-            let mut v = [glam::DVec3::ZERO; 3];
+            let (mut v, mut v_mc) = ([glam::DVec3::ZERO; 3], [glam::DVec3::ZERO; 3]);
             let m = &self.meridians;
-            self.visible(scene, si, ng, stats, |frame, iv| {
-                table.add(frame, m, iv.meridian as usize, iv.lo, iv.hi, &mut v)
+            self.visible(scene, si, ng, stats, |piece| match piece {
+                Piece::Interval(frame, iv) => table.add(frame, m, iv.meridian as usize, iv.lo, iv.hi, &mut v),
+                Piece::Ray(dir, w) => {
+                    let ray = Ray::new(Vec3::ZERO, dir.as_vec3(), f32::INFINITY);
+                    let l: Rgb = scene.light_list().iter().filter(|l| l.is_infinite()).map(|l| l.le(&ray)).sum();
+                    for (c, vc) in v_mc.iter_mut().enumerate() {
+                        *vc += dir * (w * l[c] as f64);
+                    }
+                }
             });
+            for (vc, mc) in v.iter_mut().zip(&v_mc) {
+                *vc = *vc * m.dphi + *mc;
+            }
             // pbrt-v3's |cos| with the shading normal: on the visible side.
-            let ns = face_forward(d.n, ng).as_dvec3() * m.dphi;
+            let ns = face_forward(d.n, ng).as_dvec3();
             let e = Rgb::new(ns.dot(v[0]) as f32, ns.dot(v[1]) as f32, ns.dot(v[2]) as f32);
             l += d.diffuse * e.max(Rgb::ZERO) * std::f32::consts::FRAC_1_PI;
         }
@@ -323,6 +375,7 @@ impl Integrator for Silhouette {
         stats.counters.insert("silhouette.crossings_per_point".into(), get(&c.crossings) / points);
         stats.counters.insert("silhouette.occluded_points".into(), get(&c.occluded_points));
         stats.counters.insert("silhouette.estimator_fallbacks".into(), get(&c.estimator_fallbacks));
+        stats.counters.insert("silhouette.fallbacks".into(), get(&c.fallbacks));
         Ok(stats)
     }
 }
