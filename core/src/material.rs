@@ -756,6 +756,22 @@ impl Material {
         b
     }
 
+    /// Whether a BSDF of this material may have a perfectly specular lobe: `false` is a
+    /// guarantee (matte, plastic, metal, substrate, translucent; uber with constant black `Kr`
+    /// and `Kt` and constant opacity 1), `true` a maybe (mirror, glass, mix, other uber). For
+    /// an integrator that builds the BSDF only to follow specular lobes.
+    pub fn may_be_specular(&self) -> bool {
+        match *self {
+            Material::Mirror { .. } | Material::Glass { .. } | Material::Mix { .. } => true,
+            Material::Uber { kr, kt, opacity, .. } => {
+                kr != SpectrumParam::Const(Rgb::ZERO)
+                    || kt != SpectrumParam::Const(Rgb::ZERO)
+                    || opacity != SpectrumParam::Const(Rgb::ONE)
+            }
+            _ => false,
+        }
+    }
+
     /// The material as a diffuse albedo plus an optional isotropic GGX lobe, for
     /// analytic (LTC) integrators; `None` when it is not of that form (Oren–Nayar
     /// matte, anisotropic roughness, mirror, glass, mix, translucent). For `uber`

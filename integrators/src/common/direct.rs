@@ -144,13 +144,38 @@ pub fn specular(
     kind: BxdfFlags,
     trace: impl FnOnce(&Ray, &mut dyn Sampler, &mut ThreadStats) -> Rgb,
 ) -> Rgb {
+    let Some(s) = specular_ray(si, bsdf, sampler, stats, kind) else { return Rgb::ZERO };
+    s.f * trace(&s.ray, sampler, stats) * s.scale
+}
+
+/// The step of [`specular`] before tracing: the new ray and its weight `f · scale` (`f` the
+/// BSDF value, `scale` = |cos θ| / pdf), counted as a ray; `None` when the lobes of that kind
+/// give nothing. For an integrator whose radiance along the ray is more than one value.
+pub fn specular_ray(
+    si: &SurfaceInteraction,
+    bsdf: &Bsdf,
+    sampler: &mut dyn Sampler,
+    stats: &mut ThreadStats,
+    kind: BxdfFlags,
+) -> Option<SpecularRay> {
     let u = sampler.get_2d();
-    let Some(s) = bsdf.sample_f(si.wo, u, kind | BxdfFlags::SPECULAR) else { return Rgb::ZERO };
+    let s = bsdf.sample_f(si.wo, u, kind | BxdfFlags::SPECULAR)?;
     let cos = s.wi.dot(bsdf.shading_normal()).abs();
     if !(s.pdf > 0.0) || s.f == Rgb::ZERO || cos == 0.0 {
-        return Rgb::ZERO;
+        return None;
     }
     stats.rays += 1;
-    let r = si.spawn_ray(s.wi);
-    s.f * trace(&r, sampler, stats) * (cos / s.pdf)
+    Some(SpecularRay { ray: si.spawn_ray(s.wi), f: s.f, scale: cos / s.pdf })
+}
+
+/// A ray [`specular_ray`] sampled, and its weight `f · scale`.
+pub struct SpecularRay {
+    pub ray: Ray,
+    pub f: Rgb,
+    pub scale: f32,
+}
+
+/// Whether `bsdf` has a perfectly specular lobe (one [`specular`] can follow).
+pub fn has_specular(bsdf: &Bsdf) -> bool {
+    bsdf.bxdfs().iter().any(|b| b.flags().is_specular())
 }

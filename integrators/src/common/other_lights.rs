@@ -1,6 +1,8 @@
 //! The lights an analytic area-light integrator (`ltc`, `ratio`) does not shade itself:
 //! delta lights with one shadow ray, infinite lights and the area lights of materials
-//! without an LTC form with directlighting's estimator ([`crate::common::direct`]).
+//! without an LTC form with directlighting's estimator ([`crate::common::direct`]). A purely
+//! specular surface (mirror, smooth glass) receives nothing from any light directly: what it
+//! shows comes through its specular chain, which the integrators follow themselves.
 
 use crate::common::direct::estimate_direct;
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
@@ -31,8 +33,9 @@ impl<'a> FallbackWarning<'a> {
             self.warnings.warn(
                 None,
                 format!(
-                    "{}: a material that does not reduce to a Lambertian plus a GGX lobe (mirror, glass, \
-                     translucent, mix, Oren–Nayar, anisotropic…) is rendered with directlighting's estimator",
+                    "{}: a material that does not reduce to a Lambertian plus a GGX lobe (translucent, mix, \
+                     Oren–Nayar, anisotropic, rough glass…) is lit by directlighting's estimator (its perfectly \
+                     specular lobes, as mirror's and smooth glass's, are followed up to maxdepth)",
                     self.integrator
                 ),
             );
@@ -43,6 +46,8 @@ impl<'a> FallbackWarning<'a> {
 /// Adds to `l` every light `ltc` and `ratio` do not shade analytically, at `hit`: delta lights
 /// by [`delta_light`]; infinite lights, and area lights when the material has no LTC form
 /// (`ltc_form` false, with one warning), by directlighting's estimator (two 2D samples each).
+/// Nothing (no sample, no warning) when the BSDF has no lobe but perfectly specular ones: no
+/// light sample could reach it.
 pub fn add_other_lights(
     l: &mut Rgb,
     hit: &SurfaceHit,
@@ -53,6 +58,9 @@ pub fn add_other_lights(
     warning: &FallbackWarning,
 ) {
     let SurfaceHit { si, bsdf, .. } = hit;
+    if bsdf.num_components(BxdfFlags::NON_SPECULAR) == 0 {
+        return;
+    }
     for (k, light) in scene.light_list().iter().enumerate() {
         match light {
             Light::Area(_) if ltc_form => {} // shaded analytically

@@ -29,6 +29,12 @@
 //! to a Lambertian plus a GGX lobe, fall back to `directlighting`'s estimator for
 //! that light or that point, with one warning each.
 //!
+//! Perfectly specular lobes (mirror, smooth glass, uber's `Kr`/`Kt`/opacity) are followed as
+//! `directlighting` follows them (pbrt-v3's `SpecularReflect`/`SpecularTransmit`, one 2D
+//! sample each) up to `"integer maxdepth"` (5), and the surfaces they reach are shaded the
+//! same way as a camera ray's (analytic area lights, the rest as above), sample by sample:
+//! pixel shading applies to the first surfaces only.
+//!
 //! Stages: [`shader`] prepares the scene (objects, hierarchy, light shapes) and shades a point
 //! light by light; [`occluders`] finds what hides a light piece; [`integrate`] integrates the
 //! visible part; [`fresnel`] applies the glossy lobe's Fresnel factor. Pixel shading and the
@@ -42,8 +48,11 @@ mod shader;
 pub use fresnel::{fresnel_at, FresnelMode};
 pub use shader::LtcShader;
 
+use crate::common::direct::{has_specular, specular};
+use crate::common::max_depth_param;
 use crate::common::other_lights::{add_other_lights, warn_infinite_lights, FallbackWarning};
 use crate::common::pixel_shading::{parse_shading, SharedPixel};
+use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::Ray;
 use penumbra_core::integrator::{
@@ -80,6 +89,9 @@ pub struct LtcIntegrator {
     /// coveragesamples"`, default 16; 1: the sampler's count as it is). They cost a camera ray
     /// each, not a shading: below ~16 the image's error is the aliasing of edges, not noise.
     pub coverage_samples: u32,
+    /// pbrt-v3's `"integer maxdepth"` (5): how many surfaces a camera ray's specular chain
+    /// may meet (the first included), as in `directlighting`.
+    pub max_depth: u32,
 }
 
 /// Why `ltc` raises the sampler's count (the scene build's warning says it).
@@ -124,6 +136,7 @@ impl LtcIntegrator {
                 format!("ltc: \"coveragesamples\" must be in 1..=1024, got {coverage}"),
             ));
         }
+        let max_depth = max_depth_param(params, 1024)?;
         Ok(Box::new(LtcIntegrator {
             mode,
             shadows,
@@ -131,6 +144,7 @@ impl LtcIntegrator {
             pixel_shading,
             merge_occluders,
             coverage_samples: coverage as u32,
+            max_depth,
         }))
     }
 }
@@ -171,8 +185,8 @@ impl LtcShader<'_> {
 }
 
 impl Estimator<'_> {
-    /// Radiance from the first surface `hit`; `area` is its analytic area lighting when already
-    /// computed for the pixel.
+    /// Radiance from `hit`, the `depth`-th surface of a camera ray's specular chain (0: the
+    /// first); `area` is its analytic area lighting when already computed for the pixel.
     fn shade(
         &self,
         hit: &SurfacePoint,
@@ -180,6 +194,7 @@ impl Estimator<'_> {
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
+        depth: u32,
     ) -> Rgb {
         let SurfacePoint { si, le, .. } = hit;
         let mut l = *le;
@@ -194,10 +209,26 @@ impl Estimator<'_> {
             l += v;
         }
         // The BSDF only for what the LTC does not shade (delta and infinite lights, materials
-        // without an LTC form).
-        if !ltc_form || self.other_lights {
+        // without an LTC form) and for specular lobes to follow.
+        let follow = depth + 1 < self.shader.ltc.max_depth;
+        let may_be_specular = || scene.material_of(si).is_some_and(|(m, _, _)| m.may_be_specular());
+        if !ltc_form || self.other_lights || (follow && may_be_specular()) {
             if let Some(hit) = hit.with_bsdf(scene) {
-                add_other_lights(&mut l, &hit, ltc_form, scene, sampler, stats, &self.fallback);
+                if !ltc_form || self.other_lights {
+                    add_other_lights(&mut l, &hit, ltc_form, scene, sampler, stats, &self.fallback);
+                }
+                if follow && has_specular(&hit.bsdf) {
+                    for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
+                        l += specular(&hit.si, &hit.bsdf, sampler, stats, kind, |r, sampler, stats| {
+                            let (next, queries) = scene.first_point(r);
+                            stats.rays += queries - 1;
+                            match next {
+                                Ok(h) => self.shade(&h, None, scene, sampler, stats, depth + 1),
+                                Err(escaped) => escaped,
+                            }
+                        });
+                    }
+                }
             }
         }
         l
@@ -216,7 +247,7 @@ impl PixelEstimator for Estimator<'_> {
         let (first, queries) = scene.first_point(ray);
         stats.rays += queries;
         match first {
-            Ok(h) => self.shade(&h, None, scene, sampler, stats),
+            Ok(h) => self.shade(&h, None, scene, sampler, stats, 0),
             Err(escaped) => escaped,
         }
     }
@@ -240,7 +271,7 @@ impl PixelEstimator for Estimator<'_> {
         index: usize,
     ) -> Rgb {
         match SharedPixel::<AreaLighting>::sample(shared, index) {
-            Some((Ok(h), area)) => self.shade(h, area, scene, sampler, stats),
+            Some((Ok(h), area)) => self.shade(h, area, scene, sampler, stats, 0),
             Some((Err(escaped), _)) => *escaped,
             None => self.li(ray, scene, sampler, stats, aov),
         }
@@ -319,6 +350,7 @@ mod tests {
             pixel_shading,
             merge_occluders: true,
             coverage_samples: 16,
+            max_depth: 5,
         }
     }
 

@@ -1,8 +1,10 @@
 //! `ratio`'s per-pixel estimator: the analytic unshadowed `U` (from `ltc`), the stochastic
 //! `S_N` and `U_N` from the same light and BRDF samples, and the guides, written per camera
-//! sample into the film's extra channels ([`RatioSample`]).
+//! sample into the film's extra channels ([`RatioSample`]); the same terms of the surfaces its
+//! specular chains reach ([`ChainTerms`]).
 
-use super::RatioSample;
+use super::{ChainTerms, RatioSample};
+use crate::common::direct::{has_specular, specular_ray};
 use crate::common::other_lights::{add_other_lights, FallbackWarning};
 use crate::common::pixel_shading::SharedPixel;
 use crate::ltc::{fresnel_at, AreaLighting, LtcShader};
@@ -64,6 +66,8 @@ impl SampleGroup {
 pub(super) struct Estimator<'a> {
     pub(super) shader: LtcShader<'a>,
     pub(super) n: u32,
+    /// pbrt-v3's `"integer maxdepth"`: surfaces a specular chain may meet, the first included.
+    pub(super) max_depth: u32,
     pub(super) groups: Vec<SampleGroup>,
     pub(super) pixel_shading: bool,
     pub(super) fallback: FallbackWarning<'a>,
@@ -323,11 +327,66 @@ fn stochastic(
 }
 
 impl Estimator<'_> {
-    /// Radiance (everything but the area lights' shaded part) from the first surface `hit`
-    /// of `ray`, and what it writes to the film's channels (`U`, `S_N`, `U_N`, the guides);
-    /// `area` is the analytic unshadowed area lighting (form factor, glossy) when already
-    /// computed for the pixel.
+    /// [`shade_surface`](Self::shade_surface) of the first surface `hit` of `ray`, with what
+    /// its specular chains reach ([`follow_specular`](Self::follow_specular)).
     fn shade(
+        &self,
+        ray: &Ray,
+        hit: &SurfaceHit,
+        area: Option<AreaLighting>,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+    ) -> (Rgb, RatioSample) {
+        let (mut rest, mut sample) = self.shade_surface(ray, hit, area, scene, sampler, stats);
+        if has_specular(&hit.bsdf) {
+            let mut chain = Chain::default();
+            self.follow_specular(hit, Rgb::ONE, 0, scene, sampler, stats, &mut chain);
+            rest += chain.rest;
+            sample.chain = chain.terms;
+        }
+        (rest, sample)
+    }
+
+    /// Follows the perfectly specular lobes of `hit` (the `depth`-th surface of its chain,
+    /// reached with throughput `beta`) as `directlighting` does, while the chain may have more
+    /// surfaces, and adds to `chain` what every surface reached gives ([`shade_surface`]
+    /// (Self::shade_surface)), weighted by the throughput.
+    #[allow(clippy::too_many_arguments)]
+    fn follow_specular(
+        &self,
+        hit: &SurfaceHit,
+        beta: Rgb,
+        depth: u32,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        chain: &mut Chain,
+    ) {
+        if depth + 1 >= self.max_depth || !has_specular(&hit.bsdf) {
+            return;
+        }
+        for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
+            let Some(sr) = specular_ray(&hit.si, &hit.bsdf, sampler, stats, kind) else { continue };
+            let beta = beta * sr.f * sr.scale;
+            let (next, queries) = scene.first_surface(&sr.ray);
+            stats.rays += queries - 1;
+            match next {
+                Ok(h) => {
+                    let (rest, t) = self.shade_surface(&sr.ray, &h, None, scene, sampler, stats);
+                    chain.add(beta, rest, &t);
+                    self.follow_specular(&h, beta, depth + 1, scene, sampler, stats, chain);
+                }
+                Err(escaped) => chain.rest += beta * escaped,
+            }
+        }
+    }
+
+    /// Radiance (everything but the area lights' shaded part) from the surface `hit` of `ray`,
+    /// and what it writes to the film's channels (`U`, `S_N`, `U_N`, the guides; no chain
+    /// terms); `area` is the analytic unshadowed area lighting (form factor, glossy) when
+    /// already computed for the pixel.
+    fn shade_surface(
         &self,
         ray: &Ray,
         hit: &SurfaceHit,
@@ -378,8 +437,28 @@ impl Estimator<'_> {
             depth: (si.p - ray.o).length(),
             n: nf,
             plane: nf.dot(si.p),
+            chain: ChainTerms::default(),
         };
         (rest, sample)
+    }
+}
+
+/// What a camera sample's specular chains add: radiance into `rest`, and the area lights'
+/// terms.
+#[derive(Default)]
+struct Chain {
+    rest: Rgb,
+    terms: ChainTerms,
+}
+
+impl Chain {
+    /// A reached surface's `rest` and terms `t`, through throughput `beta`.
+    fn add(&mut self, beta: Rgb, rest: Rgb, t: &RatioSample) {
+        let finite = |c: Rgb| if c.is_finite() { c.max(Rgb::ZERO) } else { Rgb::ZERO };
+        self.rest += beta * rest;
+        self.terms.u += finite(beta * t.u);
+        self.terms.s += finite(beta * t.s);
+        self.terms.un += finite(beta * t.un);
     }
 }
 

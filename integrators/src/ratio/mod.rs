@@ -40,6 +40,20 @@
 //! reached the light) and the ratio is taken as 1 (the analytic `U` unchanged). The
 //! output is never NaN or infinite.
 //!
+//! Specular chains: perfectly specular lobes (mirror, smooth glass, uber's `Kr`/`Kt`/opacity)
+//! are followed as `directlighting` follows them, up to `"integer maxdepth"` (5), and every
+//! surface a chain reaches gets the same three terms, weighted by the chain's throughput β
+//! (the product of `f·|cos θ|/pdf` along it). Their sums per camera sample go to channels of
+//! their own (`chain.U`, `chain.S`, `chain.UN`), and everything else the reached surfaces
+//! receive (emission, delta and infinite lights, materials without an LTC form) to `rest`.
+//! Only the first surfaces' ratio is denoised: the guides (depth, normal, plane) describe the
+//! first surface, and across a mirror they would blur what it reflects. The chains' term is
+//! `chain.U · chain.S / chain.UN` from the pixel's own means (the ratio estimator over the
+//! pixel's camera × stochastic samples, guarded as above, not filtered), so a pixel is
+//! `rest + U · D(S_N)/D(U_N) + chain.U · chain.S/chain.UN`; where the chains' surfaces are
+//! fully lit the term is the analytic `chain.U` exactly. The variance written for a pixel does
+//! not include the chains' term.
+//!
 //! Files: `estimator.rs` (the per-pixel estimator writing [`RatioSample`]s), `filter.rs` (the
 //! denoiser: a plain function over [`ImageBuffer`]s), this file (parameters, channels and the
 //! whole-image pass).
@@ -50,6 +64,7 @@ pub mod filter;
 pub use filter::{cross_bilateral, guarded_ratio, noise_radius, FilterParams, Guide};
 
 use crate::common::image_pass::ImageBuffer;
+use crate::common::max_depth_param;
 use crate::common::other_lights::{warn_infinite_lights, FallbackWarning};
 use crate::common::pixel_shading::parse_shading;
 use crate::ltc::{FresnelMode, LtcIntegrator, LtcShader, Mode};
@@ -137,6 +152,7 @@ impl RatioIntegrator {
                 pixel_shading: parse_shading("ratio", params, warnings),
                 merge_occluders: true,
                 coverage_samples: 1, // ratio's camera samples are its stochastic budget
+                max_depth: max_depth_param(params, 1024)?,
             },
             nsamples: nsamples as u32,
             denoise: params.get_one_bool("denoise", true),
@@ -148,7 +164,7 @@ impl RatioIntegrator {
 }
 
 /// Extra film channels, in this order.
-pub const CHANNELS: [&str; 17] = [
+pub const CHANNELS: [&str; 26] = [
     "U.R",
     "U.G",
     "U.B",
@@ -166,6 +182,15 @@ pub const CHANNELS: [&str; 17] = [
     "N.Y",
     "N.Z",
     "plane",
+    "chain.U.R",
+    "chain.U.G",
+    "chain.U.B",
+    "chain.S.R",
+    "chain.S.G",
+    "chain.S.B",
+    "chain.UN.R",
+    "chain.UN.G",
+    "chain.UN.B",
 ];
 const C_U: usize = 0;
 const C_S: usize = 3;
@@ -176,6 +201,9 @@ const C_SU: usize = 11;
 const C_DEPTH: usize = 12;
 const C_N: usize = 13;
 const C_PLANE: usize = 16;
+const C_CHAIN_U: usize = 17;
+const C_CHAIN_S: usize = 20;
+const C_CHAIN_UN: usize = 23;
 
 /// What one camera sample writes to the extra channels (the film averages them per pixel).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -193,6 +221,17 @@ pub(crate) struct RatioSample {
     pub(crate) depth: f32,
     pub(crate) n: Vec3,
     pub(crate) plane: f32,
+    /// The specular chains' `U`, `S_N`, `U_N`, weighted by their throughput.
+    pub(crate) chain: ChainTerms,
+}
+
+/// `U`, `S_N` and `U_N` of the surfaces a camera sample's specular chains reach, each weighted
+/// by its chain's throughput, summed.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct ChainTerms {
+    pub(crate) u: Rgb,
+    pub(crate) s: Rgb,
+    pub(crate) un: Rgb,
 }
 
 impl RatioSample {
@@ -210,6 +249,9 @@ impl RatioSample {
         aov[C_DEPTH] = self.depth;
         aov[C_N..C_N + 3].copy_from_slice(&self.n.to_array());
         aov[C_PLANE] = self.plane;
+        aov[C_CHAIN_U..C_CHAIN_U + 3].copy_from_slice(&self.chain.u.to_array());
+        aov[C_CHAIN_S..C_CHAIN_S + 3].copy_from_slice(&self.chain.s.to_array());
+        aov[C_CHAIN_UN..C_CHAIN_UN + 3].copy_from_slice(&self.chain.un.to_array());
     }
 
     /// From [`CHANNELS`]-ordered values.
@@ -225,6 +267,7 @@ impl RatioSample {
             depth: ch[C_DEPTH],
             n: Vec3::new(ch[C_N], ch[C_N + 1], ch[C_N + 2]),
             plane: ch[C_PLANE],
+            chain: ChainTerms { u: rgb(C_CHAIN_U), s: rgb(C_CHAIN_S), un: rgb(C_CHAIN_UN) },
         }
     }
 }
@@ -257,6 +300,7 @@ impl Integrator for RatioIntegrator {
         let est = Estimator {
             shader,
             n: scene.sampler.round_count(self.nsamples).max(1),
+            max_depth: self.ltc.max_depth,
             groups,
             pixel_shading: self.ltc.pixel_shading,
             fallback: FallbackWarning::new("ratio", ctx.warnings),
@@ -313,6 +357,12 @@ impl RatioIntegrator {
                     out[c] += mean.u[c] * ratio;
                     let sr = sigma[i] as f64 * mean.u[c] as f64;
                     var[c] += sr * sr * reduction[i] as f64;
+                }
+            }
+            let chain = mean.chain;
+            if chain.u != Rgb::ZERO {
+                for c in 0..3 {
+                    out[c] += chain.u[c] * guarded_ratio(chain.s[c], chain.un[c], chain.s[c], chain.un[c]);
                 }
             }
             if !out.is_finite() {
