@@ -7,6 +7,7 @@ pub mod directlighting;
 pub mod ltc;
 pub mod path;
 pub mod ratio;
+pub mod sheared_ao;
 pub mod silhouette;
 pub mod whitted;
 
@@ -57,6 +58,11 @@ pub const REGISTRY: &[Entry] = &[
         name: "ambientocclusion",
         method: "ray-traced ambient occlusion (pbrt-v3 semantics: nsamples, cossample; pbrt-v4's maxdistance)",
         create: ambientocclusion::AmbientOcclusion::create,
+    },
+    Entry {
+        name: "sheared-ao",
+        method: "sparse ray-traced AO, neighbours' rays warped and weighted by a sheared filter (Egan et al. 2011, seed 002)",
+        create: sheared_ao::ShearedAo::create,
     },
 ];
 

@@ -1,0 +1,115 @@
+use super::*;
+use penumbra_core::rng::Rng;
+use penumbra_core::sampling::cosine_sample_hemisphere;
+
+fn plane_frame() -> Frame<DVec3> {
+    Frame { x: DVec3::X, y: DVec3::Y, z: DVec3::Z }
+}
+
+/// A plane z = 0 of cache points on a `k × k` grid of spacing `h` around the origin, each with
+/// `rays` cosine-distributed directions; `hit(o, d)` gives the hit distance (∞: a miss).
+fn plane_cache(k: i32, h: f64, rays: usize, hit: impl Fn(DVec3, DVec3) -> f64) -> Vec<CachePoint> {
+    let mut rng = Rng::new(7);
+    let mut out = Vec::new();
+    for j in -k..=k {
+        for i in -k..=k {
+            let p = DVec3::new(i as f64 * h, j as f64 * h, 0.0);
+            let rays = (0..rays)
+                .map(|_| {
+                    let u = glam::Vec2::new(rng.uniform_f32(), rng.uniform_f32());
+                    let d = cosine_sample_hemisphere(u).as_dvec3().normalize();
+                    CachedRay { d, t: hit(p, d) }
+                })
+                .collect();
+            out.push(CachePoint { p, n: DVec3::Z, footprint: h, rays });
+        }
+    }
+    out
+}
+
+fn ao(cells: &[CellValue]) -> Option<f64> {
+    let mut s = 0.0;
+    for c in cells {
+        match c {
+            CellValue::Filtered(v) => s += v,
+            CellValue::Brute => return None,
+        }
+    }
+    Some(std::f64::consts::PI * s / cells.len() as f64)
+}
+
+#[test]
+fn cells_invert_the_concentric_map_and_have_equal_projected_area() {
+    let n = 8;
+    let mut counts = vec![0usize; n * n];
+    for j in 0..64 {
+        for i in 0..64 {
+            let u = glam::Vec2::new((i as f32 + 0.5) / 64.0, (j as f32 + 0.5) / 64.0);
+            let w = cosine_sample_hemisphere(u).as_dvec3();
+            let c = cell_of(w, n);
+            assert_eq!(c, (j / 8) * n + i / 8, "u {u:?}");
+            counts[c] += 1;
+        }
+    }
+    assert!(counts.iter().all(|&c| c == 64));
+    for c in 0..n * n {
+        assert_eq!(cell_of(cell_center(c, n), n), c);
+    }
+}
+
+#[test]
+fn unoccluded_plane_is_pi_exactly() {
+    let cache = plane_cache(8, 0.01, 12, |_, _| f64::INFINITY);
+    let recv = Receiver { p: DVec3::ZERO, frame: plane_frame(), footprint: 0.01 };
+    let (mut s, mut out) = (Scratch::default(), Vec::new());
+    filter_receiver(&recv, cache.iter(), &FilterParams::default(), &mut s, &mut out);
+    assert_eq!(ao(&out), Some(std::f64::consts::PI));
+}
+
+/// Occluded fraction (cosine-weighted) at the plane point under a parallel disk of radius ρ at
+/// height h, offset a horizontally (the digest's closed form).
+fn disk_fraction(rho: f64, h: f64, a: f64) -> f64 {
+    let z = h * h + a * a + rho * rho;
+    0.5 * (1.0 - (z - 2.0 * rho * rho) / (z * z - 4.0 * rho * rho * a * a).sqrt())
+}
+
+fn disk_hit(rho: f64, h: f64) -> impl Fn(DVec3, DVec3) -> f64 {
+    move |o: DVec3, d: DVec3| {
+        let t = (h - o.z) / d.z;
+        let q = o + t * d;
+        if t > 0.0 && q.x * q.x + q.y * q.y <= rho * rho {
+            t
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
+#[test]
+fn plane_under_a_disk_matches_the_closed_form() {
+    let (rho, h) = (1.0, 1.0);
+    // A 33×33 window of spacing 0.02 (±0.16): the disk is at one depth per direction cone.
+    let cache = plane_cache(8, 0.02, 16, disk_hit(rho, h));
+    let (mut s, mut out) = (Scratch::default(), Vec::new());
+    for a in [0.0, 0.5, 1.0] {
+        let p = DVec3::new(a, 0.0, 0.0);
+        let shifted: Vec<CachePoint> = cache
+            .iter()
+            .map(|q| CachePoint {
+                p: q.p + p,
+                rays: q.rays.iter().map(|r| CachedRay { t: disk_hit(rho, h)(q.p + p, r.d), ..*r }).collect(),
+                ..q.clone()
+            })
+            .collect();
+        let recv = Receiver { p, frame: plane_frame(), footprint: 0.02 };
+        filter_receiver(&recv, shifted.iter(), &FilterParams::default(), &mut s, &mut out);
+        let brute = out.iter().filter(|c| **c == CellValue::Brute).count();
+        let got: f64 = std::f64::consts::PI
+            * out.iter().map(|c| if let CellValue::Filtered(v) = c { *v } else { 0.5 }).sum::<f64>()
+            / out.len() as f64;
+        let exact = std::f64::consts::PI * (1.0 - disk_fraction(rho, h, a));
+        eprintln!("a {a}: filtered AO {got:.4} vs exact {exact:.4}, {brute} brute cells");
+        assert!(brute <= 4, "a {a}: {brute} brute-forced cells");
+        assert!((got - exact).abs() < 0.04 * std::f64::consts::PI, "a {a}: {got} vs {exact}");
+    }
+}

@@ -1,0 +1,421 @@
+//! `sheared-ao`: sparse ray-traced ambient occlusion with the sheared, rotationally-invariant
+//! filter of seed 002 (`../shared/seeds/002_*`: Egan, Durand & Ramamoorthi 2011, "Practical
+//! Filtering for Efficient Ray-Traced Directional Occlusion"; digest
+//! `../shared/notes/002-sheared-ao.md`).
+//!
+//! Output convention: `ambientocclusion`'s (pbrt-v3's): ∫ V cosθ dω over the hemisphere of the
+//! face-forwarded geometric normal, in [0, π], 0 where the camera ray escapes; surfaces
+//! without a material are passed through.
+//!
+//! * **Pass 1** ([`sample_pass`]): every camera sample of every pixel in the film's sample
+//!   bounds *plus a margin of `screenradius` pixels* (clamped to the full image) is a shading
+//!   point; it shoots `nsamples` cosine-distributed occlusion rays (no distance cap) and keeps
+//!   them in an image-space cache (point, normal, pixel footprint, ray directions and hit
+//!   distances). The margin makes a crop or a tile see exactly the neighbours of the full image.
+//! * **Pass 2** ([`filter::filter_receiver`], per camera sample): the cached rays of every
+//!   point within `screenradius` pixels (a disk) on the same surface are warped to effective
+//!   rays from the receiver, binned into `cells × cells` hemisphere cells of equal projected
+//!   area, weighted by the sheared filter and normalised per cell; cells with too little weight
+//!   or too close occluders take `brutesamples` fresh rays each, stratified in the cell.
+//!   AO = (π / cells²) Σ_c V̄_c.
+//!
+//! Parameters (beside [`ShearedAo::create`]): `"integer nsamples"` (12, rounded by the
+//! sampler), `"integer screenradius"` (8), `"integer cells"` (8), `"float omegav"` (2.0),
+//! `"float minweight"` (2.0), `"integer brutesamples"` (1), `"integer maxpoints"` (256: the
+//! cap on cache points per receiver, nearest pixels first), `"float maxdistance"` (∞, pbrt-v4's).
+//!
+//! Choices the paper leaves open (see also [`filter`]):
+//! * kernel: a Gaussian exp(−2t²) of t = |x| / r, truncated at t = 1.5;
+//! * Ω_pix^max = 0.5 / footprint, footprint = the larger side of the pixel's footprint on the
+//!   receiver's tangent plane (camera rays one pixel over); with Eq. 8 the spatial radius is
+//!   `z_min z_max / (Ω_v (z_max − z_min))` and the contact test `z_min < 2 Ω_v · footprint`;
+//! * a cell with no occluded neighbour ray is not brute-forced: its depth is taken as
+//!   infinite (no warp, infinite radius: every ray weighs 1); only a cell whose weight stays
+//!   below `minweight` is;
+//! * cells combine as equal projected solid angles π / cells²: the mean visibility of each
+//!   cell (filtered or brute-forced) times π / cells²;
+//! * `maxdistance`: a hit farther than it from the *receiver* counts as a miss;
+//! * neighbours: normal within ~26° and within a slope of 0.25 (+ one footprint) of the
+//!   receiver's tangent plane; grazing warps (cos < 1e-3) are rejected.
+
+pub mod filter;
+
+use crate::common::image_pass::ImageBuffer;
+use filter::{CachePoint, CachedRay, CellValue, FilterParams, Receiver, Scratch};
+use glam::{IVec2, Vec2};
+use penumbra_core::camera::CameraSample;
+use penumbra_core::film::Film;
+use penumbra_core::geometry::{face_forward, offset_ray_origin, Bounds2i, Frame, Ray};
+use penumbra_core::integrator::{tiles, with_threads, Integrator, RenderContext, RenderError, RenderStats};
+use penumbra_core::sampler::Sampler;
+use penumbra_core::sampling::cosine_sample_hemisphere;
+use penumbra_core::scene::{Requirements, Scene};
+use penumbra_core::{Rgb, Vec3};
+use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+pub struct ShearedAo {
+    pub nsamples: u32,
+    /// Neighbour window radius in pixels; also pass 1's margin around the sampled pixels.
+    pub screen_radius: u32,
+    pub brute_samples: u32,
+    /// At most this many cache points (nearest pixels first) lend their rays to a receiver.
+    pub max_points: u32,
+    pub filter: FilterParams,
+}
+
+impl ShearedAo {
+    pub fn create(params: &ParamSet, _warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
+        let int_in = |name: &str, default: i32, lo: i32, hi: i32| -> Result<u32, Diagnostic> {
+            let v = params.get_one_int(name, default);
+            if (lo..=hi).contains(&v) {
+                Ok(v as u32)
+            } else {
+                Err(Diagnostic::error(
+                    params.loc_of(name).cloned(),
+                    format!("sheared-ao: \"{name}\" must be in {lo}..={hi}, got {v}"),
+                ))
+            }
+        };
+        let positive = |name: &str, default: f32| -> Result<f64, Diagnostic> {
+            let v = params.get_one_float(name, default);
+            if v > 0.0 {
+                Ok(v as f64)
+            } else {
+                Err(Diagnostic::error(
+                    params.loc_of(name).cloned(),
+                    format!("sheared-ao: \"{name}\" must be positive, got {v}"),
+                ))
+            }
+        };
+        Ok(Box::new(ShearedAo {
+            nsamples: int_in("nsamples", 12, 1, 1024)?,
+            screen_radius: int_in("screenradius", 8, 0, 64)?,
+            brute_samples: int_in("brutesamples", 1, 1, 64)?,
+            max_points: int_in("maxpoints", 256, 1, 1 << 20)?,
+            filter: FilterParams {
+                cells: int_in("cells", 8, 1, 32)? as usize,
+                omega_v: positive("omegav", 2.0)?,
+                min_weight: positive("minweight", 2.0)?,
+                max_distance: positive("maxdistance", f32::INFINITY)?,
+            },
+        }))
+    }
+}
+
+/// A pass-1 shading point: the cache entry and what brute-force rays need to leave it.
+#[derive(Clone, Debug)]
+pub struct Shading {
+    pub point: CachePoint,
+    p: Vec3,
+    p_error: Vec3,
+    n: Vec3,
+    frame: Frame,
+}
+
+/// The camera sample of pixel `p` in the driver's order (film 2D, time 1D, lens 2D; unused
+/// dimensions skipped), as `render_pixels` draws it.
+fn camera_sample(scene: &Scene, sampler: &mut dyn Sampler, p: IVec2) -> CameraSample {
+    let p_film = p.as_vec2() + sampler.get_2d();
+    let time = if scene.camera.uses_time() {
+        sampler.get_1d()
+    } else {
+        sampler.skip_1d();
+        0.0
+    };
+    let p_lens = if scene.camera.uses_lens() {
+        sampler.get_2d()
+    } else {
+        sampler.skip_2d();
+        Vec2::splat(0.5)
+    };
+    CameraSample { p_film, time, p_lens }
+}
+
+impl ShearedAo {
+    /// Pass 1 for one camera sample: the first surface with a material and its cached rays
+    /// (`None`: the ray escaped). `us` are the occlusion rays' 2D samples.
+    fn shade(&self, scene: &Scene, cs: &CameraSample, us: &[Vec2], rays: &mut u64) -> Option<Shading> {
+        let mut ray = scene.camera.generate_ray(cs);
+        for _ in 0..64 {
+            let hit = scene.intersect(&ray)?;
+            let si = scene.interaction(&ray, &hit);
+            if scene.objects[hit.mesh as usize].material.is_none() {
+                ray = si.spawn_ray(ray.d);
+                *rays += 1;
+                continue;
+            }
+            let n = face_forward(si.n, -ray.d);
+            let frame = Frame::from_zx(n, si.dpdu);
+            let pd = si.p.as_dvec3();
+            let footprint = footprint(scene, cs, pd, n.as_dvec3());
+            let mut cached = Vec::with_capacity(us.len());
+            for &u in us {
+                let w = cosine_sample_hemisphere(u);
+                if !(w.z > 0.0) {
+                    continue;
+                }
+                let wi = frame.from_local(w);
+                let r = si.spawn_ray(wi);
+                *rays += 1;
+                let d = wi.as_dvec3().normalize();
+                let t = match scene.intersect(&r) {
+                    Some(h) => (r.o.as_dvec3() + h.t as f64 * r.d.as_dvec3() - pd).dot(d).max(0.0),
+                    None => f64::INFINITY,
+                };
+                cached.push(CachedRay { d, t });
+            }
+            return Some(Shading {
+                point: CachePoint { p: pd, n: n.as_dvec3(), footprint, rays: cached },
+                p: si.p,
+                p_error: si.p_error,
+                n,
+                frame,
+            });
+        }
+        None
+    }
+
+    /// Pass 2 for one receiver: AO and the fraction of brute-forced cells. `brute_us` are the
+    /// 2D samples of the brute-force rays (`cells² × brutesamples`, cell-major).
+    fn resolve(
+        &self,
+        scene: &Scene,
+        recv: &Shading,
+        neighbours: &[&CachePoint],
+        brute_us: &[Vec2],
+        (scratch, cells): (&mut Scratch, &mut Vec<CellValue>),
+        rays: &mut u64,
+    ) -> (f32, f32) {
+        let f = &recv.point;
+        let frame = Frame { x: recv.frame.x.as_dvec3(), y: recv.frame.y.as_dvec3(), z: f.n };
+        let receiver = Receiver { p: f.p, frame, footprint: f.footprint };
+        filter::filter_receiver(&receiver, neighbours.iter().copied(), &self.filter, scratch, cells);
+        let nside = self.filter.cells;
+        let m = self.brute_samples as usize;
+        let (mut sum, mut brute) = (0.0f64, 0usize);
+        for (c, v) in cells.iter().enumerate() {
+            match *v {
+                CellValue::Filtered(v) => sum += v,
+                CellValue::Brute => {
+                    brute += 1;
+                    let mut unoccluded = 0usize;
+                    for k in 0..m {
+                        let xi = brute_us.get((c * m + k) % brute_us.len().max(1)).copied().unwrap_or(Vec2::splat(0.5));
+                        let u = Vec2::new(
+                            ((c % nside) as f32 + xi.x) / nside as f32,
+                            ((c / nside) as f32 + xi.y) / nside as f32,
+                        );
+                        let w = cosine_sample_hemisphere(u.min(Vec2::splat(1.0 - f32::EPSILON)));
+                        if !(w.z > 0.0) {
+                            continue;
+                        }
+                        let wi = recv.frame.from_local(w);
+                        let r = Ray::new(
+                            offset_ray_origin(recv.p, recv.p_error, recv.n, wi),
+                            wi,
+                            self.filter.max_distance as f32,
+                        );
+                        *rays += 1;
+                        if !scene.occluded(&r) {
+                            unoccluded += 1;
+                        }
+                    }
+                    sum += unoccluded as f64 / m as f64;
+                }
+            }
+        }
+        let nc = cells.len().max(1) as f64;
+        ((std::f64::consts::PI * sum / nc) as f32, (brute as f64 / nc) as f32)
+    }
+}
+
+/// The larger side of the pixel's footprint at `p` on the plane of normal `n`: where the camera
+/// rays one pixel over in x and in y meet that plane (0 when they do not).
+fn footprint(scene: &Scene, cs: &CameraSample, p: glam::DVec3, n: glam::DVec3) -> f64 {
+    let side = |dp: Vec2| -> f64 {
+        let r = scene.camera.generate_ray(&CameraSample { p_film: cs.p_film + dp, ..*cs });
+        let (o, d) = (r.o.as_dvec3(), r.d.as_dvec3());
+        let t = n.dot(p - o) / n.dot(d);
+        let q = o + t * d;
+        let l = (q - p).length();
+        if t.is_finite() && t > 0.0 && l.is_finite() {
+            l
+        } else {
+            0.0
+        }
+    };
+    side(Vec2::X).max(side(Vec2::Y))
+}
+
+/// Pass 1 over `region` (absolute pixels): per pixel its `spp` shading points.
+fn sample_pass(
+    ao: &ShearedAo,
+    scene: &Scene,
+    proto: &dyn Sampler,
+    region: Bounds2i,
+    spp: u32,
+    n: u32,
+    rays: &AtomicU64,
+) -> ImageBuffer<Vec<Option<Shading>>> {
+    let (w, h) = (region.width().max(0) as usize, region.height().max(0) as usize);
+    ImageBuffer::from_rows_par(w, h, |y| {
+        let mut sampler = proto.clone_box();
+        let mut count = 0u64;
+        let row = (0..w)
+            .map(|x| {
+                let p = region.min + IVec2::new(x as i32, y as i32);
+                (0..spp)
+                    .map(|s| {
+                        sampler.start_pixel_sample(p, s);
+                        let cs = camera_sample(scene, sampler.as_mut(), p);
+                        let us: Vec<Vec2> = sampler.get_2d_array(n).map(|a| a.to_vec()).unwrap_or_default();
+                        ao.shade(scene, &cs, &us, &mut count)
+                    })
+                    .collect()
+            })
+            .collect();
+        rays.fetch_add(count, Ordering::Relaxed);
+        row
+    })
+}
+
+impl Integrator for ShearedAo {
+    fn name(&self) -> &str {
+        "sheared-ao"
+    }
+    fn requirements(&self) -> Requirements {
+        Requirements { accel: true, ..Default::default() }
+    }
+    fn extra_channels(&self) -> Vec<String> {
+        vec!["shearedao.brute".into()]
+    }
+    fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+        let start = Instant::now();
+        let n = scene.sampler.round_count(self.nsamples);
+        if n != self.nsamples {
+            ctx.warnings.warn(None, format!("sheared-ao: taking {n} samples, not {} as specified", self.nsamples));
+        }
+        let nc = (self.filter.cells * self.filter.cells) as u32;
+        let nb = scene.sampler.round_count(nc * self.brute_samples);
+        let full_res = IVec2::new(film.spec.full_resolution.0 as i32, film.spec.full_resolution.1 as i32);
+        let full =
+            penumbra_core::film::FilmSpec { pixel_bounds: Bounds2i::new(IVec2::ZERO, full_res), ..film.spec.clone() }
+                .sample_bounds(scene.filter.radius());
+        let mut proto = scene.sampler.clone_box();
+        proto.set_sample_bounds(full.min, full.max);
+        proto.request_2d_array(n);
+        proto.request_2d_array(nb);
+        let spp = proto.samples_per_pixel();
+        let sample_bounds = film.spec.sample_bounds(scene.filter.radius());
+        // Pass 1 covers the sampled pixels plus the filter's screen radius (the margin), within
+        // the full image: a crop sees the neighbours the full render sees.
+        let margin = IVec2::splat(self.screen_radius as i32);
+        let region = Bounds2i::new(sample_bounds.min - margin, sample_bounds.max + margin).intersect(&full);
+        let pass1_rays = AtomicU64::new(0);
+        let pass2_rays = AtomicU64::new(0);
+        let proto_ref = &*proto;
+        let cache = with_threads(ctx.threads, || sample_pass(self, scene, proto_ref, region, spp, n, &pass1_rays))?;
+        if ctx.cancel.load(Ordering::Relaxed) {
+            return Err(RenderError::Cancelled);
+        }
+        let pass1_seconds = start.elapsed().as_secs_f64();
+        let t2 = Instant::now();
+        let tile_list = tiles(sample_bounds);
+        let total = tile_list.len() as u64;
+        let done = AtomicU64::new(0);
+        let film_ref = &*film;
+        let r = self.screen_radius as i32;
+        // The window, nearest pixels first (ties in raster order), so that the cap on points
+        // keeps the nearest ones.
+        let mut offsets: Vec<IVec2> = (-r..=r)
+            .flat_map(|dy| (-r..=r).map(move |dx| IVec2::new(dx, dy)))
+            .filter(|d| d.length_squared() <= r * r)
+            .collect();
+        offsets.sort_by_key(|d| (d.length_squared(), d.y, d.x));
+        let max_points = self.max_points as usize;
+        let (points, brute_cells) = (AtomicU64::new(0), AtomicU64::new(0));
+        let results = with_threads(ctx.threads, || {
+            tile_list
+                .par_iter()
+                .map(|tb| {
+                    if ctx.cancel.load(Ordering::Relaxed) {
+                        return None;
+                    }
+                    let mut sampler = proto_ref.clone_box();
+                    let mut tile = film_ref.make_tile(*tb);
+                    let (mut scratch, mut cells, mut neigh) = (Scratch::default(), Vec::new(), Vec::new());
+                    let (mut count, mut npoints, mut nbrute) = (0u64, 0u64, 0.0f64);
+                    for p in tb.iter() {
+                        neigh.clear();
+                        for d in &offsets {
+                            let q = p + *d;
+                            if neigh.len() >= max_points {
+                                break;
+                            }
+                            if region.contains(q) {
+                                let l = q - region.min;
+                                let pts = cache.at(l.x as usize, l.y as usize).iter().flatten().map(|s| &s.point);
+                                neigh.extend(pts.take(max_points - neigh.len()));
+                            }
+                        }
+                        let l = p - region.min;
+                        let own = cache.at(l.x as usize, l.y as usize);
+                        for s in 0..spp {
+                            sampler.start_pixel_sample(p, s);
+                            let cs = camera_sample(scene, sampler.as_mut(), p);
+                            let _ = sampler.get_2d_array(n);
+                            let brute_us: Vec<Vec2> = sampler.get_2d_array(nb).map(|a| a.to_vec()).unwrap_or_default();
+                            let (ao, frac) = match own.get(s as usize).and_then(|o| o.as_ref()) {
+                                Some(recv) => {
+                                    npoints += 1;
+                                    self.resolve(scene, recv, &neigh, &brute_us, (&mut scratch, &mut cells), &mut count)
+                                }
+                                None => (0.0, 0.0),
+                            };
+                            nbrute += frac as f64;
+                            let ao = if ao.is_finite() { ao.max(0.0) } else { 0.0 };
+                            tile.add_sample(scene.filter.as_ref(), cs.p_film, Rgb::splat(ao), &[frac]);
+                        }
+                    }
+                    pass2_rays.fetch_add(count, Ordering::Relaxed);
+                    points.fetch_add(npoints, Ordering::Relaxed);
+                    brute_cells.fetch_add((nbrute * nc as f64).round() as u64, Ordering::Relaxed);
+                    let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+                    if let Some(pr) = ctx.progress {
+                        pr(d, total);
+                    }
+                    Some(tile)
+                })
+                .collect::<Vec<_>>()
+        })?;
+        if results.iter().any(|t| t.is_none()) {
+            return Err(RenderError::Cancelled);
+        }
+        for tile in results.into_iter().flatten() {
+            film.merge_tile(&tile);
+        }
+        let filter_seconds = t2.elapsed().as_secs_f64();
+        let points = points.load(Ordering::Relaxed).max(1) as f64;
+        let (r1, r2) = (pass1_rays.load(Ordering::Relaxed), pass2_rays.load(Ordering::Relaxed));
+        let mut stats = RenderStats {
+            spp,
+            camera_samples: sample_bounds.area() as u64 * spp as u64,
+            rays: r1 + r2 + sample_bounds.area() as u64 * spp as u64,
+            shadow_rays: r1 + r2,
+            threads: if ctx.threads > 0 { ctx.threads } else { rayon::current_num_threads() },
+            render_seconds: start.elapsed().as_secs_f64(),
+            ..Default::default()
+        };
+        let c = &mut stats.counters;
+        c.insert("pass1_points".into(), (region.area() as u64 * spp as u64) as f64);
+        c.insert("pass1_rays_per_point".into(), r1 as f64 / (region.area().max(1) as f64 * spp as f64));
+        c.insert("pass2_rays_per_point".into(), r2 as f64 / points);
+        c.insert("brute_cell_fraction".into(), brute_cells.load(Ordering::Relaxed) as f64 / (points * nc as f64));
+        c.insert("pass1_seconds".into(), pass1_seconds);
+        c.insert("pass2_seconds".into(), filter_seconds);
+        Ok(stats)
+    }
+}
