@@ -60,12 +60,9 @@ fn check(desc: &SceneDescription, args: &InfoArgs, warnings: &DiagSink) -> Resul
     let scene = Scene::check(desc, req, &BuildOptions::default(), warnings).map_err(|d| d.to_string())?;
     let mut o = String::new();
     let mut builds: Vec<&str> = Vec::new();
-    for (on, what) in [
-        (req.accel, "bvh"),
-        (req.lights, "lights"),
-        (req.materials, "materials"),
-        (req.adjacency, "adjacency"),
-    ] {
+    for (on, what) in
+        [(req.accel, "bvh"), (req.lights, "lights"), (req.materials, "materials"), (req.adjacency, "adjacency")]
+    {
         if on {
             builds.push(what);
         }

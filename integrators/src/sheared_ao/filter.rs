@@ -36,6 +36,20 @@ pub struct Receiver {
     pub footprint: f64,
 }
 
+/// Where an unoccluded neighbour ray's target (the point its effective ray from the receiver
+/// aims at) is put.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Warp {
+    /// On the sphere around the receiver whose radius is the harmonic mean of the receiver's
+    /// occluder depth bounds over all cells (no warp without occluders): the warp is continuous
+    /// across cells. Measured bias on a plane under a disk at the centre: −0.1 % (`Cell`: −2.7 %).
+    Sphere,
+    /// The paper's: on the plane perpendicular to the central direction of the ray's own cell at
+    /// that cell's mid depth, no warp in cells without occluders. The warp jumps at cell
+    /// boundaries, which depletes unoccluded samples next to unwarped cells: too dark.
+    Cell,
+}
+
 /// The filter's parameters (see the module doc of `sheared_ao` for their defaults).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FilterParams {
@@ -47,11 +61,13 @@ pub struct FilterParams {
     pub min_weight: f64,
     /// Occluders farther than this do not occlude (`"float maxdistance"`).
     pub max_distance: f64,
+    /// `"string warp"`: `"sphere"` (default) or `"cell"` (the paper's).
+    pub warp: Warp,
 }
 
 impl Default for FilterParams {
     fn default() -> Self {
-        FilterParams { cells: 8, omega_v: 2.0, min_weight: 2.0, max_distance: f64::INFINITY }
+        FilterParams { cells: 8, omega_v: 2.0, min_weight: 2.0, max_distance: f64::INFINITY, warp: Warp::Sphere }
     }
 }
 
@@ -201,6 +217,13 @@ pub fn filter_receiver<'a>(
         b.brute = b.z_min < contact;
         b.radius = if b.z_max > b.z_min { b.z_min * b.z_max / (params.omega_v * (b.z_max - b.z_min)) } else { inf };
     }
+    // The receiver's mid depth over all cells, for `Warp::Sphere`.
+    let (gmin, gmax) = scratch
+        .bounds
+        .iter()
+        .filter(|b| b.z_max > 0.0)
+        .fold((inf, 0.0f64), |(a, b), c| (a.min(c.z_min), b.max(c.z_max)));
+    let gmid = if gmax > 0.0 { 2.0 / (1.0 / gmin + 1.0 / gmax) } else { inf };
     // Loop 2: warp every ray to an effective ray from p, weight it, accumulate per cell.
     scratch.w.clear();
     scratch.w.resize(nc, 0.0);
@@ -213,28 +236,38 @@ pub fn filter_receiver<'a>(
             let (target, visible) = match occluding(r, q) {
                 Some(hit) => (hit - p, 0.0),
                 None => {
-                    let c0 = cell_of(recv.frame.to_local(r.d), params.cells);
-                    let mid = scratch.bounds[c0].mid;
-                    if !mid.is_finite() {
-                        // No occluder in the ray's cell: no warp (target at infinity, v = d),
-                        // infinite radius: weight 1 in that cell.
-                        if r.d.dot(n) > GRAZING {
-                            scratch.w[c0] += 1.0;
-                            scratch.wv[c0] += 1.0;
+                    if params.warp == Warp::Sphere {
+                        if !gmid.is_finite() {
+                            (r.d, 1.0)
+                        } else {
+                            let od = o.dot(r.d);
+                            let tau = -od + (od * od - o.length_squared() + gmid * gmid).max(0.0).sqrt();
+                            (o + tau * r.d, 1.0)
                         }
-                        continue;
-                    }
-                    {
-                        let a = scratch.centers[c0];
-                        let den = a.dot(r.d);
-                        if !(den > GRAZING) {
+                    } else {
+                        let c0 = cell_of(recv.frame.to_local(r.d), params.cells);
+                        let mid = scratch.bounds[c0].mid;
+                        if !mid.is_finite() {
+                            // No occluder in the ray's cell: no warp (target at infinity, v = d),
+                            // infinite radius: weight 1 in that cell.
+                            if r.d.dot(n) > GRAZING {
+                                scratch.w[c0] += 1.0;
+                                scratch.wv[c0] += 1.0;
+                            }
                             continue;
                         }
-                        let tau = (mid - a.dot(o)) / den;
-                        if !(tau > 0.0) {
-                            continue;
+                        {
+                            let a = scratch.centers[c0];
+                            let den = a.dot(r.d);
+                            if !(den > GRAZING) {
+                                continue;
+                            }
+                            let tau = (mid - a.dot(o)) / den;
+                            if !(tau > 0.0) {
+                                continue;
+                            }
+                            (o + tau * r.d, 1.0)
                         }
-                        (o + tau * r.d, 1.0)
                     }
                 }
             };

@@ -22,7 +22,8 @@
 //! Parameters (beside [`ShearedAo::create`]): `"integer nsamples"` (12, rounded by the
 //! sampler), `"integer screenradius"` (8), `"integer cells"` (8), `"float omegav"` (2.0),
 //! `"float minweight"` (2.0), `"integer brutesamples"` (1), `"integer maxpoints"` (256: the
-//! cap on cache points per receiver, nearest pixels first), `"float maxdistance"` (∞, pbrt-v4's).
+//! cap on cache points per receiver, nearest pixels first), `"float maxdistance"` (∞, pbrt-v4's),
+//! `"string warp"` (`"sphere"`, or the paper's `"cell"`: see [`filter::Warp`]).
 //!
 //! Choices the paper leaves open (see also [`filter`]):
 //! * kernel: a Gaussian exp(−2t²) of t = |x| / r, truncated at t = 1.5;
@@ -34,6 +35,11 @@
 //!   below `minweight` is;
 //! * cells combine as equal projected solid angles π / cells²: the mean visibility of each
 //!   cell (filtered or brute-forced) times π / cells²;
+//! * unoccluded rays are warped through the sphere of the receiver's harmonic mid depth
+//!   ([`filter::Warp::Sphere`]) rather than the paper's per-cell plane, whose discontinuity at
+//!   cell edges darkens: image means −0.65 % / −1.36 % (`cell`) against −0.07 % / −0.38 %
+//!   (`sphere`) of pbrt-v3's references on `suite/ao/spheres-on-plane` / `blinds` (64², 4 spp,
+//!   `nsamples` 8, `tests/sheared_ao.rs`);
 //! * `maxdistance`: a hit farther than it from the *receiver* counts as a miss;
 //! * neighbours: normal within ~26° and within a slope of 0.25 (+ one footprint) of the
 //!   receiver's tangent plane; grazing warps (cos < 1e-3) are rejected.
@@ -41,7 +47,7 @@
 pub mod filter;
 
 use crate::common::image_pass::ImageBuffer;
-use filter::{CachePoint, CachedRay, CellValue, FilterParams, Receiver, Scratch};
+use filter::{CachePoint, CachedRay, CellValue, FilterParams, Receiver, Scratch, Warp};
 use glam::{IVec2, Vec2};
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
@@ -67,7 +73,7 @@ pub struct ShearedAo {
 }
 
 impl ShearedAo {
-    pub fn create(params: &ParamSet, _warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
+    pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
         let int_in = |name: &str, default: i32, lo: i32, hi: i32| -> Result<u32, Diagnostic> {
             let v = params.get_one_int(name, default);
             if (lo..=hi).contains(&v) {
@@ -100,6 +106,17 @@ impl ShearedAo {
                 omega_v: positive("omegav", 2.0)?,
                 min_weight: positive("minweight", 2.0)?,
                 max_distance: positive("maxdistance", f32::INFINITY)?,
+                warp: match params.get_one_string("warp", "sphere").as_str() {
+                    "sphere" => Warp::Sphere,
+                    "cell" => Warp::Cell,
+                    other => {
+                        warnings.warn(
+                            params.loc_of("warp").cloned(),
+                            format!("sheared-ao: unknown warp \"{other}\" (expected sphere or cell): using \"sphere\""),
+                        );
+                        Warp::Sphere
+                    }
+                },
             },
         }))
     }

@@ -89,8 +89,9 @@ fn disk_hit(rho: f64, h: f64) -> impl Fn(DVec3, DVec3) -> f64 {
 fn plane_under_a_disk_matches_the_closed_form() {
     let (rho, h) = (1.0, 1.0);
     // A 33×33 window of spacing 0.02 (±0.16): the disk is at one depth per direction cone.
-    let cache = plane_cache(8, 0.02, 16, disk_hit(rho, h));
+    let cache = plane_cache(8, 0.02, 64, disk_hit(rho, h));
     let (mut s, mut out) = (Scratch::default(), Vec::new());
+    // Measured (64 rays per point): 1.5693 / 1.7757 / 2.2818 against 1.5708 / 1.7656 / 2.2733.
     for a in [0.0, 0.5, 1.0] {
         let p = DVec3::new(a, 0.0, 0.0);
         let shifted: Vec<CachePoint> = cache
@@ -110,6 +111,6 @@ fn plane_under_a_disk_matches_the_closed_form() {
         let exact = std::f64::consts::PI * (1.0 - disk_fraction(rho, h, a));
         eprintln!("a {a}: filtered AO {got:.4} vs exact {exact:.4}, {brute} brute cells");
         assert!(brute <= 4, "a {a}: {brute} brute-forced cells");
-        assert!((got - exact).abs() < 0.04 * std::f64::consts::PI, "a {a}: {got} vs {exact}");
+        assert!((got - exact).abs() < 0.01 * exact, "a {a}: {got} vs {exact}");
     }
 }
