@@ -289,6 +289,7 @@ impl Integrator for LtcIntegrator {
             materials: true,
             // Light shapes and silhouettes (every mode but per-triangle) and occluder outlines.
             adjacency: self.mode != Mode::PerTriangle || (self.shadows && self.merge_occluders),
+            dual_edges: false,
             min_pixel_samples: (self.pixel_shading && self.coverage_samples > 1)
                 .then_some((self.coverage_samples, COVERAGE_REASON)),
         }

@@ -258,7 +258,11 @@ impl Estimator<'_> {
             }
         });
         if let Some((order, ..)) = &self.sh {
-            TransferChannels::new(*order, 0).write(aov, &transfer[..k], crate::ao::diffuse_albedo(scene, &si));
+            TransferChannels::new(*order, 0).write(
+                aov,
+                &transfer[..k],
+                crate::ambientocclusion::diffuse_albedo(scene, &si),
+            );
         }
         Rgb::splat((nd.dot(sum * m.dphi + sum_mc)).max(0.0) as f32)
     }
