@@ -31,6 +31,7 @@ pub mod sh;
 pub mod shapes;
 pub mod silhouette;
 pub mod spectrum;
+pub mod sphereset;
 pub mod spherical;
 pub mod stats;
 pub mod texture;

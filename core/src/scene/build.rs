@@ -71,6 +71,14 @@ impl Scene {
         } else {
             None
         };
+        let sphere_sets = req.sphere_sets.map(|n| {
+            let t = Instant::now();
+            let params = crate::sphereset::fit::FitParams { spheres: n, ..Default::default() };
+            let dir = crate::sphereset::cache::default_dir();
+            let sets = crate::sphereset::build_for_scene(&meshes, &objects, &params, dir.as_deref());
+            report.stages.push(("sphere sets".into(), t.elapsed().as_secs_f64(), sets.summary()));
+            sets
+        });
         let (materials, textures) = if req.materials {
             let (m, t) = materials(desc, &objects, warnings, &mut report)?;
             (Some(m), Some(t))
@@ -94,6 +102,7 @@ impl Scene {
             bounds,
             integrator: desc.integrator.clone(),
             report,
+            sphere_sets,
         })
     }
 }

@@ -35,6 +35,9 @@ pub struct Requirements {
     /// At least this many camera samples per pixel, and the integrator's reason (said in the
     /// warning when the scene's or the command line's count is raised).
     pub min_pixel_samples: Option<(u32, &'static str)>,
+    /// Sphere-set approximations of the occluders with this many leaves per fitted object
+    /// (`shexp`; see [`crate::sphereset`]).
+    pub sphere_sets: Option<u32>,
 }
 
 /// A crop given on the command line: fractions (pbrt-v3's `cropwindow`) or pixel bounds.
@@ -119,6 +122,8 @@ pub struct Scene {
     /// The scene's own `Integrator` directive.
     pub integrator: Entity,
     pub report: BuildReport,
+    /// Built when `Requirements::sphere_sets`.
+    pub sphere_sets: Option<crate::sphereset::SphereSets>,
 }
 
 /// A ray bundle with more candidate triangles than this is traversed ray by ray: testing each

@@ -1,0 +1,388 @@
+//! Sphere-set approximations of the scene's occluders, for `shexp` (seed 003 §4.1): built at
+//! scene build only when an integrator asks for them ([`crate::scene::Requirements::sphere_sets`]).
+//!
+//! Every object that casts shadows gets one of:
+//! - **exact**: a `sphere` shape (full, closed, uniformly scaled) is its own sphere;
+//! - **fitted**: a closed mesh (after welding by position, every edge shared by exactly two
+//!   triangles) gets `"integer spheres"` leaves by the variational fit of [`fit`] (or the
+//!   single smallest sphere through its vertices when that sticks out less), then a
+//!   [`hierarchy`] over them; fits are cached on disk by a hash of the mesh ([`cache`]);
+//! - **ground plane**: the largest open planar mesh with every other occluder in front of it
+//!   is not bounded by spheres; `shexp` cuts the environment at its horizon instead;
+//! - **shell**: any other open mesh (a wall, a leaf, a partial quadric) cannot be bounded as a
+//!   solid; its surface samples are bounded by spheres fitted without inner points (thick,
+//!   conservative shells: they overshadow rather than vanish), with one warning naming it.
+//!
+//! Objects with `"bool occluder" false`, without a material, or without triangles get none.
+
+pub mod cache;
+pub mod fit;
+pub mod hierarchy;
+
+use crate::interaction::SceneObject;
+use crate::mesh::TriangleMesh;
+use fit::{Fit, FitParams};
+use glam::DVec3;
+use hierarchy::Hierarchy;
+use std::path::Path;
+use std::time::Instant;
+
+/// A sphere (world space, f64).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sphere {
+    pub center: DVec3,
+    pub radius: f64,
+}
+
+impl Sphere {
+    pub fn volume(&self) -> f64 {
+        4.0 / 3.0 * std::f64::consts::PI * self.radius.powi(3)
+    }
+    pub fn contains(&self, p: DVec3) -> bool {
+        p.distance_squared(self.center) <= self.radius * self.radius
+    }
+}
+
+/// Where a set came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Source {
+    Exact,
+    Fitted,
+    /// Fitted earlier and read from the disk cache.
+    Cached,
+    /// An open mesh's conservative shell.
+    Shell,
+}
+
+/// One object's spheres.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SphereSet {
+    pub object: usize,
+    pub leaves: Vec<Sphere>,
+    pub hierarchy: Hierarchy,
+    pub source: Source,
+    /// `Σ_i Vol(S_i \ O)` (0 for exact spheres; the whole sphere volume for shells).
+    pub outside_volume: f64,
+    /// `Vol(O)` (0 for shells).
+    pub volume: f64,
+    pub seconds: f64,
+    pub triangles: usize,
+    /// A closed convex solid never shadows its own surface: `shexp` skips the set there.
+    pub convex: bool,
+}
+
+/// The plane `shexp` cuts the environment with: directions with `normal · ω < 0` are blocked
+/// for every point above it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroundPlane {
+    pub object: usize,
+    pub point: DVec3,
+    pub normal: DVec3,
+}
+
+/// Everything built for a scene.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SphereSets {
+    pub sets: Vec<SphereSet>,
+    pub ground: Option<GroundPlane>,
+    /// Objects given nothing, with the reason (for `penumbra info`).
+    pub skipped: Vec<(usize, &'static str)>,
+    /// Open meshes approximated by shells (the integrator warns about them).
+    pub cache_hits: usize,
+    pub cache_misses: usize,
+    /// The first cache write error, if any (the render goes on).
+    pub cache_error: Option<String>,
+}
+
+impl SphereSets {
+    pub fn leaf_count(&self) -> usize {
+        self.sets.iter().map(|s| s.leaves.len()).sum()
+    }
+
+    /// One line for the build report.
+    pub fn summary(&self) -> String {
+        let count = |src: Source| self.sets.iter().filter(|s| s.source == src).count();
+        let fitted: Vec<&SphereSet> =
+            self.sets.iter().filter(|s| matches!(s.source, Source::Fitted | Source::Cached)).collect();
+        let (out, vol): (f64, f64) = fitted.iter().fold((0.0, 0.0), |a, s| (a.0 + s.outside_volume, a.1 + s.volume));
+        let mut s = format!(
+            "{} leaf spheres: {} exact, {} fitted ({} from cache), {} shells",
+            self.leaf_count(),
+            count(Source::Exact),
+            count(Source::Fitted) + count(Source::Cached),
+            count(Source::Cached),
+            count(Source::Shell)
+        );
+        if vol > 0.0 {
+            s += &format!("; fitted outside volume {:.1} % of their volume", 100.0 * out / vol);
+        }
+        if self.ground.is_some() {
+            s += "; ground plane cuts the environment";
+        }
+        if let Some(e) = &self.cache_error {
+            s += &format!("; cache not written ({e})");
+        }
+        s
+    }
+}
+
+/// `Some(sphere)` when every vertex of a closed mesh lies at the same distance (relative
+/// `1e-5`) from its bounding-box centre: a tessellated `sphere`, whose exact sphere it is.
+pub fn exact_sphere(mesh: &TriangleMesh) -> Option<Sphere> {
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for p in &mesh.positions {
+        lo = lo.min(p.as_dvec3());
+        hi = hi.max(p.as_dvec3());
+    }
+    let c = (lo + hi) * 0.5;
+    let d: Vec<f64> = mesh.positions.iter().map(|p| p.as_dvec3().distance(c)).collect();
+    let r = d.iter().sum::<f64>() / d.len().max(1) as f64;
+    (r > 0.0 && r.is_finite() && d.iter().all(|x| (x - r).abs() <= 1e-5 * r)).then_some(Sphere { center: c, radius: r })
+}
+
+/// Whether `mesh`, welded by position, has every edge shared by exactly two triangles.
+pub fn is_closed(mesh: &TriangleMesh) -> bool {
+    let adj = mesh.build_adjacency();
+    !adj.edges.is_empty() && adj.edges.iter().all(|e| e.count == 2)
+}
+
+/// `Some((point, unit normal))` when every vertex lies within `1e-5` of the extent from one plane.
+fn plane_of(mesh: &TriangleMesh) -> Option<(DVec3, DVec3)> {
+    let (mut best, mut n) = (0.0, DVec3::ZERO);
+    for t in 0..mesh.triangle_count() {
+        let [a, b, c] = mesh.vertices(t).map(|p| p.as_dvec3());
+        let x = (b - a).cross(c - a);
+        if x.length() > best {
+            (best, n) = (x.length(), x / x.length());
+        }
+    }
+    let p0 = mesh.positions.first()?.as_dvec3();
+    let ext = mesh.positions.iter().map(|p| p.as_dvec3().distance(p0)).fold(0.0, f64::max);
+    (best > 0.0 && mesh.positions.iter().all(|p| (p.as_dvec3() - p0).dot(n).abs() <= 1e-5 * ext)).then_some((p0, n))
+}
+
+/// The smallest sphere through a mesh's vertices (Nelder–Mead on the centre from the
+/// bounding-box centre), as a one-sphere fit.
+fn single_sphere(mesh: &TriangleMesh, volume: f64, params: &FitParams) -> Fit {
+    let pts: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+    let reach = |c: DVec3| pts.iter().map(|p| p.distance_squared(c)).fold(0.0, f64::max).sqrt();
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for p in &pts {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    let c0 = (lo + hi) * 0.5;
+    let (c, _) = fit::nelder_mead(&mut |c| reach(c), c0, 0.1 * reach(c0).max(f64::MIN_POSITIVE), 300);
+    let c = if reach(c) <= reach(c0) { c } else { c0 };
+    let mut spheres = vec![Sphere { center: c, radius: reach(c) * (1.0 + 1e-6) }];
+    fit::cover(&mut spheres, &fit::surface_samples(mesh, params.surface_points as usize));
+    let (inner, cell) = fit::inner_grid(mesh, params.inner_points as usize, volume);
+    let s = spheres[0];
+    let inside = inner.iter().filter(|p| s.contains(**p)).count();
+    Fit {
+        spheres,
+        outside_volume: (s.volume() - inside as f64 * cell).max(0.0),
+        volume,
+        inner_points: inner.len(),
+        surface_points: 0,
+    }
+}
+
+/// A closed mesh's leaves: the variational fit, or one sphere when that sticks out less.
+pub fn fit_closed(mesh: &TriangleMesh, params: &FitParams) -> Fit {
+    let volume = fit::mesh_volume(mesh);
+    let one = single_sphere(mesh, volume, params);
+    if params.spheres <= 1 {
+        return one;
+    }
+    let many = fit::fit(mesh, params);
+    if one.outside_volume <= many.outside_volume {
+        one
+    } else {
+        many
+    }
+}
+
+/// Builds the sphere sets of a scene (see the module doc). `cache_dir` `None`: no cache.
+pub fn build_for_scene(
+    meshes: &[TriangleMesh],
+    objects: &[SceneObject],
+    params: &FitParams,
+    cache_dir: Option<&Path>,
+) -> SphereSets {
+    let mut out = SphereSets::default();
+    let mut open: Vec<(usize, Option<(DVec3, DVec3)>)> = Vec::new();
+    for (i, (mesh, obj)) in meshes.iter().zip(objects).enumerate() {
+        if !obj.occluder {
+            out.skipped.push((i, "\"occluder\" false"));
+            continue;
+        }
+        if obj.material.is_none() && obj.area_light.is_none() {
+            out.skipped.push((i, "no material"));
+            continue;
+        }
+        if mesh.triangle_count() == 0 {
+            out.skipped.push((i, "no triangles"));
+            continue;
+        }
+        let t0 = Instant::now();
+        let closed = is_closed(mesh);
+        if closed && obj.kind == "sphere" {
+            if let Some(s) = exact_sphere(mesh) {
+                out.sets.push(SphereSet {
+                    object: i,
+                    leaves: vec![s],
+                    hierarchy: hierarchy::build(&[s]),
+                    source: Source::Exact,
+                    outside_volume: 0.0,
+                    volume: s.volume(),
+                    seconds: t0.elapsed().as_secs_f64(),
+                    triangles: mesh.triangle_count(),
+                    convex: true,
+                });
+                continue;
+            }
+        }
+        if !closed {
+            open.push((i, plane_of(mesh)));
+            continue;
+        }
+        let key = cache::key(mesh, params);
+        let (fit, source) = match cache_dir.and_then(|d| cache::load(d, key)) {
+            Some(f) => {
+                out.cache_hits += 1;
+                (f, Source::Cached)
+            }
+            None => {
+                out.cache_misses += 1;
+                let f = fit_closed(mesh, params);
+                if let Some(d) = cache_dir {
+                    if let Err(e) = cache::store(d, key, &f) {
+                        out.cache_error.get_or_insert_with(|| format!("{}: {e}", d.display()));
+                    }
+                }
+                (f, Source::Fitted)
+            }
+        };
+        out.sets.push(SphereSet {
+            object: i,
+            hierarchy: hierarchy::build(&fit.spheres),
+            leaves: fit.spheres,
+            source,
+            outside_volume: fit.outside_volume,
+            volume: fit.volume,
+            seconds: t0.elapsed().as_secs_f64(),
+            triangles: mesh.triangle_count(),
+            convex: mesh.is_closed_convex(1e-5),
+        });
+    }
+    // The ground plane: planar, every other occluder's vertices in front of it, the largest.
+    let others = |skip: usize| {
+        meshes
+            .iter()
+            .enumerate()
+            .filter(move |(j, _)| *j != skip && objects[*j].occluder && meshes[*j].triangle_count() > 0)
+    };
+    let mut ground: Option<(f64, GroundPlane)> = None;
+    for &(i, plane) in &open {
+        let Some((p0, n)) = plane else { continue };
+        let ext = meshes[i].positions.iter().map(|p| p.as_dvec3().distance(p0)).fold(0.0, f64::max);
+        let tol = 1e-5 * ext;
+        let mut sides = (false, false, false); // any in front, any behind, any at all
+        for (_, m) in others(i) {
+            for p in &m.positions {
+                let d = (p.as_dvec3() - p0).dot(n);
+                sides.2 = true;
+                if d > tol {
+                    sides.0 = true;
+                } else if d < -tol {
+                    sides.1 = true;
+                }
+            }
+        }
+        let normal = match sides {
+            (_, _, false) => continue, // nothing to cut for
+            (true, false, _) => n,
+            (false, true, _) => -n,
+            _ => continue,
+        };
+        let area = meshes[i].total_area();
+        if ground.as_ref().map(|g| area > g.0).unwrap_or(true) {
+            ground = Some((area, GroundPlane { object: i, point: p0, normal }));
+        }
+    }
+    out.ground = ground.map(|g| g.1);
+    for (i, plane) in open {
+        if out.ground.map(|g| g.object) == Some(i) {
+            continue;
+        }
+        if plane.is_some() && others(i).next().is_none() {
+            // A plane never shadows itself, and there is nothing else to shadow.
+            out.skipped.push((i, "planar, nothing else to shadow"));
+            continue;
+        }
+        let t0 = Instant::now();
+        let mesh = &meshes[i];
+        let surface = fit::surface_samples(mesh, params.surface_points as usize);
+        let spheres = shell(&surface, params.spheres.max(1) as usize);
+        let outside_volume = spheres.iter().map(Sphere::volume).sum();
+        out.sets.push(SphereSet {
+            object: i,
+            hierarchy: hierarchy::build(&spheres),
+            leaves: spheres,
+            source: Source::Shell,
+            outside_volume,
+            volume: 0.0,
+            seconds: t0.elapsed().as_secs_f64(),
+            triangles: mesh.triangle_count(),
+            convex: false,
+        });
+    }
+    out.sets.sort_by_key(|s| s.object);
+    out
+}
+
+/// `k` spheres bounding surface samples: Lloyd (k-means) clusters seeded by farthest points,
+/// each bounded by its smallest enclosing sphere about its centroid.
+fn shell(points: &[DVec3], k: usize) -> Vec<Sphere> {
+    if points.is_empty() {
+        return Vec::new();
+    }
+    let k = k.min(points.len());
+    let mut seeds = vec![points[0]];
+    let mut gap: Vec<f64> = points.iter().map(|p| p.distance_squared(points[0])).collect();
+    while seeds.len() < k {
+        let Some(i) = (0..points.len()).max_by(|&a, &b| gap[a].total_cmp(&gap[b])) else { break };
+        seeds.push(points[i]);
+        for (g, p) in gap.iter_mut().zip(points) {
+            *g = g.min(p.distance_squared(points[i]));
+        }
+    }
+    let mut groups = vec![Vec::new(); k];
+    for _ in 0..10 {
+        groups = vec![Vec::new(); k];
+        for p in points {
+            let g = (0..k).min_by(|&a, &b| seeds[a].distance_squared(*p).total_cmp(&seeds[b].distance_squared(*p)));
+            groups[g.unwrap_or(0)].push(*p);
+        }
+        for (s, g) in seeds.iter_mut().zip(&groups) {
+            if !g.is_empty() {
+                *s = g.iter().sum::<DVec3>() / g.len() as f64;
+            }
+        }
+    }
+    let mut spheres: Vec<Sphere> = seeds
+        .iter()
+        .zip(&groups)
+        .filter(|(_, g)| !g.is_empty())
+        .map(|(c, g)| Sphere {
+            center: *c,
+            radius: g.iter().map(|p| p.distance(*c)).fold(0.0, f64::max).max(f64::MIN_POSITIVE) * (1.0 + 1e-6),
+        })
+        .collect();
+    fit::cover(&mut spheres, points);
+    spheres
+}
+
+#[cfg(test)]
+mod tests;
