@@ -8,6 +8,7 @@ pub mod ltc;
 pub mod path;
 pub mod ratio;
 pub mod sheared_ao;
+pub mod shexp;
 pub mod silhouette;
 pub mod whitted;
 
@@ -53,6 +54,11 @@ pub const REGISTRY: &[Entry] = &[
         name: "silhouette",
         method: "semi-analytic integration along visibility silhouettes: 4D dual-edge contours, depth complexity along meridians (seed 000)",
         create: silhouette::Silhouette::create,
+    },
+    Entry {
+        name: "shexp",
+        method: "environment soft shadows from sphere-set occluders by SH exponentiation (seed 003)",
+        create: shexp::Shexp::create,
     },
     Entry {
         name: "ambientocclusion",

@@ -1,0 +1,306 @@
+//! `shexp`: environment soft shadows from sphere-set occluders by SH exponentiation — seed 003
+//! (Guerrero's thesis restating Ren et al. 2006, "Real-time soft shadows in dynamic scenes using
+//! spherical harmonic exponentiation"), as an offline, noise-free CPU integrator.
+//!
+//! At the first non-specular surface, the Lambertian part of the BSDF (albedo `ρ`) under the
+//! scene's `infinite` lights is `ρ/π · LH(N) · V` ([`lighting`], [`visibility`]):
+//! - `V = exp*(Σ_i G_{θ_i} turned to ω_i) ∗ Π_big B_θ` over the leaf spheres of every
+//!   occluder ([`penumbra_core::sphereset`], built only for this integrator), each adjusted by
+//!   the receiver-inside rules; caps wider than `"float bigblocker"` are multiplied explicitly;
+//! - `LH(N)`: the exact order-n projection of `L · max(0, N·ω)`, with the environment cut at
+//!   the ground plane's horizon when the scene has one (an open planar mesh under everything);
+//! - the result is clamped to `[0, LH(N)·1]` (between black and unshadowed).
+//!
+//! Open occluders other than the ground plane are bounded by conservative sphere shells (one
+//! warning names each). What SH at low order cannot carry, and what is not Lambertian, goes
+//! through `directlighting`'s estimator (`common::direct::estimate_direct`, one warning): the
+//! non-Lambertian lobes under the infinite lights, every other light (area, point, spot,
+//! distant) with the full BSDF, and perfectly specular lobes recursively up to `maxdepth`.
+//!
+//! Parameters (also `--param`):
+//! - `"integer order"` 4: SH order `n` (1–8).
+//! - `"string exp"` `"ss"`: `exp*` by scaling and squaring; `"ol"` optimal linear, `"hyb"`
+//!   hybrid (for comparison).
+//! - `"integer spheres"` 32: leaf spheres per fitted closed mesh.
+//! - `"float bigblocker"` 45: caps wider than this (degrees) are multiplied explicitly.
+//! - `"integer lhresolution"` 32: normal cubemap texels per face edge for `LH(N)`.
+//! - `"integer maxdepth"` 5: specular recursion depth, as `directlighting`.
+//! - `"integer brightlights"` 0: (not yet implemented) bright regions split off the map.
+//! - `"bool interreflect"` false: (not yet implemented) the thesis's one-bounce extension.
+
+pub mod lighting;
+pub mod visibility;
+
+use crate::common::direct::{estimate_direct, specular};
+use crate::common::{max_depth_param, pixel_bounds_param};
+use glam::DVec3;
+use lighting::EnvLighting;
+use penumbra_core::bxdf::{Bsdf, Bxdf, BxdfFlags};
+use penumbra_core::film::Film;
+use penumbra_core::geometry::{Bounds2i, Ray};
+use penumbra_core::integrator::{
+    render_pixels, with_threads, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+};
+use penumbra_core::light::Light;
+use penumbra_core::sampler::Sampler;
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
+use penumbra_core::sh::ShOrder;
+use penumbra_core::sphereset::{Source, SphereSets};
+use penumbra_core::{Rgb, Vec3};
+use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicBool, Ordering};
+use visibility::{ExpChoice, Visibility};
+
+pub struct Shexp {
+    pub order: ShOrder,
+    pub exp: ExpChoice,
+    pub spheres: u32,
+    /// Radians.
+    pub big_theta: f64,
+    pub lh_resolution: usize,
+    pub max_depth: u32,
+    pub pixel_bounds: Option<Bounds2i>,
+}
+
+impl Shexp {
+    pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
+        let bad = |name: &str, msg: String| Diagnostic::error(params.loc_of(name).cloned(), msg);
+        let n = params.get_one_int("order", 4);
+        if !(1..=8).contains(&n) {
+            return Err(bad("order", format!("shexp: \"order\" {n} is out of range (1 to 8)")));
+        }
+        let order = ShOrder::new(n as usize).map_err(|e| bad("order", e.to_string()))?;
+        let e = params.get_one_string("exp", "ss");
+        let exp = ExpChoice::parse(&e)
+            .ok_or_else(|| bad("exp", format!("shexp: \"exp\" \"{e}\" unknown (\"ss\", \"ol\" or \"hyb\")")))?;
+        let spheres = params.get_one_int("spheres", 32);
+        if !(1..=4096).contains(&spheres) {
+            return Err(bad("spheres", format!("shexp: \"spheres\" {spheres} is out of range (1 to 4096)")));
+        }
+        let big = params.get_one_float("bigblocker", 45.0);
+        if !(big > 0.0 && big <= 90.0) {
+            return Err(bad("bigblocker", format!("shexp: \"bigblocker\" {big} is out of range (0 to 90 degrees)")));
+        }
+        let res = params.get_one_int("lhresolution", 32);
+        if !(1..=256).contains(&res) {
+            return Err(bad("lhresolution", format!("shexp: \"lhresolution\" {res} is out of range (1 to 256)")));
+        }
+        let bright = params.get_one_int("brightlights", 0);
+        if bright != 0 {
+            warnings.warn(
+                params.loc_of("brightlights").cloned(),
+                "shexp: \"brightlights\" is not implemented yet: the whole environment is projected to SH",
+            );
+        }
+        if params.get_one_bool("interreflect", false) {
+            warnings.warn(
+                params.loc_of("interreflect").cloned(),
+                "shexp: \"interreflect\" is not implemented yet: direct lighting only",
+            );
+        }
+        let max_depth = max_depth_param(params, 1024)?;
+        let pixel_bounds = pixel_bounds_param(params, warnings);
+        Ok(Box::new(Shexp {
+            order,
+            exp,
+            spheres: spheres as u32,
+            big_theta: (big as f64).to_radians(),
+            lh_resolution: res as usize,
+            max_depth,
+            pixel_bounds,
+        }))
+    }
+}
+
+/// Splits a BSDF into its Lambertian reflection albedo and the rest (same frame).
+fn split_lambertian(bsdf: &Bsdf) -> (Rgb, Option<Bsdf>) {
+    let mut kd = Rgb::ZERO;
+    let ss = bsdf.local_to_world(Vec3::X);
+    let mut rest = Bsdf::new(bsdf.shading_normal(), ss, bsdf.geometric_normal(), bsdf.eta);
+    let mut any = false;
+    for b in bsdf.bxdfs() {
+        match b {
+            Bxdf::LambertianReflection { r } => kd += *r,
+            other => {
+                any |= rest.add(*other).is_ok();
+            }
+        }
+    }
+    (kd, any.then_some(rest))
+}
+
+struct Estimator<'a> {
+    shexp: &'a Shexp,
+    vis: Visibility,
+    env: Option<EnvLighting>,
+    sets: &'a SphereSets,
+    infinite: Vec<usize>,
+    others: Vec<usize>,
+    warn_lobes: AtomicBool,
+    warnings: &'a DiagSink,
+}
+
+/// Per-thread buffers: visibility scratch, `V`, `LH(N)`, and a basis scratch.
+type ShadeScratch = (visibility::Scratch, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
+
+thread_local! {
+    static SCRATCH: RefCell<Option<ShadeScratch>> = const { RefCell::new(None) };
+}
+
+impl Estimator<'_> {
+    /// `∫ L V max(0, n·ω) dω` per channel at `p` (shexp's approximation, clamped).
+    fn shadowed(&self, p: DVec3, n: DVec3, object: usize) -> [f64; 3] {
+        let Some(env) = &self.env else { return [0.0; 3] };
+        let k = self.vis.order().coeffs();
+        SCRATCH.with(|cell| {
+            let mut cell = cell.borrow_mut();
+            let (s, v, lh, tmp) =
+                cell.get_or_insert_with(|| (self.vis.scratch(), vec![0.0; k], vec![[0.0; 3]; k], vec![0.0; k]));
+            if v.len() != k {
+                *s = self.vis.scratch();
+                *v = vec![0.0; k];
+                *lh = vec![[0.0; 3]; k];
+                *tmp = vec![0.0; k];
+            }
+            env.lh(n, lh, tmp);
+            self.vis.vector_for_scene(p, n, object, self.sets, s, v);
+            let mut out = [0.0; 3];
+            for c in 0..3 {
+                let shadowed: f64 = lh.iter().zip(v.iter()).map(|(l, vi)| l[c] * vi).sum();
+                let unshadowed = lh[0][c] * penumbra_core::sh::SQRT_4PI;
+                out[c] = if shadowed.is_finite() { shadowed.clamp(0.0, unshadowed.max(0.0)) } else { 0.0 };
+            }
+            out
+        })
+    }
+
+    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
+        let (first, queries) = scene.first_surface(ray);
+        stats.rays += queries.saturating_sub(1);
+        let hit = match first {
+            Ok(h) => h,
+            Err(escaped) => return escaped,
+        };
+        let SurfaceHit { si, bsdf, le, .. } = &hit;
+        let mut l = *le;
+        let (kd, rest) = split_lambertian(bsdf);
+        let lights = scene.light_list();
+        if kd != Rgb::ZERO && self.env.is_some() {
+            let ns = bsdf.shading_normal();
+            let n = if ns.dot(si.wo) < 0.0 { -ns } else { ns };
+            let e = self.shadowed(si.p.as_dvec3(), n.as_dvec3().normalize(), si.mesh as usize);
+            l += kd * Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32) * std::f32::consts::FRAC_1_PI;
+        }
+        if let Some(rest) = &rest {
+            if rest.num_components(BxdfFlags::NON_SPECULAR) > 0 && !self.infinite.is_empty() {
+                if !self.warn_lobes.swap(true, Ordering::Relaxed) {
+                    self.warnings.warn(
+                        None,
+                        "shexp: non-Lambertian lobes (glossy, Oren–Nayar, transmission) under the environment are \
+                         shaded with directlighting's estimator",
+                    );
+                }
+                for &i in &self.infinite {
+                    let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
+                    l += estimate_direct(si, rest, u_scatter, i, &lights[i], u_light, scene, stats);
+                }
+            }
+        }
+        for &i in &self.others {
+            let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
+            l += estimate_direct(si, bsdf, u_scatter, i, &lights[i], u_light, scene, stats);
+        }
+        if depth + 1 < self.shexp.max_depth {
+            for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
+                l += specular(si, bsdf, sampler, stats, kind, |r, sampler, stats| {
+                    self.li(r, scene, sampler, stats, depth + 1)
+                });
+            }
+        }
+        l
+    }
+}
+
+impl PixelEstimator for Estimator<'_> {
+    fn li(
+        &self,
+        ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        _aov: &mut [f32],
+    ) -> Rgb {
+        self.li(ray, scene, sampler, stats, 0)
+    }
+    fn pixel_bounds(&self) -> Option<Bounds2i> {
+        self.shexp.pixel_bounds
+    }
+}
+
+/// An empty set of sphere sets, for scenes built without them.
+fn no_sets() -> &'static SphereSets {
+    static EMPTY: std::sync::OnceLock<SphereSets> = std::sync::OnceLock::new();
+    EMPTY.get_or_init(SphereSets::default)
+}
+
+impl Integrator for Shexp {
+    fn name(&self) -> &str {
+        "shexp"
+    }
+    fn requirements(&self) -> Requirements {
+        Requirements {
+            accel: true,
+            lights: true,
+            materials: true,
+            sphere_sets: Some(self.spheres),
+            ..Default::default()
+        }
+    }
+    fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+        let sets = scene.sphere_sets.as_ref().unwrap_or_else(|| no_sets());
+        for s in sets.sets.iter().filter(|s| s.source == Source::Shell) {
+            ctx.warnings.warn(
+                scene.objects.get(s.object).map(|o| o.loc.clone()),
+                format!(
+                    "shexp: open mesh \"{}\" cannot be bounded as a solid: it casts shadows through {} conservative \
+                     sphere shells",
+                    scene.objects.get(s.object).map(|o| o.kind.as_str()).unwrap_or("?"),
+                    s.leaves.len()
+                ),
+            );
+        }
+        let lights = scene.light_list();
+        let infinite: Vec<usize> = (0..lights.len()).filter(|&i| lights[i].is_infinite()).collect();
+        let others: Vec<usize> = (0..lights.len()).filter(|&i| !lights[i].is_infinite()).collect();
+        if !others.is_empty() {
+            ctx.warnings.warn(
+                None,
+                "shexp: lights other than \"infinite\" (area, point, spot, distant…) are shaded with directlighting's \
+                 estimator",
+            );
+        }
+        let vis = Visibility::new(self.order, self.exp, self.big_theta)
+            .map_err(|e| RenderError::Failed(format!("shexp: {e}")))?;
+        let env = if infinite.is_empty() {
+            None
+        } else {
+            let env_lights: Vec<&Light> = infinite.iter().map(|&i| &lights[i]).collect();
+            let ground = sets.ground.map(|g| g.normal);
+            Some(with_threads(ctx.threads, || EnvLighting::build(&env_lights, ground, self.order, self.lh_resolution))?)
+        };
+        let est = Estimator {
+            shexp: self,
+            vis,
+            env,
+            sets,
+            infinite,
+            others,
+            warn_lobes: AtomicBool::new(false),
+            warnings: ctx.warnings,
+        };
+        let mut stats = render_pixels(&est, scene, ctx, film)?;
+        stats.counters.insert("leaf spheres".into(), sets.leaf_count() as f64);
+        Ok(stats)
+    }
+}

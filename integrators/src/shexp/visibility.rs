@@ -1,0 +1,230 @@
+//! The SH visibility vector at a receiver (seed 003 §4.2): every sphere adjusted by the
+//! receiver-inside rules, its log-blocker `G_θ` looked up by angular radius, turned to the
+//! sphere's direction and summed; `V = exp*(Σ G)`. Spheres whose cap exceeds `big_theta`
+//! (near contact, where the clipped log round-trips badly: digest §8.2) are multiplied in as
+//! explicit SH products of their blocker `B_θ = 1 − cap_θ` instead.
+
+use glam::DVec3;
+use penumbra_core::sh::{self, ExpScratch, LogBlockerTable, ShExp, ShOrder, TripleProduct, SQRT_4PI};
+use penumbra_core::sphereset::{Sphere, SphereSets};
+use std::sync::{Arc, Mutex, OnceLock};
+
+/// Relative tolerance of the inside/behind tests (of the sphere's radius).
+const REL_TOL: f64 = 1e-6;
+
+/// The sphere to use at receiver `p` with unit normal `n` (seed 003 §4.2, Fig. 4.7), or
+/// `None` when it cannot block: wholly behind the tangent plane, or containing `p`.
+/// - wholly in front (`d ≥ r`, `d = (c − p)·n`): unchanged;
+/// - crossing the plane with its centre in front: replaced by the sphere tangent to the plane
+///   at the centre's foot `q1 = c − d n` and through the top point `q0 = c + r n`;
+/// - crossing with the centre behind, `p` outside: that tangent sphere scaled about `q1` by
+///   `α = min(1, (|p − q1| − ρ)/ρ)` (`ρ = √(r² − d²)`, the radius of the disc the sphere cuts
+///   from the plane), dropped when `α ≤ 0`, so it shrinks to nothing as `p` nears the disc.
+///   The thesis says "scaled"; scaling about `q1` keeps it tangent (the reading the digest
+///   §2.1 names as the alternative to shexp-demo's radius-only scaling).
+pub fn adjust(s: &Sphere, p: DVec3, n: DVec3) -> Option<Sphere> {
+    let (c, r) = (s.center, s.radius);
+    let d = (c - p).dot(n);
+    let tol = REL_TOL * r;
+    if d >= r - tol {
+        return Some(*s);
+    }
+    if d <= -r + tol {
+        return None;
+    }
+    let q1 = c - n * d;
+    let tangent = Sphere { center: c + n * ((r - d) * 0.5), radius: (r + d) * 0.5 };
+    if d > 0.0 {
+        return Some(tangent);
+    }
+    if p.distance_squared(c) <= (r + tol) * (r + tol) {
+        return None;
+    }
+    let rho = (r * r - d * d).max(0.0).sqrt();
+    let alpha = if rho > 0.0 { ((p.distance(q1) - rho) / rho).min(1.0) } else { 1.0 };
+    if !(alpha > 0.0) {
+        return None;
+    }
+    Some(Sphere { center: q1 + (tangent.center - q1) * alpha, radius: tangent.radius * alpha })
+}
+
+/// Cap half-angle and unit axis of a sphere seen from `p` (`θ = asin(min(1, r/|c − p|))`).
+pub fn cap_of(s: &Sphere, p: DVec3) -> Option<(f64, DVec3)> {
+    let v = s.center - p;
+    let dist = v.length();
+    if !(dist > 0.0) || !(s.radius > 0.0) {
+        return None;
+    }
+    Some(((s.radius / dist).min(1.0).asin(), v / dist))
+}
+
+/// The log-blocker table of each order, built once per process.
+fn log_table(order: ShOrder) -> Result<Arc<LogBlockerTable>, sh::ShError> {
+    static TABLES: OnceLock<Mutex<Vec<Arc<LogBlockerTable>>>> = OnceLock::new();
+    let m = TABLES.get_or_init(|| Mutex::new(Vec::new()));
+    let mut v = m.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(t) = v.iter().find(|t| t.order() == order) {
+        return Ok(t.clone());
+    }
+    let t = Arc::new(LogBlockerTable::default_for(order)?);
+    v.push(t.clone());
+    Ok(t)
+}
+
+/// How `exp*` is evaluated (`"string exp"`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExpChoice {
+    /// Scaling and squaring with a Taylor base (the default).
+    ScalingSquaring,
+    /// Ren et al.'s optimal linear `a 1 + b f̂`.
+    OptimalLinear,
+    /// Optimal linear at `f̂/2^p`, then `p` squarings (threshold 0.25, as shexp-demo).
+    Hybrid,
+}
+
+impl ExpChoice {
+    pub fn parse(s: &str) -> Option<ExpChoice> {
+        match s {
+            "ss" => Some(ExpChoice::ScalingSquaring),
+            "ol" => Some(ExpChoice::OptimalLinear),
+            "hyb" => Some(ExpChoice::Hybrid),
+            _ => None,
+        }
+    }
+}
+
+/// Buffers for one receiver.
+pub struct Scratch {
+    g: Vec<f64>,
+    y: Vec<f64>,
+    f: Vec<f64>,
+    cap: Vec<f64>,
+    big: Vec<f64>,
+    prod: Vec<f64>,
+    tmp: Vec<f64>,
+    exp: ExpScratch,
+}
+
+pub struct Visibility {
+    order: ShOrder,
+    logs: Arc<LogBlockerTable>,
+    exp: ShExp,
+    products: &'static TripleProduct,
+    big_theta: f64,
+}
+
+/// Calls its argument with every sphere to consider at a receiver.
+pub type SphereSource<'a> = dyn FnMut(&mut dyn FnMut(&Sphere)) + 'a;
+
+/// What one receiver's visibility used.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counts {
+    pub logged: u32,
+    pub multiplied: u32,
+}
+
+impl Visibility {
+    pub fn new(order: ShOrder, exp: ExpChoice, big_theta: f64) -> Result<Visibility, sh::ShError> {
+        let logs = log_table(order)?;
+        let method = match exp {
+            ExpChoice::ScalingSquaring => sh::ExpMethod::default(),
+            ExpChoice::OptimalLinear => sh::ExpMethod::OptimalLinear(sh::OptimalLinearTable::from_log_table(&logs)?),
+            ExpChoice::Hybrid => {
+                sh::ExpMethod::Hybrid { table: sh::OptimalLinearTable::from_log_table(&logs)?, threshold: 0.25 }
+            }
+        };
+        Ok(Visibility {
+            order,
+            exp: ShExp::new(order, method)?,
+            logs,
+            products: TripleProduct::shared(order)?,
+            big_theta,
+        })
+    }
+
+    pub fn order(&self) -> ShOrder {
+        self.order
+    }
+
+    pub fn scratch(&self) -> Scratch {
+        let (n, k) = (self.order.n(), self.order.coeffs());
+        Scratch {
+            g: vec![0.0; n],
+            y: vec![0.0; k],
+            f: vec![0.0; k],
+            cap: vec![0.0; n],
+            big: vec![0.0; k],
+            prod: vec![0.0; k],
+            tmp: vec![0.0; k],
+            exp: ExpScratch::new(self.order),
+        }
+    }
+
+    /// `V` at receiver `p` (unit normal `n`) for `spheres` (already adjusted or not: they are
+    /// adjusted here), into `out[..n²]`.
+    pub fn vector(&self, p: DVec3, n: DVec3, spheres: &mut SphereSource, s: &mut Scratch, out: &mut [f64]) -> Counts {
+        let k = self.order.coeffs();
+        s.f.iter_mut().for_each(|v| *v = 0.0);
+        let mut counts = Counts::default();
+        let mut have_product = false;
+        spheres(&mut |sphere: &Sphere| {
+            let Some(adj) = adjust(sphere, p, n) else { return };
+            let Some((theta, axis)) = cap_of(&adj, p) else { return };
+            if theta <= self.big_theta {
+                self.logs.lookup(theta, &mut s.g);
+                let _ = sh::zonal::add_rotated_zh(&s.g, axis, 1.0, &mut s.y, &mut s.f);
+                counts.logged += 1;
+            } else {
+                // B_θ = 1 − cap_θ, turned to the axis.
+                sh::zonal::cap_into(theta, &mut s.cap);
+                s.cap.iter_mut().for_each(|v| *v = -*v);
+                s.cap[0] += SQRT_4PI;
+                let _ = sh::zonal::rotate_zh(&s.cap, axis, &mut s.big);
+                if have_product {
+                    s.tmp.copy_from_slice(&s.prod);
+                    let _ = self.products.product(&s.tmp, &s.big, &mut s.prod);
+                } else {
+                    s.prod.copy_from_slice(&s.big);
+                    have_product = true;
+                }
+                counts.multiplied += 1;
+            }
+        });
+        if counts.logged == 0 {
+            out[..k].iter_mut().for_each(|v| *v = 0.0);
+            out[0] = SQRT_4PI;
+        } else if self.exp.exp(&s.f, out, &mut s.exp).is_err() {
+            // Non-finite input (degenerate geometry): unshadowed rather than NaN.
+            out[..k].iter_mut().for_each(|v| *v = 0.0);
+            out[0] = SQRT_4PI;
+        }
+        if have_product {
+            s.tmp.copy_from_slice(&out[..k]);
+            let _ = self.products.product(&s.tmp, &s.prod, &mut out[..k]);
+        }
+        counts
+    }
+
+    /// `V` at `p` on object `object` from every leaf of `sets` the hierarchy does not cull (a
+    /// node wholly behind the tangent plane culls its subtree); the receiver's own set is
+    /// skipped when it is convex (it cannot shadow its own surface).
+    pub fn vector_for_scene(
+        &self,
+        p: DVec3,
+        n: DVec3,
+        object: usize,
+        sets: &SphereSets,
+        s: &mut Scratch,
+        out: &mut [f64],
+    ) -> Counts {
+        let mut all = |visit: &mut dyn FnMut(&Sphere)| {
+            for set in sets.sets.iter().filter(|set| !(set.convex && set.object == object)) {
+                set.hierarchy.for_each_leaf(
+                    &mut |node: &Sphere| (node.center - p).dot(n) > -node.radius * (1.0 - REL_TOL),
+                    &mut |leaf| visit(&set.leaves[leaf]),
+                );
+            }
+        };
+        self.vector(p, n, &mut all, s, out)
+    }
+}
