@@ -30,3 +30,20 @@ fn info_on_broken_file_fails_with_location() {
     assert!(stderr.contains('^'), "{stderr}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn info_with_shexp_reports_sphere_sets() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/suite/ao/spheres-on-plane.pbrt");
+    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(["info", scene, "-i", "shexp", "--param", "spheres=4"])
+        .env("PENUMBRA_CACHE_DIR", "")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("shexp builds: bvh, lights, materials, sphere sets"), "{stdout}");
+    assert!(stdout.contains("2 leaf spheres: 2 exact, 0 fitted"), "{stdout}");
+    assert!(stdout.contains("object 0 (sphere at"), "{stdout}");
+    assert!(stdout.contains("Exact, 1 spheres"), "{stdout}");
+    assert!(stdout.contains("object 2 (ground plane)"), "{stdout}");
+}
