@@ -56,7 +56,7 @@ fn lh_matches_brute_force_irradiance() {
     let lights: Vec<_> = s.light_list().iter().collect();
     let order = ShOrder::new(4).unwrap();
     for ground in [None, Some(DVec3::Y)] {
-        let env = EnvLighting::build(&lights, ground, order, 32);
+        let env = EnvLighting::from_lights(&lights, ground, order, 32);
         let mut lh = vec![[0.0; 3]; 16];
         let mut tmp = vec![0.0; 16];
         for n in [DVec3::Y, DVec3::X, -DVec3::X, DVec3::Z, -DVec3::Z, DVec3::new(0.3, 0.5, -0.8).normalize()] {
@@ -309,16 +309,29 @@ fn spheres_on_plane_matches_pbrt_within_two_percent() {
 }
 
 #[test]
+fn objects_sky_sun_matches_pbrt_within_two_percent() {
+    // The sun is split off as a directional light with shadow rays (brightlights 4; with 0 the
+    // image mean is −8.0 %, RMSE 23 % of the mean; measured at 256², 4 spp).
+    let r = render_scene("suite/env/objects-sky-sun.pbrt", &[], 64, 4);
+    let reference = common::reference("env/objects-sky-sun.exr");
+    let (a, b) = (common::mean(&r.image), common::mean(&reference));
+    eprintln!("objects-sky-sun 64²: mean {a:.5} vs pbrt-v3 {b:.5} ({:+.2} %)", 100.0 * (a / b - 1.0));
+    assert!((a / b - 1.0).abs() <= 0.02);
+    assert!(r.image.data.iter().all(|v| v.is_finite()));
+}
+
+#[test]
 fn objects_studio_against_pbrt() {
-    // Order 4 darkens this scene by 8.5 % (measured, 256² 4 spp: mean 0.3884 vs 0.4245): the
-    // order-4 truncation of L·max(0, n·ω) rings near the horizon, where the far ground sees
-    // the objects (order 6: −2.6 %, order 8: −0.3 %). Asserted at that measured level so a
-    // regression shows; the 2 % goal is the ignored test below.
+    // Order 4 darkens this scene by 4.4 % (measured, 256² 4 spp, its four lamps split off as
+    // directional lights; −8.5 % without): the order-4 truncation of L·max(0, n·ω) rings near
+    // the horizon, where the far ground sees the objects (without the split: order 6 −2.6 %,
+    // order 8 −0.3 %). Asserted at that measured level so a regression shows; the 2 % goal is
+    // the ignored test below.
     let r = render_scene("suite/env/objects-studio.pbrt", &[], 64, 4);
     let reference = common::reference("env/objects-studio.exr");
     let (a, b) = (common::mean(&r.image), common::mean(&reference));
     eprintln!("objects-studio 64² order 4: mean {a:.5} vs pbrt-v3 {b:.5} ({:+.2} %)", 100.0 * (a / b - 1.0));
-    assert!((a / b - 1.0).abs() <= 0.10);
+    assert!((a / b - 1.0).abs() <= 0.06);
     assert!(r.warnings.iter().any(|w| w.contains("non-Lambertian")), "{:?}", r.warnings);
 }
 

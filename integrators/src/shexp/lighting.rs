@@ -11,8 +11,9 @@
 //! `z = cos θ`, and in φ over exactly the arc of each ring that is above the ground plane's
 //! horizon when there is one (so the cut is integrated without staircase error).
 
+use super::bright::EnvSource;
 use glam::DVec3;
-use penumbra_core::light::{InfiniteLight, Light};
+use penumbra_core::light::Light;
 use penumbra_core::sh::{self, quadrature::gauss_legendre, ShOrder, SQRT_4PI};
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -42,8 +43,8 @@ struct Block {
     weight: [f64; 3],
 }
 
-/// The texel blocks of an infinite light (box-filtered with the solid angle of each row).
-fn blocks(il: &InfiniteLight, mean: [f64; 3]) -> Vec<Block> {
+/// The texel blocks of an environment (box-filtered with the solid angle of each row).
+fn blocks(il: &EnvSource, mean: [f64; 3]) -> Vec<Block> {
     let map = &il.map;
     let (w, h) = (map.width, map.height);
     let f = w.div_ceil(MAX_BLOCKS).max(h.div_ceil(MAX_BLOCKS / 2)).max(1);
@@ -173,27 +174,39 @@ fn cut_hemisphere(
 }
 
 impl EnvLighting {
-    /// `lights`: the infinite lights; `ground`: the unit normal of the plane whose lower side is
+    /// [`build`](Self::build) from the scene's infinite lights as they are.
+    pub fn from_lights(lights: &[&Light], ground: Option<DVec3>, order: ShOrder, res: usize) -> EnvLighting {
+        let sources: Vec<EnvSource> = lights
+            .iter()
+            .filter_map(|l| match l {
+                Light::Infinite(il) => Some(EnvSource { map: il.map.clone(), world_from_light: il.world_from_light }),
+                _ => None,
+            })
+            .collect();
+        EnvLighting::build(&sources, ground, order, res)
+    }
+
+    /// `sources`: the environments; `ground`: the unit normal of the plane whose lower side is
     /// cut off; `res`: normal cubemap texels per face edge.
-    pub fn build(lights: &[&Light], ground: Option<DVec3>, order: ShOrder, res: usize) -> EnvLighting {
+    pub fn build(sources: &[EnvSource], ground: Option<DVec3>, order: ShOrder, res: usize) -> EnvLighting {
         let k = order.coeffs();
         let mut mean = [0.0; 3];
         let mut all_blocks = Vec::new();
-        for l in lights {
-            if let Light::Infinite(il) = l {
-                let mut m = [0.0; 3];
-                if let Ok(c) = sh::project_infinite_light(il, ShOrder::new(1).expect("order 1")) {
-                    for (m, v) in m.iter_mut().zip(c.coeffs[0]) {
-                        *m = v / SQRT_4PI;
-                    }
+        for il in sources {
+            let mut m = [0.0; 3];
+            if let Ok(c) =
+                sh::env::project_lat_long_world(&il.map, il.world_from_light, ShOrder::new(1).expect("order 1"))
+            {
+                for (m, v) in m.iter_mut().zip(c.coeffs[0]) {
+                    *m = v / SQRT_4PI;
                 }
-                let t0 = il.map.texels.first().copied().unwrap_or_default();
-                if !il.map.texels.iter().all(|t| *t == t0) {
-                    all_blocks.extend(blocks(il, m));
-                }
-                for c in 0..3 {
-                    mean[c] += m[c];
-                }
+            }
+            let t0 = il.map.texels.first().copied().unwrap_or_default();
+            if !il.map.texels.iter().all(|t| *t == t0) {
+                all_blocks.extend(blocks(il, m));
+            }
+            for c in 0..3 {
+                mean[c] += m[c];
             }
         }
         let h = sh::zonal::clamped_cosine(order);

@@ -25,9 +25,11 @@
 //! - `"float bigblocker"` 45: caps wider than this (degrees) are multiplied explicitly.
 //! - `"integer lhresolution"` 32: normal cubemap texels per face edge for `LH(N)`.
 //! - `"integer maxdepth"` 5: specular recursion depth, as `directlighting`.
-//! - `"integer brightlights"` 0: (not yet implemented) bright regions split off the map.
+//! - `"integer brightlights"` 4: at most this many bright compact regions of each map become
+//!   directional lights with shadow rays ([`bright`]; 0: the whole map is projected to SH).
 //! - `"bool interreflect"` false: (not yet implemented) the thesis's one-bounce extension.
 
+pub mod bright;
 pub mod lighting;
 pub mod visibility;
 
@@ -59,6 +61,8 @@ pub struct Shexp {
     /// Radians.
     pub big_theta: f64,
     pub lh_resolution: usize,
+    /// Bright regions split off each environment map as directional lights.
+    pub bright_lights: usize,
     pub max_depth: u32,
     pub pixel_bounds: Option<Bounds2i>,
 }
@@ -86,12 +90,9 @@ impl Shexp {
         if !(1..=256).contains(&res) {
             return Err(bad("lhresolution", format!("shexp: \"lhresolution\" {res} is out of range (1 to 256)")));
         }
-        let bright = params.get_one_int("brightlights", 0);
-        if bright != 0 {
-            warnings.warn(
-                params.loc_of("brightlights").cloned(),
-                "shexp: \"brightlights\" is not implemented yet: the whole environment is projected to SH",
-            );
+        let bright = params.get_one_int("brightlights", 4);
+        if !(0..=64).contains(&bright) {
+            return Err(bad("brightlights", format!("shexp: \"brightlights\" {bright} is out of range (0 to 64)")));
         }
         if params.get_one_bool("interreflect", false) {
             warnings.warn(
@@ -107,6 +108,7 @@ impl Shexp {
             spheres: spheres as u32,
             big_theta: (big as f64).to_radians(),
             lh_resolution: res as usize,
+            bright_lights: bright as usize,
             max_depth,
             pixel_bounds,
         }))
@@ -137,6 +139,7 @@ struct Estimator<'a> {
     sets: &'a SphereSets,
     infinite: Vec<usize>,
     others: Vec<usize>,
+    bright: Vec<bright::BrightLight>,
     warn_lobes: AtomicBool,
     warnings: &'a DiagSink,
 }
@@ -189,7 +192,22 @@ impl Estimator<'_> {
         if kd != Rgb::ZERO && self.env.is_some() {
             let ns = bsdf.shading_normal();
             let n = if ns.dot(si.wo) < 0.0 { -ns } else { ns };
-            let e = self.shadowed(si.p.as_dvec3(), n.as_dvec3().normalize(), si.mesh as usize);
+            let mut e = self.shadowed(si.p.as_dvec3(), n.as_dvec3().normalize(), si.mesh as usize);
+            // The split-off bright regions: one shadow ray each, Lambertian part only (the other
+            // lobes see the whole map through directlighting's estimator below).
+            for b in &self.bright {
+                let d = b.dir.as_vec3();
+                let c = n.dot(d);
+                if c <= 0.0 || si.n.dot(d) * si.n.dot(si.wo) <= 0.0 {
+                    continue;
+                }
+                stats.shadow_rays += 1;
+                if !scene.occluded(&si.spawn_ray(d)) {
+                    for (ch, v) in e.iter_mut().enumerate() {
+                        *v += b.irradiance[ch] * c as f64;
+                    }
+                }
+            }
             l += kd * Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32) * std::f32::consts::FRAC_1_PI;
         }
         if let Some(rest) = &rest {
@@ -282,12 +300,20 @@ impl Integrator for Shexp {
         }
         let vis = Visibility::new(self.order, self.exp, self.big_theta)
             .map_err(|e| RenderError::Failed(format!("shexp: {e}")))?;
+        let mut bright_lights = Vec::new();
         let env = if infinite.is_empty() {
             None
         } else {
-            let env_lights: Vec<&Light> = infinite.iter().map(|&i| &lights[i]).collect();
+            let mut sources = Vec::new();
+            for &i in &infinite {
+                if let Light::Infinite(il) = &lights[i] {
+                    let (src, b) = bright::split(il, self.bright_lights);
+                    sources.push(src);
+                    bright_lights.extend(b);
+                }
+            }
             let ground = sets.ground.map(|g| g.normal);
-            Some(with_threads(ctx.threads, || EnvLighting::build(&env_lights, ground, self.order, self.lh_resolution))?)
+            Some(with_threads(ctx.threads, || EnvLighting::build(&sources, ground, self.order, self.lh_resolution))?)
         };
         let est = Estimator {
             shexp: self,
@@ -296,11 +322,13 @@ impl Integrator for Shexp {
             sets,
             infinite,
             others,
+            bright: bright_lights,
             warn_lobes: AtomicBool::new(false),
             warnings: ctx.warnings,
         };
         let mut stats = render_pixels(&est, scene, ctx, film)?;
         stats.counters.insert("leaf spheres".into(), sets.leaf_count() as f64);
+        stats.counters.insert("bright lights".into(), est.bright.len() as f64);
         Ok(stats)
     }
 }
