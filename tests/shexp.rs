@@ -343,3 +343,24 @@ fn objects_studio_within_two_percent() {
     let (a, b) = (common::mean(&r.image), common::mean(&reference));
     assert!((a / b - 1.0).abs() <= 0.02, "{a} vs {b}");
 }
+
+#[test]
+fn environment_path_is_bit_identical_across_threads_and_crops() {
+    // The conformance test's scene has no environment; this one has fitted spheres, a ground
+    // cut, split bright lights and a glossy lobe.
+    let path = common::scene("suite/env/objects-studio.pbrt");
+    common::assert_deterministic(40, 36, |threads, crop| {
+        common::render_path(
+            &path,
+            &common::Opts {
+                integrator: Some("shexp"),
+                params: &["lhresolution=8"],
+                spp: Some(2),
+                resolution: Some((40, 36)),
+                threads,
+                crop,
+                ..Default::default()
+            },
+        )
+    });
+}
