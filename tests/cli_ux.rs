@@ -268,3 +268,33 @@ fn exposure_for_render_png_and_convert() {
     assert_eq!(o.status.code(), Some(1));
     std::fs::remove_dir_all(&d).ok();
 }
+
+#[test]
+fn parser_messages_point_at_the_cause_and_escape_bytes() {
+    let d = dir("parser-msgs");
+    let cases: [(&str, &[u8], &str); 3] = [
+        // An unclosed '[' is reported at the bracket, not at the directive the list runs into.
+        (
+            "bracket",
+            b"WorldBegin\nShape \"sphere\" \"float radius\" [ 1\nShape \"sphere\"\nWorldEnd\n",
+            "error: unclosed '[' in the value of parameter \"float radius\": the list runs into \"Shape\" at bracket.pbrt:3:1\n --> bracket.pbrt:2:31",
+        ),
+        // A missing closing quote runs on to the next string: said at the string, not as a bad number.
+        (
+            "quote",
+            b"WorldBegin\nShape \"sphere\" \"float radius 2 Shape \"sphere\"\nWorldEnd\n",
+            "a closing quote is probably missing (the string runs on to the next '\"')\n --> quote.pbrt:2:16",
+        ),
+        // A NUL and an invalid UTF-8 byte are escaped, never printed raw.
+        ("bytes", b"WorldBegin\nShape \"sph\x00\xffere\"\nWorldEnd\n", "warning: shape \"sph\\x00\\xffere\" unknown; skipped"),
+    ];
+    for (name, text, says) in cases {
+        let file = format!("{name}.pbrt");
+        std::fs::write(d.join(&file), text).unwrap();
+        let o = penumbra(&d, &["info", &file]);
+        let e = stderr(&o);
+        assert!(e.contains(says), "{name}:\n{e}");
+        assert!(!o.stderr.contains(&0) && !e.contains('\u{fffd}'), "{name}: raw bytes in\n{e}");
+    }
+    std::fs::remove_dir_all(&d).ok();
+}

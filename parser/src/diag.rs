@@ -85,13 +85,40 @@ impl Diagnostic {
     }
 }
 
+/// `bytes` as text, with every byte that is not valid UTF-8 written `\xNN` (pbrt-v3's strings are
+/// bytes; a message must show them, not U+FFFD or raw bytes in a terminal).
+pub fn escape_lossy(bytes: &[u8]) -> String {
+    let mut out = String::with_capacity(bytes.len());
+    for chunk in bytes.utf8_chunks() {
+        out.push_str(chunk.valid());
+        for b in chunk.invalid() {
+            out.push_str(&format!("\\x{b:02x}"));
+        }
+    }
+    out
+}
+
+/// A control character (but a newline) as an escape, anything else as itself.
+fn visible(c: char) -> std::borrow::Cow<'static, str> {
+    match c {
+        '\n' => "\n".into(),
+        c if c.is_control() && (c as u32) < 0x100 => format!("\\x{:02x}", c as u32).into(),
+        c if c.is_control() => format!("\\u{{{:x}}}", c as u32).into(),
+        c => c.to_string().into(),
+    }
+}
+
+fn escape_controls(s: &str) -> String {
+    s.chars().map(visible).collect()
+}
+
 impl fmt::Display for Diagnostic {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let tag = match self.severity {
             Severity::Error => "error",
             Severity::Warning => "warning",
         };
-        writeln!(f, "{tag}: {}", self.message)?;
+        writeln!(f, "{tag}: {}", escape_controls(&self.message))?;
         if let Some(loc) = &self.loc {
             let gutter = " ".repeat(loc.line.to_string().len());
             writeln!(f, "{gutter}--> {loc}")?;
@@ -102,8 +129,10 @@ impl fmt::Display for Diagnostic {
                 // Long lines (a mesh on one line) are shown as a window around the column.
                 const HALF: usize = 60;
                 let (from, to) = (col.saturating_sub(HALF), (col + HALF).min(chars.len()));
-                let mut shown: String = chars[from..to].iter().collect();
-                col -= from;
+                // Control characters are shown escaped; the caret moves with them.
+                let width = |cs: &[char]| cs.iter().map(|&c| visible(c).chars().count()).sum::<usize>();
+                let mut shown: String = chars[from..to].iter().map(|&c| visible(c)).collect();
+                col = width(&chars[from..col]);
                 if from > 0 {
                     shown.insert_str(0, "...");
                     col += 3;
@@ -117,7 +146,7 @@ impl fmt::Display for Diagnostic {
             }
         }
         for n in &self.notes {
-            writeln!(f, "  = note: {n}")?;
+            writeln!(f, "  = note: {}", escape_controls(n))?;
         }
         Ok(())
     }

@@ -339,6 +339,16 @@ impl Interp {
                     format!("unknown parameter type \"{tname}\" in \"{decl}\"; expected one of {TYPE_NAMES}"),
                 ));
             };
+            if words.next().is_some() {
+                // `"float radius 2 Shape "sphere"`: a closing quote is missing and the string ran on
+                // to the next one.
+                return Err(self.err(
+                    loc,
+                    format!(
+                        "parameter declaration \"{decl}\" is more than \"type name\": a closing quote is probably missing (the string runs on to the next '\"')"
+                    ),
+                ));
+            }
             let name = name.to_string();
             let value = self.parse_value(ty, &decl, &name, &loc)?;
             ps.add(Param::new(name, value, loc));
@@ -484,6 +494,20 @@ impl Interp {
                     }
                     Err(m) => {
                         let l = lex.here();
+                        let t = lex.text();
+                        if bracket
+                            && t.first().is_some_and(u8::is_ascii_uppercase)
+                            && t.iter().all(u8::is_ascii_alphanumeric)
+                        {
+                            // A directive-like word (`Shape`) where a number should be, inside
+                            // brackets: most likely the next directive, after a list whose ']' is
+                            // missing.
+                            let word = crate::number::show(lex.text());
+                            return Err(self.err(
+                                open.clone(),
+                                format!("unclosed '[' in the value of parameter \"{decl}\": the list runs into \"{word}\" at {l}"),
+                            ));
+                        }
                         return Err(self.err(l, format!("parameter \"{decl}\": {m}")));
                     }
                 },
@@ -741,7 +765,7 @@ impl Interp {
             match k {
                 Kind::Eof => break,
                 Kind::Bare => {
-                    let word = String::from_utf8_lossy(self.lex().text()).into_owned();
+                    let word = crate::diag::escape_lossy(self.lex().text());
                     self.lex().consume();
                     self.directive(&word, loc)?;
                 }

@@ -134,7 +134,7 @@ fn token<const STREAMING: bool>(i: &[u8]) -> IResult<&[u8], (Kind, usize, bool),
 pub(crate) fn decode_string(tok: &[u8], escaped: bool) -> Result<String, &'static str> {
     let inner = &tok[1..tok.len() - 1];
     if !escaped {
-        return Ok(String::from_utf8_lossy(inner).into_owned());
+        return Ok(crate::diag::escape_lossy(inner));
     }
     let mut out = Vec::with_capacity(inner.len());
     let mut it = inner.iter();
@@ -158,7 +158,7 @@ pub(crate) fn decode_string(tok: &[u8], escaped: bool) -> Result<String, &'stati
         };
         out.push(c);
     }
-    Ok(String::from_utf8_lossy(&out).into_owned())
+    Ok(crate::diag::escape_lossy(&out))
 }
 
 /// Number of UTF-8 characters (non-continuation bytes) in `b`.

@@ -67,11 +67,11 @@ pub(crate) fn looks_numeric(tok: &[u8]) -> bool {
 }
 
 pub(crate) fn show(tok: &[u8]) -> String {
-    let s = String::from_utf8_lossy(tok);
+    let s = crate::diag::escape_lossy(tok);
     if s.chars().count() > 40 {
         format!("{}…", s.chars().take(40).collect::<String>())
     } else {
-        s.into_owned()
+        s
     }
 }
 
