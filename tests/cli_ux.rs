@@ -52,6 +52,8 @@ fn the_scenes_own_film_filename_gets_its_directories() {
     let e = stderr(&o);
     assert!(o.status.success(), "{e}");
     assert!(e.contains("created directory sub/dir"), "{e}");
+    // No Integrator line: path, with no warning about it (nothing at `<default>`).
+    assert!(!e.contains("<default>") && !e.contains("warning"), "{e}");
     let img = penumbra_core::image::read(d.join("sub/dir/out.png")).unwrap();
     assert_eq!((img.width, img.height), (8, 8));
     assert!(d.join("sub/dir/out.stats.json").is_file());
@@ -297,4 +299,31 @@ fn parser_messages_point_at_the_cause_and_escape_bytes() {
         assert!(!o.stderr.contains(&0) && !e.contains('\u{fffd}'), "{name}: raw bytes in\n{e}");
     }
     std::fs::remove_dir_all(&d).ok();
+}
+
+/// What penumbra writes by default is ignored by git (a render in a clone leaves `git status` clean).
+#[test]
+fn default_outputs_are_gitignored() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let ignore = std::fs::read_to_string(root.join(".gitignore")).unwrap();
+    for pattern in ["/penumbra.exr", "*.stats.json", "/sweep-out/"] {
+        assert!(ignore.lines().any(|l| l.trim() == pattern), "{pattern} missing from .gitignore");
+    }
+    // Where git is at hand, ask it (the patterns above are what it matches).
+    let asked = Command::new("git")
+        .current_dir(root)
+        .args([
+            "check-ignore",
+            "-q",
+            "penumbra.exr",
+            "penumbra.stats.json",
+            "sweep-out/sweep.csv",
+            "scenes/x.stats.json",
+        ])
+        .status();
+    if let Ok(status) = asked {
+        if status.code() != Some(128) {
+            assert!(status.success(), "git check-ignore: {status}");
+        }
+    }
 }
