@@ -190,5 +190,22 @@ fn errors_stop_before_rendering() {
     let err = text(&o.stderr);
     assert!(err.contains("the reference is 4x4 but the render is 8x8"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
+    // Found before anything renders or is written: no empty tables, no summary.
+    assert!(!err.contains("rendering"), "{err}");
+    let written: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(written, vec![std::ffi::OsString::from("ref.exr")], "{err}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `--reference-spp` renders the first -i's natural reference: an AO sweep makes an AO reference.
+#[test]
+fn reference_integrator_defaults_to_the_first_integrators_natural_reference() {
+    for (i, reference) in [("ambientocclusion", "ambientocclusion"), ("ltc,ambientocclusion", "directlighting")] {
+        let out = out_dir(&format!("natural-{}", i.len()));
+        let o = sweep(&["-i", i, "--reference-spp", "2", "--resolution", "8x8", "--budgets", "1"], &out);
+        let err = text(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert!(err.contains(&format!("rendering reference: {reference} at 2 spp")), "-i {i}: {err}");
+        let _ = std::fs::remove_dir_all(&out);
+    }
 }

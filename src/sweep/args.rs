@@ -15,6 +15,27 @@ use std::path::PathBuf;
 /// The integrator that renders `--reference-spp` references unless `--reference-integrator` names one.
 pub const REFERENCE_INTEGRATOR: &str = "directlighting";
 
+/// The estimator `integrator` converges to, rendered as the `--reference-spp` reference by
+/// default: AO images are not direct lighting, and `path`/`whitted` see more than it does.
+pub fn natural_reference(integrator: &str) -> &str {
+    match integrator {
+        "ambientocclusion" | "sheared-ao" => "ambientocclusion",
+        "path" => "path",
+        "whitted" => "whitted",
+        _ => REFERENCE_INTEGRATOR,
+    }
+}
+
+impl SweepArgs {
+    /// `--reference-integrator`, else the first `-i`'s [`natural_reference`].
+    pub fn reference_integrator(&self) -> &str {
+        match &self.reference_integrator {
+            Some(n) => n.trim(),
+            None => natural_reference(self.integrators.first().map(|n| n.trim()).unwrap_or(REFERENCE_INTEGRATOR)),
+        }
+    }
+}
+
 #[derive(clap::Args)]
 #[command(group(clap::ArgGroup::new("ref").required(true).args(["reference", "reference_spp"])))]
 pub struct SweepArgs {
@@ -27,9 +48,11 @@ pub struct SweepArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub reference_spp: Option<u32>,
     /// The integrator of the `--reference-spp` render: the estimator the others should converge
-    /// to (`path` for scenes lit by more than direct light).
-    #[arg(long, value_name = "NAME", default_value = REFERENCE_INTEGRATOR)]
-    pub reference_integrator: String,
+    /// to (default: the first -i's natural reference — ambientocclusion for ambientocclusion,
+    /// path for path, whitted for whitted, directlighting for the others; `path` for scenes lit
+    /// by more than direct light).
+    #[arg(long, value_name = "NAME")]
+    pub reference_integrator: Option<String>,
     /// Sampler seed of the `--reference-spp` render (default: --seed + 1, so that the
     /// reference's samples are not the renders' samples).
     #[arg(long, value_name = "S")]
@@ -159,10 +182,10 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
             integrators.push(n.to_string());
         }
     }
-    if args.reference_spp.is_some() && penumbra_integrators::find(&args.reference_integrator).is_none() {
+    if args.reference_spp.is_some() && penumbra_integrators::find(args.reference_integrator()).is_none() {
         return Err(fail(format!(
             "unknown reference integrator \"{}\"; valid names: {}",
-            args.reference_integrator,
+            args.reference_integrator(),
             penumbra_integrators::names().join(", ")
         )));
     }

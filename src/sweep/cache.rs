@@ -69,7 +69,7 @@ pub(super) fn reference(
         }
         (None, Some(n)) => {
             let rseed = args.reference_seed.unwrap_or(args.seed.wrapping_add(1));
-            let ri = args.reference_integrator.as_str();
+            let ri = args.reference_integrator();
             let key = reference_key(&s.scene_bytes, ri, s.resolution, s.crop, n, rseed);
             let cache_dir = args.output.join("cache");
             let path = cache_dir.join(format!("{key}.exr"));

@@ -61,6 +61,24 @@ fn print_new_warnings(w: &DiagSink, seen: &mut BTreeSet<String>) {
     }
 }
 
+/// A reference of another size than the renders stops the sweep before any file is written.
+fn check_reference_size(reference: &Image, s: &Setup) -> Result<(), Failure> {
+    let opts = BuildOptions { crop: s.crop, resolution: s.resolution, ..Default::default() };
+    // A film the build would refuse is its located error, reported by the first render.
+    let Ok(film) = penumbra_core::scene::film_spec(&s.desc, &opts, &DiagSink::new()) else { return Ok(()) };
+    size_matches(reference, (film.pixel_bounds.width() as u32, film.pixel_bounds.height() as u32))
+}
+
+fn size_matches(reference: &Image, (w, h): (u32, u32)) -> Result<(), Failure> {
+    if (w, h) != (reference.width, reference.height) {
+        return Err(fail(format!(
+            "the reference is {}x{} but the render is {w}x{h} (render at the reference's size with --resolution/--crop)",
+            reference.width, reference.height
+        )));
+    }
+    Ok(())
+}
+
 fn compare_row(
     integrator: &str,
     budget: u32,
@@ -70,12 +88,7 @@ fn compare_row(
     with_flip: bool,
 ) -> Result<Row, Failure> {
     let test = rgb_only(&rendered.image, "render")?;
-    if (test.width, test.height) != (reference.width, reference.height) {
-        return Err(fail(format!(
-            "the reference is {}x{} but the render is {}x{} (render at the reference's size with --resolution/--crop)",
-            reference.width, reference.height, test.width, test.height
-        )));
-    }
+    size_matches(reference, (test.width, test.height))?;
     let c = metrics::compare(&test, reference, 1e-6, 1e-6).map_err(fail)?;
     let flip = if with_flip { flip_of(&test, reference) } else { None };
     Ok(Row {
@@ -135,6 +148,9 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
         Some(p) => Some(rgb_only(&image::read(p).map_err(fail)?, &p.display().to_string())?),
         None => None,
     };
+    if let Some(r) = &file_reference {
+        check_reference_size(r, &s)?;
+    }
     std::fs::create_dir_all(&args.output).map_err(|e| fail(format!("cannot create {}: {e}", args.output.display())))?;
     let cancel = cancel_on_interrupt();
     let mut seen = std::mem::take(&mut s.seen);

@@ -120,7 +120,8 @@ impl Scene {
     }
 }
 
-fn film_spec(desc: &SceneDescription, opts: &BuildOptions, warnings: &DiagSink) -> Result<FilmSpec, Diagnostic> {
+/// The film the build makes: resolution, `--resolution`, crop and pixel bounds applied.
+pub fn film_spec(desc: &SceneDescription, opts: &BuildOptions, warnings: &DiagSink) -> Result<FilmSpec, Diagnostic> {
     let e = &desc.film;
     let p = &e.params;
     if e.kind != "image" {

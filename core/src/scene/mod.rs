@@ -17,6 +17,7 @@ use glam::Vec3;
 use penumbra_parser::Entity;
 
 mod build;
+pub use build::film_spec;
 
 /// What the scene build must provide for an integrator. Everything is off by
 /// default: the builder computes only what is asked for and present.
