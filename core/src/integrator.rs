@@ -132,6 +132,26 @@ pub fn tiles(bounds: Bounds2i) -> Vec<Bounds2i> {
     out
 }
 
+/// The camera sample of pixel `p` as the driver draws it, in pbrt-v3's order: film 2D, time 1D,
+/// lens 2D; the dimensions the camera ignores (`uses_time`, `uses_lens` false) are skipped
+/// without being computed. For integrators with their own passes over the same samples.
+pub fn draw_camera_sample(sampler: &mut dyn Sampler, p: IVec2, uses_time: bool, uses_lens: bool) -> CameraSample {
+    let p_film = p.as_vec2() + sampler.get_2d();
+    let time = if uses_time {
+        sampler.get_1d()
+    } else {
+        sampler.skip_1d();
+        0.0
+    };
+    let p_lens = if uses_lens {
+        sampler.get_2d()
+    } else {
+        sampler.skip_2d();
+        Vec2::splat(0.5)
+    };
+    CameraSample { p_film, time, p_lens }
+}
+
 /// Runs `f` on a pool of `threads` workers (0: all cores).
 pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> Result<R, RenderError> {
     let pool = rayon::ThreadPoolBuilder::new()
@@ -184,22 +204,8 @@ pub fn render_pixels(
                 let mut aov = vec![0.0f32; naov];
                 // The film, time and lens dimensions are drawn in pbrt-v3's order; the ones the
                 // camera ignores are skipped without being computed.
-                let camera_sample = |sampler: &mut dyn Sampler, p: IVec2| {
-                    let p_film = p.as_vec2() + sampler.get_2d();
-                    let time = if uses_time {
-                        sampler.get_1d()
-                    } else {
-                        sampler.skip_1d();
-                        0.0
-                    };
-                    let p_lens = if uses_lens {
-                        sampler.get_2d()
-                    } else {
-                        sampler.skip_2d();
-                        Vec2::splat(0.5)
-                    };
-                    CameraSample { p_film, time, p_lens }
-                };
+                let camera_sample =
+                    |sampler: &mut dyn Sampler, p: IVec2| draw_camera_sample(sampler, p, uses_time, uses_lens);
                 let shares = est.shares_pixel_work();
                 let (mut cams, mut rays) = (Vec::new(), Vec::new());
                 let pixel_bounds = est.pixel_bounds();

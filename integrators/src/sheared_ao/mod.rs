@@ -52,7 +52,9 @@ use glam::{IVec2, Vec2};
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, offset_ray_origin, Bounds2i, Frame, Ray};
-use penumbra_core::integrator::{tiles, with_threads, Integrator, RenderContext, RenderError, RenderStats};
+use penumbra_core::integrator::{
+    draw_camera_sample, tiles, with_threads, Integrator, RenderContext, RenderError, RenderStats,
+};
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::cosine_sample_hemisphere;
 use penumbra_core::scene::{Requirements, Scene};
@@ -132,23 +134,9 @@ pub struct Shading {
     frame: Frame,
 }
 
-/// The camera sample of pixel `p` in the driver's order (film 2D, time 1D, lens 2D; unused
-/// dimensions skipped), as `render_pixels` draws it.
+/// The camera sample of pixel `p` as `render_pixels` draws it.
 fn camera_sample(scene: &Scene, sampler: &mut dyn Sampler, p: IVec2) -> CameraSample {
-    let p_film = p.as_vec2() + sampler.get_2d();
-    let time = if scene.camera.uses_time() {
-        sampler.get_1d()
-    } else {
-        sampler.skip_1d();
-        0.0
-    };
-    let p_lens = if scene.camera.uses_lens() {
-        sampler.get_2d()
-    } else {
-        sampler.skip_2d();
-        Vec2::splat(0.5)
-    };
-    CameraSample { p_film, time, p_lens }
+    draw_camera_sample(sampler, p, scene.camera.uses_time(), scene.camera.uses_lens())
 }
 
 impl ShearedAo {
