@@ -37,12 +37,28 @@ pub struct RenderContext<'a> {
 }
 
 /// Counters an estimator updates on its own thread; summed at the end.
+///
+/// The rule for `rays`: a ray is counted once, by whoever spawns it. The driver spawns the
+/// camera rays and counts one per camera sample; an estimator counts the rays it spawns
+/// (bounces, pass-throughs), and when it traces a ray someone else counted (the camera ray
+/// it is given) it adds only the queries after the first, with [`ThreadStats::add_continued`].
+/// Shadow (visibility) rays go to `shadow_rays`. `tests/conformance.rs` checks the counts of
+/// every registered integrator on a scene where they are known.
 #[derive(Clone, Debug, Default)]
 pub struct ThreadStats {
     pub rays: u64,
     pub shadow_rays: u64,
     /// Non-finite or negative radiance values replaced by 0 (pbrt-v3 does the same, with an error).
     pub bad_samples: u64,
+}
+
+impl ThreadStats {
+    /// Counts a ray already counted by its spawner (the camera ray, for an estimator) that
+    /// took `queries` intersection queries (e.g. [`Scene::first_surface`]'s passes through
+    /// surfaces without a material): the queries after the first.
+    pub fn add_continued(&mut self, queries: u64) {
+        self.rays += queries.saturating_sub(1);
+    }
 }
 
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -72,15 +88,19 @@ pub trait Integrator: Send + Sync {
 
 /// A per-pixel-sample estimator; [`render_pixels`] gives it a whole `render`.
 pub trait PixelEstimator: Send + Sync {
+    /// What [`begin_pixel`](Self::begin_pixel) computes once per pixel for all its samples
+    /// (`()` for an estimator that shares nothing).
+    type Shared: Send;
     /// Request sample arrays before rendering (pbrt-v3's `Request*Array`), on the prototype sampler.
     fn request_samples(&self, _sampler: &mut dyn Sampler) {}
     /// Radiance along a camera ray; `aov` holds the integrator's extra channels for this sample.
+    /// The driver has counted the camera ray (see [`ThreadStats`]).
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb;
     /// Work shared by all samples of one pixel (e.g. `ltc` shading each surface seen in the
     /// pixel once): called with the pixel's camera rays, in sample order, before any of its
     /// samples is estimated. `Some` makes the driver call [`li_shared`](Self::li_shared)
     /// instead of `li` for that pixel. Only called when [`shares_pixel_work`](Self::shares_pixel_work).
-    fn begin_pixel(&self, _rays: &[Ray], _scene: &Scene, _stats: &mut ThreadStats) -> Option<PixelShared> {
+    fn begin_pixel(&self, _rays: &[Ray], _scene: &Scene, _stats: &mut ThreadStats) -> Option<Self::Shared> {
         None
     }
     /// Whether [`begin_pixel`](Self::begin_pixel) should be called (the pixel's camera rays are
@@ -93,7 +113,8 @@ pub trait PixelEstimator: Send + Sync {
     fn pixel_bounds(&self) -> Option<Bounds2i> {
         None
     }
-    /// `li` for sample `index` of a pixel whose shared work is `shared`.
+    /// `li` for sample `index` (`< rays.len()` of `begin_pixel`) of a pixel whose shared work
+    /// is `shared`.
     #[allow(clippy::too_many_arguments)]
     fn li_shared(
         &self,
@@ -102,15 +123,12 @@ pub trait PixelEstimator: Send + Sync {
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
         aov: &mut [f32],
-        _shared: &PixelShared,
+        _shared: &Self::Shared,
         _index: usize,
     ) -> Rgb {
         self.li(ray, scene, sampler, stats, aov)
     }
 }
-
-/// What an estimator's [`PixelEstimator::begin_pixel`] computed for one pixel.
-pub type PixelShared = Box<dyn std::any::Any + Send>;
 
 /// The tiles covering `bounds`, on the fixed grid, in raster order.
 pub fn tiles(bounds: Bounds2i) -> Vec<Bounds2i> {
@@ -136,20 +154,7 @@ pub fn tiles(bounds: Bounds2i) -> Vec<Bounds2i> {
 /// lens 2D; the dimensions the camera ignores (`uses_time`, `uses_lens` false) are skipped
 /// without being computed. For integrators with their own passes over the same samples.
 pub fn draw_camera_sample(sampler: &mut dyn Sampler, p: IVec2, uses_time: bool, uses_lens: bool) -> CameraSample {
-    let p_film = p.as_vec2() + sampler.get_2d();
-    let time = if uses_time {
-        sampler.get_1d()
-    } else {
-        sampler.skip_1d();
-        0.0
-    };
-    let p_lens = if uses_lens {
-        sampler.get_2d()
-    } else {
-        sampler.skip_2d();
-        Vec2::splat(0.5)
-    };
-    CameraSample { p_film, time, p_lens }
+    CameraDims { uses_time, uses_lens }.sample(sampler, p, true)
 }
 
 /// Runs `f` on a pool of `threads` workers (0: all cores).
@@ -162,125 +167,48 @@ pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> Re
 }
 
 /// The generic driver: tiles in parallel, per-tile sampler clones, deterministic merge.
-pub fn render_pixels(
-    est: &dyn PixelEstimator,
+pub fn render_pixels<E: PixelEstimator + ?Sized>(
+    est: &E,
     scene: &Scene,
     ctx: &RenderContext,
     film: &mut Film,
 ) -> Result<RenderStats, RenderError> {
     let start = Instant::now();
-    let mut proto = scene.sampler.clone_box();
-    // Global samplers (halton, sobol) map pixels to sequence indices over the *full* image's
-    // sample bounds, so that a crop renders exactly the samples of the full image.
-    let full = crate::film::FilmSpec {
-        pixel_bounds: Bounds2i::new(
-            IVec2::ZERO,
-            IVec2::new(film.spec.full_resolution.0 as i32, film.spec.full_resolution.1 as i32),
-        ),
-        ..film.spec.clone()
-    }
-    .sample_bounds(scene.filter.radius());
-    proto.set_sample_bounds(full.min, full.max);
-    est.request_samples(proto.as_mut());
+    let proto = prototype_sampler(est, scene, film);
     let spp = proto.samples_per_pixel();
-    let sample_bounds = film.spec.sample_bounds(scene.filter.radius());
-    let tile_list = tiles(sample_bounds);
+    let tile_list = tiles(film.spec.sample_bounds(scene.filter.radius()));
     let total = tile_list.len() as u64;
     let done = AtomicU64::new(0);
-    let naov = film.extra_channel_names.len();
-    let max_lum = film.spec.max_sample_luminance;
-    let film_ref = &*film;
-    let (uses_time, uses_lens) = (scene.camera.uses_time(), scene.camera.uses_lens());
-    let results: Vec<Option<(crate::film::FilmTile, ThreadStats)>> = with_threads(ctx.threads, || {
+    let pass = TilePass {
+        est,
+        scene,
+        film: &*film,
+        proto: proto.as_ref(),
+        spp,
+        camera: CameraDims { uses_time: scene.camera.uses_time(), uses_lens: scene.camera.uses_lens() },
+    };
+    let results: Vec<Option<TileResult>> = with_threads(ctx.threads, || {
         tile_list
             .par_iter()
             .map(|tb| {
                 if ctx.cancel.load(Ordering::Relaxed) {
                     return None;
                 }
-                let mut sampler = proto.clone_box();
-                let mut tile = film_ref.make_tile(*tb);
-                let mut stats = ThreadStats::default();
-                let mut aov = vec![0.0f32; naov];
-                // The film, time and lens dimensions are drawn in pbrt-v3's order; the ones the
-                // camera ignores are skipped without being computed.
-                let camera_sample =
-                    |sampler: &mut dyn Sampler, p: IVec2| draw_camera_sample(sampler, p, uses_time, uses_lens);
-                let shares = est.shares_pixel_work();
-                let (mut cams, mut rays) = (Vec::new(), Vec::new());
-                let pixel_bounds = est.pixel_bounds();
-                for p in tb.iter() {
-                    if pixel_bounds.is_some_and(|b| !b.contains(p)) {
-                        continue;
-                    }
-                    let shared = if shares {
-                        cams.clear();
-                        rays.clear();
-                        for s in 0..spp {
-                            sampler.start_pixel_sample(p, s);
-                            let cs = camera_sample(sampler.as_mut(), p);
-                            rays.push(scene.camera.generate_ray(&cs));
-                            cams.push(cs);
-                        }
-                        est.begin_pixel(&rays, scene, &mut stats)
-                    } else {
-                        None
-                    };
-                    for s in 0..spp {
-                        sampler.start_pixel_sample(p, s);
-                        // The shared pass drew this sample's camera sample and ray already: its
-                        // dimensions are only skipped (the estimator's come after them).
-                        let (cs, ray) = match (cams.get(s as usize), rays.get(s as usize)) {
-                            (Some(cs), Some(r)) if shared.is_some() => {
-                                sampler.skip_2d();
-                                sampler.skip_1d();
-                                sampler.skip_2d();
-                                (*cs, *r)
-                            }
-                            _ => {
-                                let cs = camera_sample(sampler.as_mut(), p);
-                                (cs, scene.camera.generate_ray(&cs))
-                            }
-                        };
-                        aov.iter_mut().for_each(|v| *v = 0.0);
-                        let mut l = match &shared {
-                            Some(sh) => {
-                                est.li_shared(&ray, scene, sampler.as_mut(), &mut stats, &mut aov, sh, s as usize)
-                            }
-                            None => est.li(&ray, scene, sampler.as_mut(), &mut stats, &mut aov),
-                        };
-                        stats.rays += 1;
-                        // pbrt-v3's guard: NaN, infinite or clearly negative luminance becomes black.
-                        let y = crate::spectrum::luminance(l);
-                        if !l.is_finite() || y < -1e-5 {
-                            stats.bad_samples += 1;
-                            l = Rgb::ZERO;
-                        }
-                        if y > max_lum {
-                            l *= max_lum / y;
-                        }
-                        tile.add_sample(scene.filter.as_ref(), cs.p_film, l, &aov);
-                    }
-                }
+                let r = pass.render_tile(*tb);
                 let d = done.fetch_add(1, Ordering::Relaxed) + 1;
                 if let Some(pr) = ctx.progress {
                     pr(d, total);
                 }
-                Some((tile, stats))
+                Some(r)
             })
             .collect()
     })?;
     if results.iter().any(|r| r.is_none()) {
         return Err(RenderError::Cancelled);
     }
-    let mut stats = RenderStats { spp, threads: rayon_threads(ctx.threads), ..Default::default() };
-    for (tile, ts) in results.into_iter().flatten() {
-        film.merge_tile(&tile);
-        stats.rays += ts.rays;
-        stats.shadow_rays += ts.shadow_rays;
-        stats.bad_samples += ts.bad_samples;
-    }
-    stats.camera_samples = sample_bounds.area() as u64 * spp as u64;
+    let mut stats = merge_tiles(film, results.into_iter().flatten());
+    stats.spp = spp;
+    stats.threads = rayon_threads(ctx.threads);
     stats.render_seconds = start.elapsed().as_secs_f64();
     if stats.bad_samples > 0 {
         ctx.warnings.warn(
@@ -291,14 +219,185 @@ pub fn render_pixels(
     Ok(stats)
 }
 
+/// The sampler every tile clones: global samplers (halton, sobol) map pixels to sequence
+/// indices over the *full* image's sample bounds, so that a crop renders exactly the samples
+/// of the full image; the estimator's sample arrays are requested on it.
+fn prototype_sampler<E: PixelEstimator + ?Sized>(est: &E, scene: &Scene, film: &Film) -> Box<dyn Sampler> {
+    let mut proto = scene.sampler.clone_box();
+    let full = crate::film::FilmSpec {
+        pixel_bounds: Bounds2i::new(
+            IVec2::ZERO,
+            IVec2::new(film.spec.full_resolution.0 as i32, film.spec.full_resolution.1 as i32),
+        ),
+        ..film.spec.clone()
+    }
+    .sample_bounds(scene.filter.radius());
+    proto.set_sample_bounds(full.min, full.max);
+    est.request_samples(proto.as_mut());
+    proto
+}
+
+/// The camera sample's dimensions, in pbrt-v3's order: film position (2D), time (1D), lens
+/// (2D). [`sample`](Self::sample) both draws them and skips them, so the dimensions skipped
+/// are by construction the ones drawn.
+#[derive(Clone, Copy)]
+struct CameraDims {
+    uses_time: bool,
+    uses_lens: bool,
+}
+
+impl CameraDims {
+    /// The camera sample of pixel `p` when `draw`; otherwise its dimensions are only skipped
+    /// (and the value returned is meaningless). Dimensions the camera ignores are always
+    /// skipped, without being computed.
+    fn sample(self, sampler: &mut dyn Sampler, p: IVec2, draw: bool) -> CameraSample {
+        let dim_2d = |s: &mut dyn Sampler, used: bool, unused: Vec2| {
+            if used {
+                s.get_2d()
+            } else {
+                s.skip_2d();
+                unused
+            }
+        };
+        let film = dim_2d(sampler, draw, Vec2::ZERO);
+        let time = if draw && self.uses_time {
+            sampler.get_1d()
+        } else {
+            sampler.skip_1d();
+            0.0
+        };
+        let p_lens = dim_2d(sampler, draw && self.uses_lens, Vec2::splat(0.5));
+        CameraSample { p_film: p.as_vec2() + film, time, p_lens }
+    }
+}
+
+/// A tile's film, the estimator's counters and the camera samples taken.
+struct TileResult {
+    tile: crate::film::FilmTile,
+    stats: ThreadStats,
+    camera_samples: u64,
+}
+
+/// What every tile of one [`render_pixels`] shares.
+struct TilePass<'a, E: ?Sized> {
+    est: &'a E,
+    scene: &'a Scene,
+    film: &'a Film,
+    proto: &'a dyn Sampler,
+    spp: u32,
+    camera: CameraDims,
+}
+
+/// Per-tile scratch: the sampler, the extra channels of one sample, and a pixel's camera
+/// samples and rays when the estimator shares pixel work.
+struct TileScratch {
+    sampler: Box<dyn Sampler>,
+    aov: Vec<f32>,
+    cams: Vec<CameraSample>,
+    rays: Vec<Ray>,
+}
+
+impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
+    fn render_tile(&self, tb: Bounds2i) -> TileResult {
+        let mut out = TileResult { tile: self.film.make_tile(tb), stats: ThreadStats::default(), camera_samples: 0 };
+        let mut scratch = TileScratch {
+            sampler: self.proto.clone_box(),
+            aov: vec![0.0f32; self.film.extra_channel_names.len()],
+            cams: Vec::new(),
+            rays: Vec::new(),
+        };
+        let pixel_bounds = self.est.pixel_bounds();
+        for p in tb.iter() {
+            if pixel_bounds.is_some_and(|b| !b.contains(p)) {
+                continue;
+            }
+            self.render_pixel(p, &mut scratch, &mut out);
+        }
+        out
+    }
+
+    /// The shared pass (when the estimator shares pixel work), then every sample of pixel `p`.
+    fn render_pixel(&self, p: IVec2, scratch: &mut TileScratch, out: &mut TileResult) {
+        let shared = if self.est.shares_pixel_work() { self.begin_pixel(p, scratch, &mut out.stats) } else { None };
+        let TileScratch { sampler, aov, cams, rays } = scratch;
+        for s in 0..self.spp {
+            sampler.start_pixel_sample(p, s);
+            let i = s as usize;
+            // The shared pass drew this sample's camera sample and ray already: its
+            // dimensions are only skipped (the estimator's come after them).
+            let (cs, ray) = match &shared {
+                Some(_) => {
+                    self.camera.sample(sampler.as_mut(), p, false);
+                    (cams[i], rays[i])
+                }
+                None => {
+                    let cs = self.camera.sample(sampler.as_mut(), p, true);
+                    (cs, self.scene.camera.generate_ray(&cs))
+                }
+            };
+            aov.iter_mut().for_each(|v| *v = 0.0);
+            let (est, scene, stats) = (self.est, self.scene, &mut out.stats);
+            let l = match &shared {
+                Some(sh) => est.li_shared(&ray, scene, sampler.as_mut(), stats, aov, sh, i),
+                None => est.li(&ray, scene, sampler.as_mut(), stats, aov),
+            };
+            out.camera_samples += 1;
+            let l = guard_radiance(l, self.film.spec.max_sample_luminance, stats);
+            out.tile.add_sample(scene.filter.as_ref(), cs.p_film, l, aov);
+        }
+    }
+
+    /// Generates the pixel's camera samples and rays, in sample order, into `scratch`, and
+    /// hands the rays to the estimator's [`PixelEstimator::begin_pixel`].
+    fn begin_pixel(&self, p: IVec2, scratch: &mut TileScratch, stats: &mut ThreadStats) -> Option<E::Shared> {
+        scratch.cams.clear();
+        scratch.rays.clear();
+        for s in 0..self.spp {
+            scratch.sampler.start_pixel_sample(p, s);
+            let cs = self.camera.sample(scratch.sampler.as_mut(), p, true);
+            scratch.rays.push(self.scene.camera.generate_ray(&cs));
+            scratch.cams.push(cs);
+        }
+        self.est.begin_pixel(&scratch.rays, self.scene, stats)
+    }
+}
+
+/// pbrt-v3's guard: NaN, infinite or clearly negative luminance becomes black (counted in
+/// `bad_samples`); luminance above `max_lum` is scaled down to it.
+fn guard_radiance(mut l: Rgb, max_lum: f32, stats: &mut ThreadStats) -> Rgb {
+    let y = crate::spectrum::luminance(l);
+    if !l.is_finite() || y < -1e-5 {
+        stats.bad_samples += 1;
+        l = Rgb::ZERO;
+    }
+    if y > max_lum {
+        l *= max_lum / y;
+    }
+    l
+}
+
+/// Merges the tiles into `film` in tile order (deterministic sums) and adds up their counters:
+/// one camera ray per camera sample (the driver's count) plus the estimators' rays.
+fn merge_tiles(film: &mut Film, results: impl Iterator<Item = TileResult>) -> RenderStats {
+    let mut stats = RenderStats::default();
+    for r in results {
+        film.merge_tile(&r.tile);
+        stats.camera_samples += r.camera_samples;
+        stats.rays += r.camera_samples + r.stats.rays;
+        stats.shadow_rays += r.stats.shadow_rays;
+        stats.bad_samples += r.stats.bad_samples;
+    }
+    stats
+}
+
 /// [`render_pixels`] for image-space integrators whose output at a pixel reads the rendered
 /// film up to `margin` pixels away (a denoiser's kernel, a sheared filter's footprint):
 /// renders `film`'s pixels grown by `margin` (clipped to the full image) into a film of their
 /// own, runs `pass` on it, then copies the film's own pixels back. A crop or a tile therefore
 /// sees the neighbourhood the full image would and reproduces it bit for bit; with no crop
 /// the grown film is the film itself. `pass` returns what the integrator wants to report.
-pub fn render_pixels_with_margin<R>(
-    est: &dyn PixelEstimator,
+pub fn render_pixels_with_margin<E: PixelEstimator + ?Sized, R>(
+    est: &E,
     scene: &Scene,
     ctx: &RenderContext,
     film: &mut Film,

@@ -39,6 +39,8 @@ pub struct Render {
     pub warnings: Vec<String>,
     /// Camera samples per pixel taken.
     pub spp: u32,
+    /// The render's counters (rays, shadow rays, camera samples, …).
+    pub stats: penumbra_core::integrator::RenderStats,
 }
 
 pub struct Opts<'a> {
@@ -105,6 +107,7 @@ pub fn render_desc(desc: &penumbra_parser::SceneDescription, o: &Opts) -> Render
         variance: var,
         warnings: warnings.take().iter().map(|d| d.message.clone()).collect(),
         spp: r.stats.spp,
+        stats: r.stats,
     }
 }
 

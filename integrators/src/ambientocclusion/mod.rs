@@ -75,6 +75,7 @@ struct Estimator<'a> {
 }
 
 impl PixelEstimator for Estimator<'_> {
+    type Shared = ();
     fn request_samples(&self, sampler: &mut dyn Sampler) {
         sampler.request_2d_array(self.n);
     }

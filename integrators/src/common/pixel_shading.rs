@@ -6,7 +6,7 @@
 
 use glam::DVec3;
 use penumbra_core::geometry::Ray;
-use penumbra_core::integrator::{PixelShared, ThreadStats};
+use penumbra_core::integrator::ThreadStats;
 use penumbra_core::scene::{Scene, SurfacePoint};
 use penumbra_core::{Rgb, Vec3};
 use penumbra_parser::{DiagSink, ParamSet};
@@ -38,7 +38,7 @@ pub struct SharedPixel<T> {
     shaded: Vec<Option<T>>,
 }
 
-impl<T: Copy + Send + 'static> SharedPixel<T> {
+impl<T: Copy> SharedPixel<T> {
     /// Traces the pixel's camera `rays` (one traversal for the bundle when it meets few
     /// triangles) and shades each cluster once with `shade` ([`shade_clusters`]).
     pub fn trace(
@@ -53,7 +53,8 @@ impl<T: Copy + Send + 'static> SharedPixel<T> {
         for r in rays {
             let prev = hits.last().and_then(|h| h.as_ref().ok()).map(|h| &h.si);
             let (first, queries) = scene.first_point_among(r, candidates.as_deref(), prev);
-            stats.rays += queries;
+            // The driver counted the camera ray itself.
+            stats.add_continued(queries);
             hits.push(first);
         }
         let shaded = shade_clusters(rays, &hits, light_distance, shade);
@@ -61,10 +62,10 @@ impl<T: Copy + Send + 'static> SharedPixel<T> {
     }
 
     /// Sample `index` of the pixel: its first surface (or the radiance its ray escaped with) and
-    /// its cluster's value; `None` when `shared` is not a `SharedPixel<T>` or has no such sample.
-    pub fn sample(shared: &PixelShared, index: usize) -> Option<(&FirstSurface, Option<T>)> {
-        let sh = shared.downcast_ref::<SharedPixel<T>>()?;
-        Some((sh.hits.get(index)?, sh.shaded.get(index).copied().flatten()))
+    /// its cluster's value. `index` is below the number of rays [`trace`](Self::trace) was
+    /// given (the driver's contract for `li_shared`).
+    pub fn sample(&self, index: usize) -> (&FirstSurface, Option<T>) {
+        (&self.hits[index], self.shaded[index])
     }
 }
 

@@ -68,7 +68,7 @@ impl Estimator<'_> {
         let lights = scene.light_list();
         // Surfaces without a material are passed through without counting depth, as pbrt-v3 does.
         let (first, queries) = scene.first_surface(ray);
-        stats.rays += queries - 1;
+        stats.add_continued(queries);
         let SurfaceHit { si, bsdf, le, .. } = match first {
             Ok(h) => h,
             Err(escaped) => return escaped,
@@ -128,6 +128,7 @@ impl Estimator<'_> {
 }
 
 impl PixelEstimator for Estimator<'_> {
+    type Shared = ();
     fn request_samples(&self, sampler: &mut dyn Sampler) {
         if self.dl.strategy == Strategy::All {
             for _ in 0..self.dl.max_depth {

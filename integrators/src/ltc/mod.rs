@@ -56,7 +56,7 @@ use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::Ray;
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, PixelShared, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
@@ -221,7 +221,7 @@ impl Estimator<'_> {
                     for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
                         l += specular(&hit.si, &hit.bsdf, sampler, stats, kind, |r, sampler, stats| {
                             let (next, queries) = scene.first_point(r);
-                            stats.rays += queries - 1;
+                            stats.add_continued(queries);
                             match next {
                                 Ok(h) => self.shade(&h, None, scene, sampler, stats, depth + 1),
                                 Err(escaped) => escaped,
@@ -236,6 +236,8 @@ impl Estimator<'_> {
 }
 
 impl PixelEstimator for Estimator<'_> {
+    type Shared = SharedPixel<AreaLighting>;
+
     fn li(
         &self,
         ray: &Ray,
@@ -245,7 +247,7 @@ impl PixelEstimator for Estimator<'_> {
         _aov: &mut [f32],
     ) -> Rgb {
         let (first, queries) = scene.first_point(ray);
-        stats.rays += queries;
+        stats.add_continued(queries);
         match first {
             Ok(h) => self.shade(&h, None, scene, sampler, stats, 0),
             Err(escaped) => escaped,
@@ -256,24 +258,23 @@ impl PixelEstimator for Estimator<'_> {
         self.shader.ltc.pixel_shading
     }
 
-    fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<PixelShared> {
-        Some(Box::new(self.shader.trace_pixel(rays, scene, self.shader.ltc.shadows, stats)))
+    fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<Self::Shared> {
+        Some(self.shader.trace_pixel(rays, scene, self.shader.ltc.shadows, stats))
     }
 
     fn li_shared(
         &self,
-        ray: &Ray,
+        _ray: &Ray,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
-        aov: &mut [f32],
-        shared: &PixelShared,
+        _aov: &mut [f32],
+        shared: &Self::Shared,
         index: usize,
     ) -> Rgb {
-        match SharedPixel::<AreaLighting>::sample(shared, index) {
-            Some((Ok(h), area)) => self.shade(h, area, scene, sampler, stats, 0),
-            Some((Err(escaped), _)) => *escaped,
-            None => self.li(ray, scene, sampler, stats, aov),
+        match shared.sample(index) {
+            (Ok(h), area) => self.shade(h, area, scene, sampler, stats, 0),
+            (Err(escaped), _) => *escaped,
         }
     }
 }

@@ -71,6 +71,7 @@ const BSDF_OPTIONS: BsdfOptions =
     BsdfOptions { mode: penumbra_core::bxdf::TransportMode::Radiance, allow_multiple_lobes: true };
 
 impl PixelEstimator for Estimator<'_> {
+    type Shared = ();
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, _: &mut [f32]) -> Rgb {
         let (mut l, mut beta) = (Rgb::ZERO, Rgb::ONE);
         let mut ray = *ray;
@@ -80,8 +81,11 @@ impl PixelEstimator for Estimator<'_> {
         for bounces in 0.. {
             // Surfaces without a material are passed through (not counted as bounces).
             let (first, queries) = scene.first_point(&ray);
-            // The driver counts the camera ray.
-            stats.rays += if bounces == 0 { queries - 1 } else { queries };
+            // The camera ray is the driver's to count, a bounce ray this loop's.
+            if bounces > 0 {
+                stats.rays += 1;
+            }
+            stats.add_continued(queries);
             let point = match first {
                 Ok(p) => p,
                 Err(escaped) => {

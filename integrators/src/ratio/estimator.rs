@@ -11,7 +11,7 @@ use crate::ltc::{fresnel_at, AreaLighting, LtcShader};
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::geometry::{gamma, Frame, Ray};
-use penumbra_core::integrator::{PixelEstimator, PixelShared, ThreadStats};
+use penumbra_core::integrator::{PixelEstimator, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{emitting_normal, DiffuseAreaLight, Light, LightContext};
 use penumbra_core::ltc::{Ltc, LtcCoeffs};
@@ -370,7 +370,7 @@ impl Estimator<'_> {
             let Some(sr) = specular_ray(&hit.si, &hit.bsdf, sampler, stats, kind) else { continue };
             let beta = beta * sr.f * sr.scale;
             let (next, queries) = scene.first_surface(&sr.ray);
-            stats.rays += queries - 1;
+            stats.add_continued(queries);
             match next {
                 Ok(h) => {
                     let (rest, t) = self.shade_surface(&sr.ray, &h, None, scene, sampler, stats);
@@ -478,6 +478,8 @@ fn moments(per_sample: &[(f32, f32)]) -> (f32, f32, f32) {
 }
 
 impl PixelEstimator for Estimator<'_> {
+    type Shared = SharedPixel<AreaLighting>;
+
     fn request_samples(&self, sampler: &mut dyn Sampler) {
         for _ in &self.groups {
             sampler.request_2d_array(self.n);
@@ -486,7 +488,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
-        stats.rays += queries;
+        stats.add_continued(queries);
         match first {
             Ok(h) => {
                 let (rest, sample) = self.shade(ray, &h, None, scene, sampler, stats);
@@ -503,8 +505,8 @@ impl PixelEstimator for Estimator<'_> {
 
     /// `U` once per surface seen in the pixel (as `ltc`'s pixel shading, unshadowed); the
     /// stochastic `S_N`, `U_N` stay per camera sample.
-    fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<PixelShared> {
-        Some(Box::new(self.shader.trace_pixel(rays, scene, false, stats)))
+    fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<Self::Shared> {
+        Some(self.shader.trace_pixel(rays, scene, false, stats))
     }
 
     fn li_shared(
@@ -514,11 +516,11 @@ impl PixelEstimator for Estimator<'_> {
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
         aov: &mut [f32],
-        shared: &PixelShared,
+        shared: &Self::Shared,
         index: usize,
     ) -> Rgb {
-        match SharedPixel::<AreaLighting>::sample(shared, index) {
-            Some((Ok(pt), area)) => match pt.with_bsdf(scene) {
+        match shared.sample(index) {
+            (Ok(pt), area) => match pt.with_bsdf(scene) {
                 Some(h) => {
                     let (rest, sample) = self.shade(ray, &h, area, scene, sampler, stats);
                     sample.write(aov);
@@ -526,8 +528,7 @@ impl PixelEstimator for Estimator<'_> {
                 }
                 None => Rgb::ZERO, // (first_point returns only surfaces with a material)
             },
-            Some((Err(escaped), _)) => *escaped,
-            None => self.li(ray, scene, sampler, stats, aov),
+            (Err(escaped), _) => *escaped,
         }
     }
 }

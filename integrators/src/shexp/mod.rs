@@ -241,6 +241,7 @@ impl Estimator<'_> {
 }
 
 impl PixelEstimator for Estimator<'_> {
+    type Shared = ();
     fn li(
         &self,
         ray: &Ray,

@@ -269,7 +269,7 @@ impl Estimator<'_> {
 
     fn shade(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
-        stats.rays += queries - 1;
+        stats.add_continued(queries);
         let hit = match first {
             Ok(h) => h,
             Err(escaped) => return escaped,
@@ -325,6 +325,7 @@ impl Estimator<'_> {
 }
 
 impl PixelEstimator for Estimator<'_> {
+    type Shared = ();
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
         match self.mode {
             Mode::Ao | Mode::Prt => self.ao(ray, scene, stats, aov),

@@ -39,7 +39,7 @@ impl Whitted {
 
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
-        stats.rays += queries - 1;
+        stats.add_continued(queries);
         let SurfaceHit { si, bsdf, le, .. } = match first {
             Ok(h) => h,
             Err(escaped) => return escaped,
@@ -73,6 +73,7 @@ impl Whitted {
 }
 
 impl PixelEstimator for Whitted {
+    type Shared = ();
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, _: &mut [f32]) -> Rgb {
         Whitted::li(self, ray, scene, sampler, stats, 0)
     }
