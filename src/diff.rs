@@ -233,7 +233,7 @@ fn flip_value(a: &Image, b: &Image, skip: bool) -> FlipValue {
 }
 
 /// A JSON number, or "inf" / "-inf" / "nan" strings for non-finite values.
-fn num(v: f64) -> Value {
+pub(crate) fn num(v: f64) -> Value {
     if v.is_finite() {
         json!(v)
     } else if v.is_nan() {

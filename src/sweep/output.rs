@@ -4,6 +4,7 @@
 use super::args::{Metric, SweepArgs};
 use super::plot::{render_plots, Series};
 use super::summary::{default_target, summary_markdown, SummaryInput};
+use crate::diff::num;
 use penumbra_core::image;
 use serde_json::{json, Value};
 use std::fmt::Write as _;
@@ -67,19 +68,6 @@ pub fn csv_text(rows: &[Row]) -> String {
         );
     }
     s
-}
-
-/// A JSON number, or "inf" / "-inf" / "nan" for non-finite values.
-fn num(v: f64) -> Value {
-    if v.is_finite() {
-        json!(v)
-    } else if v.is_nan() {
-        json!("nan")
-    } else if v > 0.0 {
-        json!("inf")
-    } else {
-        json!("-inf")
-    }
 }
 
 fn row_json(r: &Row) -> Value {

@@ -12,6 +12,7 @@ use penumbra_core::material::LtcFresnel;
 use penumbra_core::spectrum::luminance;
 use penumbra_core::spherical::{self, cone::BoundingCone};
 use penumbra_core::Rgb;
+use penumbra_parser::{DiagSink, ParamSet};
 
 /// How the glossy lobe's Fresnel factor is applied to the LTC integral.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -23,6 +24,26 @@ pub enum FresnelMode {
     /// LTC-weighted mean direction, per light triangle (handles pbrt-v3's plastic, whose
     /// dielectric Fresnel is not Schlick-like).
     Average,
+}
+
+impl FresnelMode {
+    /// `"string fresnel"` (`"average"`, default, or `"schlick"`), as `integrator` reads it; an
+    /// unknown value warns and uses `"average"`.
+    pub fn from_params(integrator: &str, params: &ParamSet, warnings: &DiagSink) -> FresnelMode {
+        match params.get_one_string("fresnel", "average").as_str() {
+            "schlick" => FresnelMode::Schlick,
+            "average" => FresnelMode::Average,
+            other => {
+                warnings.warn(
+                    params.loc_of("fresnel").cloned(),
+                    format!(
+                        "{integrator}: unknown fresnel \"{other}\" (expected average or schlick): using \"average\""
+                    ),
+                );
+                FresnelMode::Average
+            }
+        }
+    }
 }
 
 /// What the average Fresnel of a region needs at one shading point.

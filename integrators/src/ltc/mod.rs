@@ -116,17 +116,7 @@ impl LtcIntegrator {
             }
         };
         let shadows = params.get_one_bool("shadows", true);
-        let fresnel = match params.get_one_string("fresnel", "average").as_str() {
-            "schlick" => FresnelMode::Schlick,
-            "average" => FresnelMode::Average,
-            other => {
-                warnings.warn(
-                    params.loc_of("fresnel").cloned(),
-                    format!("ltc: unknown fresnel \"{other}\" (expected average or schlick): using \"average\""),
-                );
-                FresnelMode::Average
-            }
-        };
+        let fresnel = FresnelMode::from_params("ltc", params, warnings);
         let pixel_shading = parse_shading("ltc", params, warnings);
         let merge_occluders = params.get_one_bool("mergeoccluders", true);
         let coverage = params.get_one_int("coveragesamples", 16);

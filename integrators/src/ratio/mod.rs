@@ -133,17 +133,7 @@ impl RatioIntegrator {
             },
             ratio_floor: positive("ratiofloor", d.ratio_floor)?,
         };
-        let fresnel = match params.get_one_string("fresnel", "average").as_str() {
-            "schlick" => FresnelMode::Schlick,
-            "average" => FresnelMode::Average,
-            other => {
-                warnings.warn(
-                    params.loc_of("fresnel").cloned(),
-                    format!("ratio: unknown fresnel \"{other}\" (expected average or schlick): using \"average\""),
-                );
-                FresnelMode::Average
-            }
-        };
+        let fresnel = FresnelMode::from_params("ratio", params, warnings);
         Ok(Box::new(RatioIntegrator {
             ltc: LtcIntegrator {
                 mode: Mode::Auto, // shadows off: only the lights' shapes (one polygon where possible)
