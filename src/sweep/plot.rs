@@ -96,12 +96,17 @@ fn draw_chart<DB: plotters::prelude::DrawingBackend>(
                     + Circle::new((11, 0), 4, colour.filled())
             });
         chart.draw_series(pts.iter().map(|p| Circle::new((p.0, p.1), 4, colour.filled()))).map_err(e)?;
-        chart
-            .draw_series(pts.iter().map(|p| {
-                EmptyElement::at((p.0, p.1))
-                    + Text::new(p.2.to_string(), (5, -16), ("sans-serif", 11).into_font().color(&RGBColor(90, 90, 90)))
-            }))
-            .map_err(e)?;
+    }
+    // Budget labels: placed beside their points where they overlap nothing already placed.
+    let anchors: Vec<((i32, i32), String)> =
+        series.iter().flat_map(|s| s.1.iter()).map(|p| (chart.backend_coord(&(p.0, p.1)), p.2.to_string())).collect();
+    let boxes: Vec<(i32, i32)> = anchors.iter().map(|(_, t)| label_size(t)).collect();
+    let points: Vec<(i32, i32)> = anchors.iter().map(|a| a.0).collect();
+    let font = ("sans-serif", LABEL_FONT_PX).into_font().color(&RGBColor(90, 90, 90));
+    for (i, at) in place_labels(&points, &boxes, root.dim_in_pixel()).into_iter().enumerate() {
+        if let Some(at) = at {
+            root.draw(&Text::new(anchors[i].1.clone(), at, font.clone())).map_err(e)?;
+        }
     }
     chart
         .configure_series_labels()
@@ -113,6 +118,84 @@ fn draw_chart<DB: plotters::prelude::DrawingBackend>(
         .map_err(e)?;
     root.present().map_err(e)?;
     Ok(())
+}
+
+const LABEL_FONT_PX: u32 = 11;
+/// The radius of a plotted point's marker, in pixels.
+const MARKER_PX: i32 = 4;
+
+/// A budget label's box in pixels (the embedded font's digits are about 0.6 em wide).
+fn label_size(text: &str) -> (i32, i32) {
+    ((text.len() as f64 * 0.6 * LABEL_FONT_PX as f64).ceil() as i32, LABEL_FONT_PX as i32 + 2)
+}
+
+/// Places one label per point: the first of eight positions around its point (above right
+/// first) whose box stays inside `area` and overlaps neither a label placed before it nor any
+/// point's marker. A label that fits nowhere is left out (its budget is in the CSV), so labels
+/// never overlap each other. Returns each label's top-left corner.
+fn place_labels(points: &[(i32, i32)], sizes: &[(i32, i32)], area: (u32, u32)) -> Vec<Option<(i32, i32)>> {
+    type Rect = (i32, i32, i32, i32);
+    let overlaps = |a: Rect, b: Rect| a.0 < b.2 && b.0 < a.2 && a.1 < b.3 && b.1 < a.3;
+    let markers: Vec<Rect> =
+        points.iter().map(|&(x, y)| (x - MARKER_PX, y - MARKER_PX, x + MARKER_PX + 1, y + MARKER_PX + 1)).collect();
+    let mut placed: Vec<Rect> = Vec::new();
+    let gap = MARKER_PX + 2;
+    points
+        .iter()
+        .zip(sizes)
+        .map(|(&(x, y), &(w, h))| {
+            let candidates = [
+                (x + gap, y - gap - h),
+                (x + gap, y + gap),
+                (x - gap - w, y - gap - h),
+                (x - gap - w, y + gap),
+                (x + gap, y - h / 2),
+                (x - gap - w, y - h / 2),
+                (x - w / 2, y - gap - h),
+                (x - w / 2, y + gap),
+            ];
+            let fits = |&(cx, cy): &(i32, i32)| {
+                let r = (cx, cy, cx + w, cy + h);
+                cx >= 0
+                    && cy >= 0
+                    && r.2 <= area.0 as i32
+                    && r.3 <= area.1 as i32
+                    && !placed.iter().chain(&markers).any(|&o| overlaps(r, o))
+            };
+            let at = candidates.iter().copied().find(|c| fits(c))?;
+            placed.push((at.0, at.1, at.0 + w, at.1 + h));
+            Some(at)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn labels_of_coincident_and_close_points_never_overlap() {
+        // Two integrators at the same budgets, one point nearly on top of the other's,
+        // in a cluster (what made the labels overlap before).
+        let mut points = Vec::new();
+        for i in 0..6 {
+            points.push((100 + 9 * i, 200 - 7 * i));
+            points.push((102 + 9 * i, 201 - 7 * i));
+        }
+        let texts: Vec<String> = (0..points.len()).map(|i| (1u32 << (i / 2)).to_string()).collect();
+        let sizes: Vec<(i32, i32)> = texts.iter().map(|t| label_size(t)).collect();
+        let at = place_labels(&points, &sizes, PLOT_SIZE);
+        let rects: Vec<_> =
+            at.iter().zip(&sizes).filter_map(|(a, s)| a.map(|(x, y)| (x, y, x + s.0, y + s.1))).collect();
+        assert!(rects.len() >= points.len() / 2, "too many labels left out: {} of {}", rects.len(), points.len());
+        for (i, a) in rects.iter().enumerate() {
+            for b in &rects[i + 1..] {
+                assert!(!(a.0 < b.2 && b.0 < a.2 && a.1 < b.3 && b.1 < a.3), "{a:?} overlaps {b:?}");
+            }
+        }
+        // An isolated point gets its label above and to the right.
+        assert_eq!(place_labels(&[(400, 300)], &[(12, 13)], PLOT_SIZE), vec![Some((406, 281))]);
+    }
 }
 
 /// Draws the plot as SVG text and as PNG bytes.
