@@ -8,9 +8,6 @@
 //! uses therefore never causes an error.
 //!
 //! Deviations from pbrt-v3 (see also the individual items):
-//! - Perlin noise (`dots`, `fbm`, `wrinkled`, `windy`, `marble`) uses penumbra's
-//!   own permutation table (a deterministic PCG32 shuffle), so the noise pattern
-//!   has the same statistics as pbrt-v3's but is not the same pattern.
 //! - A missing or unreadable image file is an error (pbrt-v3 warns and uses a grey texture).
 //! - Image `scale`/`invert` are applied at lookup time so that one pyramid per
 //!   (file, gamma, wrap) is shared; identical to pbrt-v3 for `scale >= 0`.
@@ -19,7 +16,6 @@
 //!   `geomParams`) are not supported: only the material's own parameters are used.
 
 use crate::interaction::SurfaceInteraction;
-use crate::rng::Rng;
 use crate::spectrum::Rgb;
 use glam::{Mat4, Vec2, Vec3};
 use penumbra_parser::{
@@ -544,19 +540,32 @@ impl<T: Texel> MipMap<T> {
 // Perlin noise
 // ---------------------------------------------------------------------------
 
-/// penumbra's Perlin permutation (pbrt-v3 uses Perlin's published table; this one
-/// is a Fisher–Yates shuffle of 0..256 driven by PCG32 stream 0x5eed, duplicated).
+/// Ken Perlin's permutation ("Improving Noise", SIGGRAPH 2002, and his reference
+/// implementation), the table pbrt-v3's noise uses, so noise textures reproduce pbrt-v3's
+/// patterns exactly.
+#[rustfmt::skip]
+const PERLIN_PERMUTATION: [u8; 256] = [
+    151, 160, 137, 91, 90, 15, 131, 13, 201, 95, 96, 53, 194, 233, 7, 225,
+    140, 36, 103, 30, 69, 142, 8, 99, 37, 240, 21, 10, 23, 190, 6, 148,
+    247, 120, 234, 75, 0, 26, 197, 62, 94, 252, 219, 203, 117, 35, 11, 32,
+    57, 177, 33, 88, 237, 149, 56, 87, 174, 20, 125, 136, 171, 168, 68, 175,
+    74, 165, 71, 134, 139, 48, 27, 166, 77, 146, 158, 231, 83, 111, 229, 122,
+    60, 211, 133, 230, 220, 105, 92, 41, 55, 46, 245, 40, 244, 102, 143, 54,
+    65, 25, 63, 161, 1, 216, 80, 73, 209, 76, 132, 187, 208, 89, 18, 169,
+    200, 196, 135, 130, 116, 188, 159, 86, 164, 100, 109, 198, 173, 186, 3, 64,
+    52, 217, 226, 250, 124, 123, 5, 202, 38, 147, 118, 126, 255, 82, 85, 212,
+    207, 206, 59, 227, 47, 16, 58, 17, 182, 189, 28, 42, 223, 183, 170, 213,
+    119, 248, 152, 2, 44, 154, 163, 70, 221, 153, 101, 155, 167, 43, 172, 9,
+    129, 22, 39, 253, 19, 98, 108, 110, 79, 113, 224, 232, 178, 185, 112, 104,
+    218, 246, 97, 228, 251, 34, 242, 193, 238, 210, 144, 12, 191, 179, 162, 241,
+    81, 51, 145, 235, 249, 14, 239, 107, 49, 192, 214, 31, 181, 199, 106, 157,
+    184, 84, 204, 176, 115, 121, 50, 45, 127, 4, 150, 254, 138, 236, 205, 93,
+    222, 114, 67, 29, 24, 72, 243, 141, 128, 195, 78, 66, 215, 61, 156, 180,
+];
+
 fn noise_perm() -> &'static [u8; 512] {
     static PERM: OnceLock<[u8; 512]> = OnceLock::new();
-    PERM.get_or_init(|| {
-        let mut p: [u8; 256] = std::array::from_fn(|i| i as u8);
-        let mut rng = Rng::new(0x5eed);
-        for i in (1..256usize).rev() {
-            let j = rng.uniform_u32_below(i as u32 + 1) as usize;
-            p.swap(i, j);
-        }
-        std::array::from_fn(|i| p[i & 255])
-    })
+    PERM.get_or_init(|| std::array::from_fn(|i| PERLIN_PERMUTATION[i & 255]))
 }
 
 fn grad(x: usize, y: usize, z: usize, dx: f32, dy: f32, dz: f32) -> f32 {
@@ -577,7 +586,7 @@ fn lerp(t: f32, a: f32, b: f32) -> f32 {
     (1.0 - t) * a + t * b
 }
 
-/// Gradient noise in [-1, 1] with pbrt-v3's construction (and penumbra's permutation).
+/// Gradient noise in [-1, 1] with pbrt-v3's construction and Perlin's permutation.
 pub fn noise(p: Vec3) -> f32 {
     if !p.is_finite() {
         return 0.0;

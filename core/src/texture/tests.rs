@@ -1,4 +1,5 @@
 use super::*;
+use crate::rng::Rng;
 use penumbra_parser::{
     AnimatedTransform, CameraDesc, Entity, MaterialDesc, Param, ParamValue, SceneDescription, TextureDesc, TextureKind,
     TextureRef,
