@@ -13,9 +13,12 @@ image is box-downsampled to 64x64 (each output pixel averages (RES/64)^2 pixels,
 the case, its sample count and pbrt-v3's wall time go to tests/data/path-references/timings.tsv.
 Needs `pip install OpenEXR numpy` and `../shared` beside the repository.
 """
-import os, re, subprocess, sys, tempfile, time
+import os, subprocess, sys, tempfile, time
 import numpy as np
 import OpenEXR
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from pbrt_scene import rewrite  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PBRT = os.path.join(ROOT, "..", "shared", "tools", "pbrt-v3", "pbrt")
@@ -32,57 +35,6 @@ CASES = [
     ("bump-whitted", "hackmad-pbrt-v3-rs/scenes/materials/bump.pbrt", None, 256, 128),
     ("bump-path", "hackmad-pbrt-v3-rs/scenes/materials/bump.pbrt", "path", 512, 128),
 ]
-
-TOKEN = re.compile(r'"[^"]*"|\[|\]|[^\s\[\]"]+')
-
-
-def strip_comments(text):
-    out = []
-    for line in text.splitlines():
-        in_str = False
-        for i, c in enumerate(line):
-            if c == '"':
-                in_str = not in_str
-            elif c == "#" and not in_str:
-                line = line[:i]
-                break
-        out.append(line)
-    return "\n".join(out)
-
-
-def directives(tokens):
-    """Groups tokens into (name, [argument tokens]) in order."""
-    out = []
-    for t in tokens:
-        if t[0].isalpha() and t[0].isupper() and not t.startswith('"'):
-            out.append([t, []])
-        elif out:
-            out[-1][1].append(t)
-    return out
-
-
-def rewrite(text, spp, res, pfm, integrator, box_filter=True):
-    head, sep, world = text.partition("WorldBegin")
-    assert sep, "no WorldBegin"
-    sampler_type = '"halton"'
-    kept = []
-    for name, args in directives(TOKEN.findall(strip_comments(head))):
-        if name == "Sampler":
-            sampler_type = args[0]
-        elif name == "Integrator" and integrator:
-            pass
-        elif name == "Film" or (name == "PixelFilter" and box_filter):
-            pass
-        else:
-            kept.append(name + " " + " ".join(args))
-    kept.append(f'Sampler {sampler_type} "integer pixelsamples" [ {spp} ]')
-    if box_filter:
-        kept.append('PixelFilter "box"')
-    kept.append(f'Film "image" "integer xresolution" [ {res} ] "integer yresolution" [ {res} ] "string filename" [ "{pfm}" ]')
-    if integrator:
-        kept.append(f'Integrator "{integrator}"')
-    return "\n".join(kept) + "\nWorldBegin" + world
-
 
 def read_pfm(path):
     with open(path, "rb") as f:
