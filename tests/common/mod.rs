@@ -41,6 +41,8 @@ pub struct Render {
     pub spp: u32,
     /// The render's counters (rays, shadow rays, camera samples, …).
     pub stats: penumbra_core::integrator::RenderStats,
+    /// Every channel the render wrote (R, G, B, the integrator's extra channels, variance).
+    pub channels: Image,
 }
 
 pub struct Opts<'a> {
@@ -108,6 +110,7 @@ pub fn render_desc(desc: &penumbra_parser::SceneDescription, o: &Opts) -> Render
         warnings: warnings.take().iter().map(|d| d.message.clone()).collect(),
         spp: r.stats.spp,
         stats: r.stats,
+        channels: r.image,
     }
 }
 

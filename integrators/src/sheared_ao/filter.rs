@@ -7,6 +7,7 @@
 
 use glam::{DVec2, DVec3};
 use penumbra_core::geometry::Frame;
+use penumbra_core::sh::{basis, quadrature::gauss_legendre, ShOrder};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
 
 /// One cached occlusion ray: unit direction and the distance from its shading point to the
@@ -104,8 +105,78 @@ pub fn atan_unit(x: f64) -> f64 {
 /// The central direction of cell `c` in local coordinates (the concentric map of the centre
 /// of its square).
 pub fn cell_center(c: usize, n: usize) -> DVec3 {
-    let u = DVec2::new(((c % n) as f64 + 0.5) / n as f64, ((c / n) as f64 + 0.5) / n as f64);
+    concentric_hemisphere(DVec2::new(((c % n) as f64 + 0.5) / n as f64, ((c / n) as f64 + 0.5) / n as f64))
+}
+
+/// One wedge of the concentric map over one cell: the ranges of `ρ` and `t` and `o(ρ, t)`.
+type Wedge = ([f64; 2], [f64; 2], fn(f64, f64) -> DVec2);
+
+/// The SH transfer of each cell under full visibility, in the receiver's local frame (z = the
+/// normal): `K_{c,i} = ∫_c max(0, z) Y_i(ω) dω`, row `c` of `cells² × order.coeffs()`. A
+/// receiver's transfer is then `Σ_c V̄_c K_c` (rotated to world space), so `sh.0 = Y_0 · AO`
+/// exactly and an unoccluded receiver gets the clamped cosine's `Â_l Y_lm(n)`.
+///
+/// The concentric map takes the square `o ∈ [−1, 1]²` to the disk with constant Jacobian π/4,
+/// and projected solid angle is disk area, so `K_{c,i} = π/4 ∫_{square c} Y_i(lift(o)) do`. Each
+/// square is split along the map's diagonals into its pieces in the four wedges; in a wedge the
+/// radius is one coordinate `ρ` and the angle is linear in the other, so the integrand is smooth
+/// but for `z = √(1 − ρ²)`, which the substitution `ρ = sin α` makes smooth too: Gauss–Legendre
+/// in `(α, t)` is then exact to rounding (the midpoint rule in `u` converges like `q^−1.5`
+/// at the rim: 5e-4 at 16² points per cell).
+pub fn cell_transfer(cells: usize, order: ShOrder) -> Vec<f64> {
+    let (nodes, weights) = gauss_legendre(12);
+    let (nc, k) = (cells * cells, order.coeffs());
+    let mut out = vec![0.0; nc * k];
+    let mut y = vec![0.0; k];
+    let grid = |i: usize| -1.0 + 2.0 * i as f64 / cells as f64;
+    for (c, row) in out.chunks_exact_mut(k).enumerate() {
+        let (x0, x1, y0, y1) = (grid(c % cells), grid(c % cells + 1), grid(c / cells), grid(c / cells + 1));
+        // Wedges: right (o = (ρ, t)), left (−ρ, t), top (t, ρ), bottom (t, −ρ); ρ ≥ |t|.
+        let wedges: [Wedge; 4] = [
+            ([x0, x1], [y0, y1], |r, t| DVec2::new(r, t)),
+            ([-x1, -x0], [y0, y1], |r, t| DVec2::new(-r, t)),
+            ([y0, y1], [x0, x1], |r, t| DVec2::new(t, r)),
+            ([-y1, -y0], [x0, x1], |r, t| DVec2::new(t, -r)),
+        ];
+        for (rho, t, to_o) in wedges {
+            let (r0, r1) = (rho[0].max(0.0), rho[1]);
+            if !(r1 > r0) {
+                continue;
+            }
+            // The t range [max(t0, −ρ), min(t1, ρ)] bends where ρ = |t0| or |t1|.
+            let mut cuts = vec![r0, r1];
+            cuts.extend([t[0].abs(), t[1].abs()].into_iter().filter(|v| *v > r0 && *v < r1));
+            cuts.sort_by(f64::total_cmp);
+            for seg in cuts.windows(2) {
+                let (a0, a1) = (seg[0].asin(), seg[1].asin());
+                for (na, wa) in nodes.iter().zip(&weights) {
+                    let alpha = 0.5 * (a0 + a1) + 0.5 * (a1 - a0) * na;
+                    let r = alpha.sin();
+                    let (ta, tb) = (t[0].max(-r), t[1].min(r));
+                    if !(tb > ta) {
+                        continue;
+                    }
+                    // π/4 · dρ dt, dρ = cos α dα.
+                    let w_alpha = std::f64::consts::FRAC_PI_4 * 0.5 * (a1 - a0) * wa * alpha.cos() * 0.5 * (tb - ta);
+                    for (nt, wt) in nodes.iter().zip(&weights) {
+                        let o = to_o(r, 0.5 * (ta + tb) + 0.5 * (tb - ta) * nt);
+                        basis::eval(order, concentric_hemisphere(0.5 * (o + DVec2::ONE)), &mut y);
+                        row.iter_mut().zip(&y).for_each(|(dst, v)| *dst += w_alpha * wt * v);
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// `cosine_sample_hemisphere` in f64: Shirley–Chiu's concentric map of `u ∈ [0, 1]²` lifted to
+/// the hemisphere.
+fn concentric_hemisphere(u: DVec2) -> DVec3 {
     let o = 2.0 * u - DVec2::ONE;
+    if o == DVec2::ZERO {
+        return DVec3::Z;
+    }
     let (r, theta) =
         if o.x.abs() > o.y.abs() { (o.x, FRAC_PI_4 * (o.y / o.x)) } else { (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y)) };
     let d = r * DVec2::new(theta.cos(), theta.sin());

@@ -18,6 +18,18 @@
 //!   area, weighted by the sheared filter and normalised per cell; cells with too little weight
 //!   or too close occluders take `brutesamples` fresh rays each, stratified in the cell.
 //!   AO = (π / cells²) Σ_c V̄_c.
+//! * **SH** (`"bool sh" "true"`, order `"integer shorder"`, 3): the transfer
+//!   `Σ_c V̄_c K_c`, `K_c = ∫_c max(0, n·ω) Y(ω) dω` per cell ([`filter::cell_transfer`], exact
+//!   to rounding), turned from the receiver's frame to world space, in channels `sh.*` with the
+//!   diffuse albedo in `albedo.*` (`core::sh::transfer`'s convention, as `ambientocclusion`'s):
+//!   `sh.0 = Y_0 · AO` sample by sample, the clamped cosine's `Â_l Y_lm(n)` where unoccluded.
+//! * **Rays** (`stats.json`): the integrator is its own driver and counts every ray once:
+//!   per pass-1 camera sample (crop *and* margin) its camera ray, pass-throughs and `nsamples`
+//!   cached rays; per pass-2 camera sample (crop only) `brutesamples` rays per brute-forced
+//!   cell and no camera ray. So with `P` pass-1 and `C` pass-2 camera samples and a brute-forced
+//!   fraction `f`: rays = `P (1 + nsamples) + C f cells² brutesamples` (+ pass-throughs),
+//!   shadow rays the same without the `P` camera rays (`tests/conformance.rs`,
+//!   `tests/sheared_ao.rs::a_crop_counts_its_margin_rays_once`).
 //!
 //! Parameters (beside [`ShearedAo::create`]): `"integer nsamples"` (12, rounded by the
 //! sampler), `"integer screenradius"` (8), `"integer cells"` (8), `"float omegav"` (2.0),
@@ -58,10 +70,12 @@ use penumbra_core::integrator::{
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::cosine_sample_hemisphere;
 use penumbra_core::scene::{Requirements, Scene};
+use penumbra_core::sh::{rotation::ShRotation, transfer::TransferChannels, ShOrder};
 use penumbra_core::{Rgb, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
 use std::time::Instant;
 
 pub struct ShearedAo {
@@ -72,6 +86,8 @@ pub struct ShearedAo {
     /// At most this many cache points (nearest pixels first) lend their rays to a receiver.
     pub max_points: u32,
     pub filter: FilterParams,
+    /// The order of the SH transfer channels, when they are written (`"bool sh"`).
+    pub sh: Option<ShOrder>,
 }
 
 impl ShearedAo {
@@ -98,7 +114,17 @@ impl ShearedAo {
                 ))
             }
         };
+        let sh = if params.get_one_bool("sh", false) {
+            let order = params.get_one_int("shorder", 3);
+            Some(
+                ShOrder::new(order.max(0) as usize)
+                    .map_err(|e| Diagnostic::error(params.loc_of("shorder").cloned(), format!("\"shorder\": {e}")))?,
+            )
+        } else {
+            None
+        };
         Ok(Box::new(ShearedAo {
+            sh,
             nsamples: int_in("nsamples", 12, 1, 1024)?,
             screen_radius: int_in("screenradius", 8, 0, 64)?,
             brute_samples: int_in("brutesamples", 1, 1, 64)?,
@@ -132,6 +158,32 @@ pub struct Shading {
     p_error: Vec3,
     n: Vec3,
     frame: Frame,
+    /// The diffuse albedo (only with `"bool sh"`).
+    albedo: Rgb,
+}
+
+/// Rays traced: camera rays with their pass-throughs (queries of the closest hit along the camera
+/// ray) and occlusion rays (pass 1's cached rays, pass 2's brute-force rays).
+#[derive(Clone, Copy, Debug, Default)]
+struct RayCount {
+    camera: u64,
+    occlusion: u64,
+}
+
+impl RayCount {
+    fn add_to(self, total: &Mutex<RayCount>) {
+        let mut t = total.lock().unwrap_or_else(|e| e.into_inner());
+        t.camera += self.camera;
+        t.occlusion += self.occlusion;
+    }
+}
+
+/// Keeps a 2D sample off the border of the unit square, where the concentric map puts the
+/// direction on the horizon (z = 0; QMC samplers produce exact 0s): the cosine-distributed
+/// direction always has z ≥ 2e-3, so every sample becomes a ray and the counts are closed forms.
+fn open_square(u: Vec2) -> Vec2 {
+    const E: f32 = 1e-6;
+    u.clamp(Vec2::splat(E), Vec2::splat(1.0 - E))
 }
 
 /// The camera sample of pixel `p` as `render_pixels` draws it.
@@ -142,14 +194,14 @@ fn camera_sample(scene: &Scene, sampler: &mut dyn Sampler, p: IVec2) -> CameraSa
 impl ShearedAo {
     /// Pass 1 for one camera sample: the first surface with a material and its cached rays
     /// (`None`: the ray escaped). `us` are the occlusion rays' 2D samples.
-    fn shade(&self, scene: &Scene, cs: &CameraSample, us: &[Vec2], rays: &mut u64) -> Option<Shading> {
+    fn shade(&self, scene: &Scene, cs: &CameraSample, us: &[Vec2], rays: &mut RayCount) -> Option<Shading> {
         let mut ray = scene.camera.generate_ray(cs);
         for _ in 0..64 {
+            rays.camera += 1;
             let hit = scene.intersect(&ray)?;
             let si = scene.interaction(&ray, &hit);
             if scene.objects[hit.mesh as usize].material.is_none() {
                 ray = si.spawn_ray(ray.d);
-                *rays += 1;
                 continue;
             }
             let n = face_forward(si.n, -ray.d);
@@ -158,13 +210,9 @@ impl ShearedAo {
             let footprint = footprint(scene, cs, pd, n.as_dvec3());
             let mut cached = Vec::with_capacity(us.len());
             for &u in us {
-                let w = cosine_sample_hemisphere(u);
-                if !(w.z > 0.0) {
-                    continue;
-                }
-                let wi = frame.from_local(w);
+                let wi = frame.from_local(cosine_sample_hemisphere(open_square(u)));
                 let r = si.spawn_ray(wi);
-                *rays += 1;
+                rays.occlusion += 1;
                 let d = wi.as_dvec3().normalize();
                 let t = match scene.intersect(&r) {
                     Some(h) => (r.o.as_dvec3() + h.t as f64 * r.d.as_dvec3() - pd).dot(d).max(0.0),
@@ -178,32 +226,36 @@ impl ShearedAo {
                 p_error: si.p_error,
                 n,
                 frame,
+                albedo: if self.sh.is_some() { crate::ambientocclusion::diffuse_albedo(scene, &si) } else { Rgb::ZERO },
             });
         }
         None
     }
 
-    /// Pass 2 for one receiver: AO and the fraction of brute-forced cells. `brute_us` are the
-    /// 2D samples of the brute-force rays (`cells² × brutesamples`, cell-major).
+    /// Pass 2 for one receiver: the mean visibility of every cell into `vbar` (filtered, or
+    /// from the brute-force rays), and the number of brute-forced cells. `brute_us` are the 2D
+    /// samples of the brute-force rays (`cells² × brutesamples`, cell-major).
     fn resolve(
         &self,
         scene: &Scene,
         recv: &Shading,
         neighbours: &[&CachePoint],
         brute_us: &[Vec2],
-        (scratch, cells): (&mut Scratch, &mut Vec<CellValue>),
-        rays: &mut u64,
-    ) -> (f32, f32) {
+        scratch: &mut PassScratch,
+        rays: &mut RayCount,
+    ) -> usize {
         let f = &recv.point;
         let frame = Frame { x: recv.frame.x.as_dvec3(), y: recv.frame.y.as_dvec3(), z: f.n };
         let receiver = Receiver { p: f.p, frame, footprint: f.footprint };
-        filter::filter_receiver(&receiver, neighbours.iter().copied(), &self.filter, scratch, cells);
+        let PassScratch { filter: fs, cells, vbar, .. } = scratch;
+        filter::filter_receiver(&receiver, neighbours.iter().copied(), &self.filter, fs, cells);
         let nside = self.filter.cells;
         let m = self.brute_samples as usize;
-        let (mut sum, mut brute) = (0.0f64, 0usize);
+        let mut brute = 0usize;
+        vbar.clear();
         for (c, v) in cells.iter().enumerate() {
-            match *v {
-                CellValue::Filtered(v) => sum += v,
+            vbar.push(match *v {
+                CellValue::Filtered(v) => v,
                 CellValue::Brute => {
                     brute += 1;
                     let mut unoccluded = 0usize;
@@ -213,28 +265,62 @@ impl ShearedAo {
                             ((c % nside) as f32 + xi.x) / nside as f32,
                             ((c / nside) as f32 + xi.y) / nside as f32,
                         );
-                        let w = cosine_sample_hemisphere(u.min(Vec2::splat(1.0 - f32::EPSILON)));
-                        if !(w.z > 0.0) {
-                            continue;
-                        }
-                        let wi = recv.frame.from_local(w);
+                        let wi = recv.frame.from_local(cosine_sample_hemisphere(open_square(u)));
                         let r = Ray::new(
                             offset_ray_origin(recv.p, recv.p_error, recv.n, wi),
                             wi,
                             self.filter.max_distance as f32,
                         );
-                        *rays += 1;
+                        rays.occlusion += 1;
                         if !scene.occluded(&r) {
                             unoccluded += 1;
                         }
                     }
-                    sum += unoccluded as f64 / m as f64;
+                    unoccluded as f64 / m as f64
                 }
-            }
+            });
         }
-        let nc = cells.len().max(1) as f64;
-        ((std::f64::consts::PI * sum / nc) as f32, (brute as f64 / nc) as f32)
+        brute
     }
+
+    /// The sample's extra channels from the receiver's cell visibilities: the brute-forced
+    /// fraction, then (with `"bool sh"`) the world-space transfer `Σ_c V̄_c K_c` and the albedo.
+    fn write_channels(&self, recv: &Shading, brute: usize, table: &[f64], scratch: &mut PassScratch, aov: &mut [f32]) {
+        let nc = scratch.vbar.len().max(1);
+        aov[0] = (brute as f64 / nc as f64) as f32;
+        let Some(order) = self.sh else { return };
+        let k = order.coeffs();
+        let PassScratch { vbar, local, world, .. } = scratch;
+        local.clear();
+        local.resize(k, 0.0);
+        for (v, row) in vbar.iter().zip(table.chunks_exact(k)) {
+            local.iter_mut().zip(row).for_each(|(t, kc)| *t += v * kc);
+        }
+        world.clear();
+        world.resize(k, 0.0);
+        // The local frame in f64, orthonormalised (the f32 frame is orthonormal to ~1e-7 only),
+        // right-handed like `Frame::from_zx`; its columns take local directions to world ones.
+        let z = recv.point.n.normalize();
+        let x = (recv.frame.x.as_dvec3() - z * z.dot(recv.frame.x.as_dvec3())).normalize();
+        let world_from_local = glam::DMat3::from_cols(x, z.cross(x), z);
+        match ShRotation::new(order, world_from_local) {
+            Ok(rot) => {
+                let _ = rot.apply(local, world);
+            }
+            Err(_) => world.iter_mut().for_each(|w| *w = 0.0),
+        }
+        TransferChannels::new(order, 1).write(aov, world, recv.albedo);
+    }
+}
+
+/// Pass 2's per-thread buffers.
+#[derive(Default)]
+struct PassScratch {
+    filter: Scratch,
+    cells: Vec<CellValue>,
+    vbar: Vec<f64>,
+    local: Vec<f64>,
+    world: Vec<f64>,
 }
 
 /// The larger side of the pixel's footprint at `p` on the plane of normal `n`: where the camera
@@ -263,12 +349,12 @@ fn sample_pass(
     region: Bounds2i,
     spp: u32,
     n: u32,
-    rays: &AtomicU64,
+    rays: &Mutex<RayCount>,
 ) -> ImageBuffer<Vec<Option<Shading>>> {
     let (w, h) = (region.width().max(0) as usize, region.height().max(0) as usize);
     ImageBuffer::from_rows_par(w, h, |y| {
         let mut sampler = proto.clone_box();
-        let mut count = 0u64;
+        let mut count = RayCount::default();
         let row = (0..w)
             .map(|x| {
                 let p = region.min + IVec2::new(x as i32, y as i32);
@@ -282,7 +368,7 @@ fn sample_pass(
                     .collect()
             })
             .collect();
-        rays.fetch_add(count, Ordering::Relaxed);
+        count.add_to(rays);
         row
     })
 }
@@ -292,10 +378,11 @@ impl Integrator for ShearedAo {
         "sheared-ao"
     }
     fn requirements(&self) -> Requirements {
-        Requirements { accel: true, ..Default::default() }
+        Requirements { accel: true, materials: self.sh.is_some(), ..Default::default() }
     }
     fn extra_channels(&self) -> Vec<String> {
-        vec!["shearedao.brute".into()]
+        let sh = self.sh.map(|o| TransferChannels::new(o, 1).names()).unwrap_or_default();
+        std::iter::once("shearedao.brute".to_string()).chain(sh).collect()
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         let start = Instant::now();
@@ -319,8 +406,10 @@ impl Integrator for ShearedAo {
         // the full image: a crop sees the neighbours the full render sees.
         let margin = IVec2::splat(self.screen_radius as i32);
         let region = Bounds2i::new(sample_bounds.min - margin, sample_bounds.max + margin).intersect(&full);
-        let pass1_rays = AtomicU64::new(0);
-        let pass2_rays = AtomicU64::new(0);
+        let pass1_rays = Mutex::new(RayCount::default());
+        let pass2_rays = Mutex::new(RayCount::default());
+        let table = self.sh.map(|o| filter::cell_transfer(self.filter.cells, o)).unwrap_or_default();
+        let n_aov = self.extra_channels().len();
         let proto_ref = &*proto;
         let cache = with_threads(ctx.threads, || sample_pass(self, scene, proto_ref, region, spp, n, &pass1_rays))?;
         if ctx.cancel.load(Ordering::Relaxed) {
@@ -351,8 +440,9 @@ impl Integrator for ShearedAo {
                     }
                     let mut sampler = proto_ref.clone_box();
                     let mut tile = film_ref.make_tile(*tb);
-                    let (mut scratch, mut cells, mut neigh) = (Scratch::default(), Vec::new(), Vec::new());
-                    let (mut count, mut npoints, mut nbrute) = (0u64, 0u64, 0.0f64);
+                    let (mut scratch, mut neigh) = (PassScratch::default(), Vec::new());
+                    let mut aov = vec![0.0f32; n_aov];
+                    let (mut count, mut npoints, mut nbrute) = (RayCount::default(), 0u64, 0u64);
                     for p in tb.iter() {
                         neigh.clear();
                         for d in &offsets {
@@ -373,21 +463,26 @@ impl Integrator for ShearedAo {
                             let cs = camera_sample(scene, sampler.as_mut(), p);
                             let _ = sampler.get_2d_array(n);
                             let brute_us: Vec<Vec2> = sampler.get_2d_array(nb).map(|a| a.to_vec()).unwrap_or_default();
-                            let (ao, frac) = match own.get(s as usize).and_then(|o| o.as_ref()) {
+                            aov.iter_mut().for_each(|v| *v = 0.0);
+                            let ao = match own.get(s as usize).and_then(|o| o.as_ref()) {
                                 Some(recv) => {
                                     npoints += 1;
-                                    self.resolve(scene, recv, &neigh, &brute_us, (&mut scratch, &mut cells), &mut count)
+                                    let brute = self.resolve(scene, recv, &neigh, &brute_us, &mut scratch, &mut count);
+                                    nbrute += brute as u64;
+                                    self.write_channels(recv, brute, &table, &mut scratch, &mut aov);
+                                    // Cells of equal projected solid angle π / cells².
+                                    let sum: f64 = scratch.vbar.iter().sum();
+                                    (std::f64::consts::PI * sum / scratch.vbar.len().max(1) as f64) as f32
                                 }
-                                None => (0.0, 0.0),
+                                None => 0.0,
                             };
-                            nbrute += frac as f64;
                             let ao = if ao.is_finite() { ao.max(0.0) } else { 0.0 };
-                            tile.add_sample(scene.filter.as_ref(), cs.p_film, Rgb::splat(ao), &[frac]);
+                            tile.add_sample(scene.filter.as_ref(), cs.p_film, Rgb::splat(ao), &aov);
                         }
                     }
-                    pass2_rays.fetch_add(count, Ordering::Relaxed);
+                    count.add_to(&pass2_rays);
                     points.fetch_add(npoints, Ordering::Relaxed);
-                    brute_cells.fetch_add((nbrute * nc as f64).round() as u64, Ordering::Relaxed);
+                    brute_cells.fetch_add(nbrute, Ordering::Relaxed);
                     let d = done.fetch_add(1, Ordering::Relaxed) + 1;
                     if let Some(pr) = ctx.progress {
                         pr(d, total);
@@ -404,11 +499,16 @@ impl Integrator for ShearedAo {
         }
         let filter_seconds = t2.elapsed().as_secs_f64();
         let points = points.load(Ordering::Relaxed).max(1) as f64;
-        let (r1, r2) = (pass1_rays.load(Ordering::Relaxed), pass2_rays.load(Ordering::Relaxed));
+        let lock = |m: Mutex<RayCount>| m.into_inner().unwrap_or_else(|e| e.into_inner());
+        let (c1, c2) = (lock(pass1_rays), lock(pass2_rays));
+        let (r1, r2) = (c1.occlusion, c2.occlusion);
+        // Every ray once, by this integrator (it is its own driver): pass 1's camera rays over the
+        // whole region (the margin too) with their pass-throughs, and the occlusion rays of both
+        // passes. Pass 2 traces no camera ray.
         let mut stats = RenderStats {
             spp,
             camera_samples: sample_bounds.area() as u64 * spp as u64,
-            rays: r1 + r2 + sample_bounds.area() as u64 * spp as u64,
+            rays: c1.camera + c2.camera + r1 + r2,
             shadow_rays: r1 + r2,
             threads: if ctx.threads > 0 { ctx.threads } else { rayon::current_num_threads() },
             render_seconds: start.elapsed().as_secs_f64(),

@@ -1,6 +1,7 @@
 use super::*;
 use penumbra_core::rng::Rng;
 use penumbra_core::sampling::cosine_sample_hemisphere;
+use penumbra_core::sh::{basis, ShOrder};
 
 fn plane_frame() -> Frame<DVec3> {
     Frame { x: DVec3::X, y: DVec3::Y, z: DVec3::Z }
@@ -112,5 +113,26 @@ fn plane_under_a_disk_matches_the_closed_form() {
         eprintln!("a {a}: filtered AO {got:.4} vs exact {exact:.4}, {brute} brute cells");
         assert!(brute <= 4, "a {a}: {brute} brute-forced cells");
         assert!((got - exact).abs() < 0.01 * exact, "a {a}: {got} vs {exact}");
+    }
+}
+
+/// Over all cells the full-visibility transfer is the clamped cosine's projection, `Â_l Y_lm(z)`
+/// with `Â_0 = π`, `Â_1 = 2π/3`, `Â_2 = π/4`, `Â_3 = 0`; band 0 of every cell is `Y_0 · π / cells²`.
+#[test]
+fn cell_transfer_sums_to_the_clamped_cosine() {
+    let order = ShOrder::new(4).unwrap();
+    let pi = std::f64::consts::PI;
+    let (cells, k) = (8, order.coeffs());
+    let table = cell_transfer(cells, order);
+    let y = basis::eval_vec(order, DVec3::Z);
+    let a_hat = [pi, 2.0 * pi / 3.0, pi / 4.0, 0.0];
+    for i in 0..k {
+        let l = (i as f64).sqrt() as usize;
+        let sum: f64 = table.chunks_exact(k).map(|row| row[i]).sum();
+        let want = a_hat[l] * y[i];
+        assert!((sum - want).abs() < 1e-12, "coefficient {i}: {sum} vs {want}");
+    }
+    for row in table.chunks_exact(k) {
+        assert!((row[0] - y[0] * pi / (cells * cells) as f64).abs() < 1e-14);
     }
 }
