@@ -12,6 +12,7 @@ pub mod shexp;
 pub mod silhouette;
 pub mod whitted;
 
+use common::params::ParamSpec;
 use penumbra_core::integrator::Integrator;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 
@@ -22,6 +23,9 @@ pub struct Entry {
     pub name: &'static str,
     pub method: &'static str,
     pub create: Constructor,
+    /// The parameters it reads ([`common::params`]): what `--param` accepts, `render --help`
+    /// and the README list.
+    pub params: &'static [ParamSpec],
 }
 
 pub const REGISTRY: &[Entry] = &[
@@ -29,46 +33,55 @@ pub const REGISTRY: &[Entry] = &[
         name: "directlighting",
         method: "pbrt-v3 direct lighting: light + BSDF sampling with MIS, strategy all/one, specular recursion",
         create: directlighting::DirectLighting::create,
+        params: directlighting::PARAMS,
     },
     Entry {
         name: "path",
         method: "pbrt-v3 path tracing: one light per vertex (spatial/uniform/power) with MIS, Russian roulette",
         create: path::PathIntegrator::create,
+        params: path::PARAMS,
     },
     Entry {
         name: "whitted",
         method: "pbrt-v3 Whitted ray tracing: every light one sample, perfect specular reflection and transmission",
         create: whitted::Whitted::create,
+        params: whitted::PARAMS,
     },
     Entry {
         name: "ltc",
         method: "analytic area-light shading and soft shadows with Linearly Transformed Cosines (seed 004)",
         create: ltc::LtcIntegrator::create,
+        params: ltc::PARAMS,
     },
     Entry {
         name: "ratio",
         method: "analytic LTC shading × denoised stochastic shadow ratio S_N/U_N (Heitz, Hill & McGuire 2018)",
         create: ratio::RatioIntegrator::create,
+        params: ratio::PARAMS,
     },
     Entry {
         name: "silhouette",
         method: "semi-analytic integration along visibility silhouettes: 4D dual-edge contours, depth complexity along meridians (seed 000)",
         create: silhouette::Silhouette::create,
+        params: silhouette::PARAMS,
     },
     Entry {
         name: "shexp",
         method: "environment soft shadows from sphere-set occluders by SH exponentiation (seed 003)",
         create: shexp::Shexp::create,
+        params: shexp::PARAMS,
     },
     Entry {
         name: "ambientocclusion",
         method: "ray-traced ambient occlusion (pbrt-v3 semantics: nsamples, cossample; pbrt-v4's maxdistance)",
         create: ambientocclusion::AmbientOcclusion::create,
+        params: ambientocclusion::PARAMS,
     },
     Entry {
         name: "sheared-ao",
         method: "sparse ray-traced AO, neighbours' rays warped and weighted by a sheared filter (Egan et al. 2011, seed 002)",
         create: sheared_ao::ShearedAo::create,
+        params: sheared_ao::PARAMS,
     },
 ];
 
@@ -81,4 +94,47 @@ pub fn names() -> Vec<&'static str> {
 
 pub fn find(name: &str) -> Option<&'static Entry> {
     REGISTRY.iter().find(|e| e.name == name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use common::params::{DefaultValue, Kind};
+    use penumbra_parser::{FileLoc, Param, ParamValue};
+    use std::sync::Arc;
+
+    /// A valid value of every declared parameter (bools true, so that parameters read only
+    /// when a switch is on are read too).
+    fn value_of(spec: &ParamSpec) -> ParamValue {
+        match (spec.kind, spec.default) {
+            (Kind::Int, DefaultValue::Int(v)) => ParamValue::Int(vec![v]),
+            (Kind::Float, DefaultValue::Float(v)) => ParamValue::Float(vec![v]),
+            (Kind::Bool, _) => ParamValue::Bool(vec![true]),
+            (Kind::Enum(words), _) => ParamValue::String(vec![words[words.len() - 1].to_string()]),
+            (Kind::Ints(n), _) => ParamValue::Int((0..n as i32).map(|i| i % 2).collect()),
+            (kind, default) => panic!("{}: no test value for {kind:?} with default {default:?}", spec.name),
+        }
+    }
+
+    #[test]
+    fn every_declared_parameter_is_read_and_defaults_are_quiet() {
+        for e in REGISTRY {
+            let warnings = DiagSink::new();
+            assert!((e.create)(&ParamSet::new(), &warnings).is_ok(), "{}: defaults", e.name);
+            assert!(warnings.take().is_empty(), "{}: defaults warn", e.name);
+            let mut names: Vec<_> = e.params.iter().map(|s| s.name).collect();
+            names.sort_unstable();
+            names.dedup();
+            assert_eq!(names.len(), e.params.len(), "{}: a parameter declared twice", e.name);
+            let mut set = ParamSet::new();
+            for s in e.params {
+                set.add(Param::new(s.name, value_of(s), FileLoc::new(Arc::from("t.pbrt"), 1, 1)));
+            }
+            if let Err(d) = (e.create)(&set, &warnings) {
+                panic!("{}: {}", e.name, d.message);
+            }
+            let unused = set.report_unused(e.name);
+            assert!(unused.is_empty(), "{}: declared but not read: {:?}", e.name, unused);
+        }
+    }
 }

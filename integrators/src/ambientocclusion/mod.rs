@@ -14,6 +14,8 @@
 //! `Kd` — Oren–Nayar too —, plastic's, substrate's and uber's diffuse part; 0 for materials
 //! without a diffuse lobe). The AO image itself is unchanged, bit for bit.
 
+use crate::common::params::{ParamSpec, Params, Range};
+use crate::common::{SH_ORDER, SH_TRANSFER};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, Frame, Ray};
 use penumbra_core::integrator::{
@@ -38,34 +40,27 @@ pub struct AmbientOcclusion {
     pub sh: Option<ShOrder>,
 }
 
+/// The parameters `ambientocclusion` reads.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::int("nsamples", 64, "occlusion rays per camera sample, as pbrt-v3").range(1, 1 << 20),
+    ParamSpec::bool("cossample", true, "cosine-weighted directions (else uniform over the hemisphere), as pbrt-v3"),
+    ParamSpec::float("maxdistance", f32::INFINITY, "occluders farther than this are ignored (pbrt-v4)")
+        .within(Range::Positive),
+    SH_TRANSFER,
+    SH_ORDER,
+];
+
 impl AmbientOcclusion {
-    pub fn create(params: &ParamSet, _warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let n = params.get_one_int("nsamples", 64);
-        if !(1..=1 << 20).contains(&n) {
-            return Err(Diagnostic::error(
-                params.loc_of("nsamples").cloned(),
-                format!("\"nsamples\" must be in 1..=2^20, got {n}"),
-            ));
-        }
-        let max_distance = params.get_one_float("maxdistance", f32::INFINITY);
-        if !(max_distance > 0.0) {
-            return Err(Diagnostic::error(params.loc_of("maxdistance").cloned(), "\"maxdistance\" must be positive"));
-        }
-        let sh = if params.get_one_bool("sh", false) {
-            let order = params.get_one_int("shorder", 3);
-            Some(
-                ShOrder::new(order.max(0) as usize)
-                    .map_err(|e| Diagnostic::error(params.loc_of("shorder").cloned(), format!("\"shorder\": {e}")))?,
-            )
+    pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
+        let p = Params::new("ambientocclusion", PARAMS, params, warnings);
+        let nsamples = p.count("nsamples")?;
+        let max_distance = p.float("maxdistance")?;
+        let sh = if p.bool("sh")? {
+            Some(ShOrder::new(p.count("shorder")? as usize).map_err(|e| Diagnostic::error(None, e.to_string()))?)
         } else {
             None
         };
-        Ok(Box::new(AmbientOcclusion {
-            nsamples: n as u32,
-            cos_sample: params.get_one_bool("cossample", true),
-            max_distance,
-            sh,
-        }))
+        Ok(Box::new(AmbientOcclusion { nsamples, cos_sample: p.bool("cossample")?, max_distance, sh }))
     }
 }
 

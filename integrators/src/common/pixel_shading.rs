@@ -4,27 +4,24 @@
 //! use it through `PixelEstimator::begin_pixel`; the value shaded per cluster is the
 //! integrator's (`T`).
 
+use super::params::{ParamSpec, Params};
 use glam::DVec3;
 use penumbra_core::geometry::Ray;
 use penumbra_core::integrator::ThreadStats;
 use penumbra_core::scene::{Scene, SurfacePoint};
 use penumbra_core::{Rgb, Vec3};
-use penumbra_parser::{DiagSink, ParamSet};
+use penumbra_parser::Diagnostic;
 
-/// `"string shading"`: `"pixel"` (default: each surface seen in a pixel shaded once) or
-/// `"sample"` (every camera sample shaded); `true` for pixel.
-pub fn parse_shading(integrator: &str, params: &ParamSet, warnings: &DiagSink) -> bool {
-    match params.get_one_string("shading", "pixel").as_str() {
-        "pixel" => true,
-        "sample" => false,
-        other => {
-            warnings.warn(
-                params.loc_of("shading").cloned(),
-                format!("{integrator}: unknown shading \"{other}\" (expected pixel or sample): using \"pixel\""),
-            );
-            true
-        }
-    }
+/// `"string shading"`, read by `ltc` and `ratio`.
+pub const SHADING: ParamSpec = ParamSpec::choice(
+    "shading",
+    &["pixel", "sample"],
+    "shade each surface a pixel sees once (camera samples only anti-alias), or every camera sample",
+);
+
+/// Reads [`SHADING`]: `true` for pixel shading.
+pub fn parse_shading(params: &Params) -> Result<bool, Diagnostic> {
+    params.choice("shading", [true, false])
 }
 
 /// A camera ray's first surface (its BSDF not built), or the radiance it escaped with

@@ -11,7 +11,8 @@
 //! stratification across the per-light samples.
 
 use crate::common::direct::{estimate_direct, sample_one_light, specular};
-use crate::common::{max_depth_param, pixel_bounds_param};
+use crate::common::params::{ParamSpec, Params};
+use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, Ray};
@@ -37,22 +38,23 @@ pub struct DirectLighting {
     pub pixel_bounds: Option<Bounds2i>,
 }
 
+/// The parameters `directlighting` reads (pbrt-v3's).
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::choice(
+        "strategy",
+        &["all", "one"],
+        "every light with its own nsamples, or one light chosen uniformly per sample (pbrt-v3)",
+    ),
+    max_depth(1024),
+    PIXEL_BOUNDS,
+];
+
 impl DirectLighting {
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let max_depth = max_depth_param(params, 1024)?;
-        let st = params.get_one_string("strategy", "all");
-        let strategy = match st.as_str() {
-            "all" => Strategy::All,
-            "one" => Strategy::One,
-            other => {
-                warnings.warn(
-                    params.loc_of("strategy").cloned(),
-                    format!("strategy \"{other}\" for direct lighting unknown: using \"all\""),
-                );
-                Strategy::All
-            }
-        };
-        let pixel_bounds = pixel_bounds_param(params, warnings);
+        let p = Params::new("directlighting", PARAMS, params, warnings);
+        let strategy = p.choice("strategy", [Strategy::All, Strategy::One])?;
+        let max_depth = max_depth_param(&p)?;
+        let pixel_bounds = pixel_bounds_param(&p)?;
         Ok(Box::new(DirectLighting { strategy, max_depth, pixel_bounds }))
     }
 }

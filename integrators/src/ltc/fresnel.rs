@@ -4,6 +4,7 @@
 //! dense side.
 
 use super::integrate::{LightLoop, Visible};
+use crate::common::params::{ParamSpec, Params};
 use glam::DVec3;
 use penumbra_core::bxdf::Fresnel;
 use penumbra_core::geometry::Frame;
@@ -12,7 +13,7 @@ use penumbra_core::material::LtcFresnel;
 use penumbra_core::spectrum::luminance;
 use penumbra_core::spherical::{self, cone::BoundingCone};
 use penumbra_core::Rgb;
-use penumbra_parser::{DiagSink, ParamSet};
+use penumbra_parser::Diagnostic;
 
 /// How the glossy lobe's Fresnel factor is applied to the LTC integral.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -27,22 +28,16 @@ pub enum FresnelMode {
 }
 
 impl FresnelMode {
-    /// `"string fresnel"` (`"average"`, default, or `"schlick"`), as `integrator` reads it; an
-    /// unknown value warns and uses `"average"`.
-    pub fn from_params(integrator: &str, params: &ParamSet, warnings: &DiagSink) -> FresnelMode {
-        match params.get_one_string("fresnel", "average").as_str() {
-            "schlick" => FresnelMode::Schlick,
-            "average" => FresnelMode::Average,
-            other => {
-                warnings.warn(
-                    params.loc_of("fresnel").cloned(),
-                    format!(
-                        "{integrator}: unknown fresnel \"{other}\" (expected average or schlick): using \"average\""
-                    ),
-                );
-                FresnelMode::Average
-            }
-        }
+    /// `"string fresnel"`, read by `ltc` and `ratio`.
+    pub const PARAM: ParamSpec = ParamSpec::choice(
+        "fresnel",
+        &["average", "schlick"],
+        "glossy Fresnel: the material's exact one at the visible region's mean direction, or Heitz et al.'s Schlick split",
+    );
+
+    /// Reads [`FresnelMode::PARAM`]; an unknown value warns and uses `"average"`.
+    pub fn from_params(params: &Params) -> Result<FresnelMode, Diagnostic> {
+        params.choice("fresnel", [FresnelMode::Average, FresnelMode::Schlick])
     }
 }
 

@@ -49,9 +49,10 @@ pub use fresnel::{fresnel_at, FresnelMode};
 pub use shader::LtcShader;
 
 use crate::common::direct::{has_specular, specular};
-use crate::common::max_depth_param;
 use crate::common::other_lights::{add_other_lights, warn_infinite_lights, FallbackWarning};
-use crate::common::pixel_shading::{parse_shading, SharedPixel};
+use crate::common::params::{ParamSpec, Params};
+use crate::common::pixel_shading::{parse_shading, SharedPixel, SHADING};
+use crate::common::{max_depth, max_depth_param};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::Ray;
@@ -98,43 +99,34 @@ pub struct LtcIntegrator {
 const COVERAGE_REASON: &str = "ltc shades each surface a pixel sees once, and the camera samples only resolve which \
      surfaces those are and where their edges run (a camera ray each); \"integer coveragesamples\" sets this floor";
 
+/// The parameters `ltc` reads.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::choice(
+        "mode",
+        &["auto", "silhouette", "per-triangle", "pertriangle"],
+        "occluders as silhouettes where proven convex, always as silhouettes, or triangle by triangle (pertriangle: the same)",
+    ),
+    ParamSpec::bool("shadows", true, "false: the unshadowed term"),
+    FresnelMode::PARAM,
+    SHADING,
+    ParamSpec::bool("mergeoccluders", true, "subtract an object's triangles as their outline (false: one by one; same image)"),
+    ParamSpec::int("coveragesamples", 16, "at least this many camera samples per pixel with pixel shading (edge anti-aliasing)")
+        .range(1, 1024),
+    max_depth(1024),
+];
+
 impl LtcIntegrator {
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let m = params.get_one_string("mode", "auto");
-        let mode = match m.as_str() {
-            "auto" => Mode::Auto,
-            "silhouette" => Mode::Silhouette,
-            "per-triangle" | "pertriangle" => Mode::PerTriangle,
-            other => {
-                warnings.warn(
-                    params.loc_of("mode").cloned(),
-                    format!(
-                        "ltc: unknown mode \"{other}\" (expected auto, silhouette or per-triangle): using \"auto\""
-                    ),
-                );
-                Mode::Auto
-            }
-        };
-        let shadows = params.get_one_bool("shadows", true);
-        let fresnel = FresnelMode::from_params("ltc", params, warnings);
-        let pixel_shading = parse_shading("ltc", params, warnings);
-        let merge_occluders = params.get_one_bool("mergeoccluders", true);
-        let coverage = params.get_one_int("coveragesamples", 16);
-        if !(1..=1024).contains(&coverage) {
-            return Err(Diagnostic::error(
-                params.loc_of("coveragesamples").cloned(),
-                format!("ltc: \"coveragesamples\" must be in 1..=1024, got {coverage}"),
-            ));
-        }
-        let max_depth = max_depth_param(params, 1024)?;
+        let p = Params::new("ltc", PARAMS, params, warnings);
+        let mode = p.choice("mode", [Mode::Auto, Mode::Silhouette, Mode::PerTriangle, Mode::PerTriangle])?;
         Ok(Box::new(LtcIntegrator {
             mode,
-            shadows,
-            fresnel,
-            pixel_shading,
-            merge_occluders,
-            coverage_samples: coverage as u32,
-            max_depth,
+            shadows: p.bool("shadows")?,
+            fresnel: FresnelMode::from_params(&p)?,
+            pixel_shading: parse_shading(&p)?,
+            merge_occluders: p.bool("mergeoccluders")?,
+            coverage_samples: p.count("coveragesamples")?,
+            max_depth: max_depth_param(&p)?,
         }))
     }
 }
@@ -335,7 +327,7 @@ mod tests {
     }
 
     fn ltc_settings(params: &ParamSet, warnings: &DiagSink) -> LtcIntegrator {
-        let pixel_shading = parse_shading("ltc", params, warnings);
+        let pixel_shading = parse_shading(&Params::new("ltc", PARAMS, params, warnings)).unwrap();
         LtcIntegrator {
             mode: Mode::Auto,
             shadows: true,

@@ -20,7 +20,8 @@
 
 use crate::common::direct::sample_one_light;
 use crate::common::light_distribution::{LightDistribution, LightSampleStrategy};
-use crate::common::{max_depth_param, pixel_bounds_param};
+use crate::common::params::{ParamSpec, Params, Range};
+use crate::common::{max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, Ray};
@@ -40,23 +41,30 @@ pub struct PathIntegrator {
     pub pixel_bounds: Option<Bounds2i>,
 }
 
+/// The parameters `path` reads (pbrt-v3's).
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::int("maxdepth", 5, "bounces before the path ends, as pbrt-v3's maxdepth").range(0, 1 << 16),
+    ParamSpec::float("rrthreshold", 1.0, "Russian roulette starts below this throughput (after 4 bounces), as pbrt-v3")
+        .within(Range::Finite),
+    ParamSpec::choice(
+        "lightsamplestrategy",
+        &["spatial", "uniform", "power"],
+        "how each vertex picks its light: per-voxel estimated contribution, uniformly, or by power (pbrt-v3)",
+    ),
+    PIXEL_BOUNDS,
+];
+
 impl PathIntegrator {
-    /// Reads `maxdepth`, `rrthreshold`, `lightsamplestrategy` and `pixelbounds` (see the module doc).
+    /// Reads [`PARAMS`] (see the module doc).
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let max_depth = max_depth_param(params, 1 << 16)?;
-        let rr_threshold = params.get_one_float("rrthreshold", 1.0);
-        if !rr_threshold.is_finite() {
-            return Err(Diagnostic::error(params.loc_of("rrthreshold").cloned(), "\"rrthreshold\" must be finite"));
-        }
-        let name = params.get_one_string("lightsamplestrategy", "spatial");
-        let strategy = LightSampleStrategy::parse(&name).unwrap_or_else(|| {
-            warnings.warn(
-                params.loc_of("lightsamplestrategy").cloned(),
-                format!("light sample distribution type \"{name}\" unknown: using \"spatial\""),
-            );
-            LightSampleStrategy::Spatial
-        });
-        let pixel_bounds = pixel_bounds_param(params, warnings);
+        let p = Params::new("path", PARAMS, params, warnings);
+        let max_depth = max_depth_param(&p)?;
+        let rr_threshold = p.float("rrthreshold")?;
+        let strategy = p.choice(
+            "lightsamplestrategy",
+            [LightSampleStrategy::Spatial, LightSampleStrategy::Uniform, LightSampleStrategy::Power],
+        )?;
+        let pixel_bounds = pixel_bounds_param(&p)?;
         Ok(Box::new(PathIntegrator { max_depth, rr_threshold, strategy, pixel_bounds }))
     }
 }

@@ -23,16 +23,21 @@ pub struct FilterParams {
     pub ratio_floor: f32,
 }
 
+impl FilterParams {
+    /// The defaults of `ratio`'s parameters.
+    pub const DEFAULT: FilterParams = FilterParams {
+        sigma_depth: 0.1,
+        normal_exponent: 32.0,
+        sigma_plane: 0.02,
+        sigma_u: 0.5,
+        ratio_k: 2.0,
+        ratio_floor: 0.02,
+    };
+}
+
 impl Default for FilterParams {
     fn default() -> Self {
-        FilterParams {
-            sigma_depth: 0.1,
-            normal_exponent: 32.0,
-            sigma_plane: 0.02,
-            sigma_u: 0.5,
-            ratio_k: 2.0,
-            ratio_floor: 0.02,
-        }
+        FilterParams::DEFAULT
     }
 }
 

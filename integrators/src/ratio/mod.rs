@@ -64,9 +64,10 @@ pub mod filter;
 pub use filter::{cross_bilateral, guarded_ratio, noise_radius, FilterParams, Guide};
 
 use crate::common::image_pass::ImageBuffer;
-use crate::common::max_depth_param;
 use crate::common::other_lights::{warn_infinite_lights, FallbackWarning};
-use crate::common::pixel_shading::parse_shading;
+use crate::common::params::{ParamSpec, Params, Range};
+use crate::common::pixel_shading::{parse_shading, SHADING};
+use crate::common::{max_depth, max_depth_param};
 use crate::ltc::{FresnelMode, LtcIntegrator, LtcShader, Mode};
 use estimator::{Estimator, SampleGroup};
 use penumbra_core::film::Film;
@@ -86,67 +87,64 @@ pub struct RatioIntegrator {
     pub filter: FilterParams,
 }
 
+const D: FilterParams = FilterParams::DEFAULT;
+
+/// The parameters `ratio` reads.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::int(
+        "nsamples",
+        4,
+        "stochastic samples per camera sample and light mesh (half light, half BRDF sampling)",
+    )
+    .range(1, 1024),
+    ParamSpec::bool("denoise", true, "false: the raw ratio S_N/U_N, not filtered"),
+    ParamSpec::int("maxradius", 8, "largest cross-bilateral kernel radius, pixels").range(0, 64),
+    ParamSpec::float("noisetarget", 0.05, "the kernel grows until the ratio's estimated noise is below this")
+        .within(Range::PositiveFinite),
+    ParamSpec::float("sigmadepth", D.sigma_depth, "depth guide: depth tolerance relative to the pixel's depth")
+        .within(Range::PositiveFinite),
+    ParamSpec::float("normalexponent", D.normal_exponent, "normal guide: weight max(0, n_p·n_q)^e")
+        .within(Range::PositiveFinite),
+    ParamSpec::float("sigmaplane", D.sigma_plane, "plane guide: plane-offset tolerance relative to depth")
+        .within(Range::PositiveFinite),
+    ParamSpec::float("sigmau", D.sigma_u, "guide on the analytic U (luminance): relative tolerance")
+        .within(Range::PositiveFinite),
+    ParamSpec::float("ratiok", D.ratio_k, "edge stop on the raw ratio, in units of the pixels' own noise (0: off)")
+        .within(Range::NonNegativeFinite),
+    ParamSpec::float("ratiofloor", D.ratio_floor, "added to the ratio edge stop's noise scale")
+        .within(Range::PositiveFinite),
+    FresnelMode::PARAM,
+    SHADING,
+    max_depth(1024),
+];
+
 impl RatioIntegrator {
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let nsamples = params.get_one_int("nsamples", 4);
-        if !(1..=1024).contains(&nsamples) {
-            return Err(Diagnostic::error(
-                params.loc_of("nsamples").cloned(),
-                format!("ratio: \"nsamples\" must be in 1..=1024, got {nsamples}"),
-            ));
-        }
-        let max_radius = params.get_one_int("maxradius", 8);
-        if !(0..=64).contains(&max_radius) {
-            return Err(Diagnostic::error(
-                params.loc_of("maxradius").cloned(),
-                format!("ratio: \"maxradius\" must be in 0..=64, got {max_radius}"),
-            ));
-        }
-        let d = FilterParams::default();
-        let positive = |name: &str, default: f32| -> Result<f32, Diagnostic> {
-            let v = params.get_one_float(name, default);
-            if v > 0.0 && v.is_finite() {
-                Ok(v)
-            } else {
-                Err(Diagnostic::error(
-                    params.loc_of(name).cloned(),
-                    format!("ratio: \"{name}\" must be positive and finite, got {v}"),
-                ))
-            }
-        };
-        let noise_target = positive("noisetarget", 0.05)?;
+        let p = Params::new("ratio", PARAMS, params, warnings);
+        let nsamples = p.count("nsamples")?;
+        let max_radius = p.count("maxradius")?;
+        let noise_target = p.float("noisetarget")?;
         let filter = FilterParams {
-            sigma_depth: positive("sigmadepth", d.sigma_depth)?,
-            normal_exponent: positive("normalexponent", d.normal_exponent)?,
-            sigma_plane: positive("sigmaplane", d.sigma_plane)?,
-            sigma_u: positive("sigmau", d.sigma_u)?,
-            ratio_k: {
-                let v = params.get_one_float("ratiok", d.ratio_k);
-                if v >= 0.0 && v.is_finite() {
-                    v
-                } else {
-                    return Err(Diagnostic::error(
-                        params.loc_of("ratiok").cloned(),
-                        format!("ratio: \"ratiok\" must be non-negative and finite, got {v}"),
-                    ));
-                }
-            },
-            ratio_floor: positive("ratiofloor", d.ratio_floor)?,
+            sigma_depth: p.float("sigmadepth")?,
+            normal_exponent: p.float("normalexponent")?,
+            sigma_plane: p.float("sigmaplane")?,
+            sigma_u: p.float("sigmau")?,
+            ratio_k: p.float("ratiok")?,
+            ratio_floor: p.float("ratiofloor")?,
         };
-        let fresnel = FresnelMode::from_params("ratio", params, warnings);
         Ok(Box::new(RatioIntegrator {
             ltc: LtcIntegrator {
                 mode: Mode::Auto, // shadows off: only the lights' shapes (one polygon where possible)
                 shadows: false,
-                fresnel,
-                pixel_shading: parse_shading("ratio", params, warnings),
+                fresnel: FresnelMode::from_params(&p)?,
+                pixel_shading: parse_shading(&p)?,
                 merge_occluders: true,
                 coverage_samples: 1, // ratio's camera samples are its stochastic budget
-                max_depth: max_depth_param(params, 1024)?,
+                max_depth: max_depth_param(&p)?,
             },
-            nsamples: nsamples as u32,
-            denoise: params.get_one_bool("denoise", true),
-            max_radius: max_radius as u32,
+            nsamples,
+            denoise: p.bool("denoise")?,
+            max_radius,
             noise_target,
             filter,
         }))

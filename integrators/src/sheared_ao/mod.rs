@@ -31,11 +31,8 @@
 //!   shadow rays the same without the `P` camera rays (`tests/conformance.rs`,
 //!   `tests/sheared_ao.rs::a_crop_counts_its_margin_rays_once`).
 //!
-//! Parameters (beside [`ShearedAo::create`]): `"integer nsamples"` (12, rounded by the
-//! sampler), `"integer screenradius"` (8), `"integer cells"` (8), `"float omegav"` (2.0),
-//! `"float minweight"` (2.0), `"integer brutesamples"` (1), `"integer maxpoints"` (256: the
-//! cap on cache points per receiver, nearest pixels first), `"float maxdistance"` (∞, pbrt-v4's),
-//! `"string warp"` (`"sphere"`, or the paper's `"cell"`: see [`filter::Warp`]).
+//! Parameters: [`PARAMS`], beside [`ShearedAo::create`] (`maxpoints` caps the cache points
+//! per receiver, nearest pixels first; `warp`: see [`filter::Warp`]).
 //!
 //! Choices the paper leaves open (see also [`filter`]):
 //! * kernel: a Gaussian exp(−2t²) of t = |x| / r, truncated at t = 1.5;
@@ -59,6 +56,8 @@
 pub mod filter;
 
 use crate::common::image_pass::ImageBuffer;
+use crate::common::params::{ParamSpec, Params, Range};
+use crate::common::{SH_ORDER, SH_TRANSFER};
 use filter::{CachePoint, CachedRay, CellValue, FilterParams, Receiver, Scratch, Warp};
 use glam::{IVec2, Vec2};
 use penumbra_core::camera::CameraSample;
@@ -90,61 +89,51 @@ pub struct ShearedAo {
     pub sh: Option<ShOrder>,
 }
 
+/// The parameters `sheared-ao` reads.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::int("nsamples", 12, "occlusion rays per camera sample, cached in image space (rounded by the sampler)")
+        .range(1, 1024),
+    ParamSpec::int("screenradius", 8, "receivers borrow the cached rays of points within this many pixels")
+        .range(0, 64),
+    ParamSpec::int("cells", 8, "cells × cells hemisphere cells of equal projected area").range(1, 32),
+    ParamSpec::float("omegav", 2.0, "the filter's Ω_v (Eq. 8): larger gives smaller spatial radii")
+        .within(Range::Positive),
+    ParamSpec::float("minweight", 2.0, "a cell whose filter weight stays below this takes fresh rays")
+        .within(Range::Positive),
+    ParamSpec::int("brutesamples", 1, "fresh rays per brute-forced cell, stratified in the cell").range(1, 64),
+    ParamSpec::int("maxpoints", 256, "at most this many cache points (nearest pixels first) per receiver")
+        .range(1, 1 << 20),
+    ParamSpec::float("maxdistance", f32::INFINITY, "occluders farther than this are ignored (as ambientocclusion)")
+        .within(Range::Positive),
+    ParamSpec::choice(
+        "warp",
+        &["sphere", "cell"],
+        "unoccluded rays warped through the sphere of the harmonic mid depth, or the paper's per-cell plane",
+    ),
+    SH_TRANSFER,
+    SH_ORDER,
+];
+
 impl ShearedAo {
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let int_in = |name: &str, default: i32, lo: i32, hi: i32| -> Result<u32, Diagnostic> {
-            let v = params.get_one_int(name, default);
-            if (lo..=hi).contains(&v) {
-                Ok(v as u32)
-            } else {
-                Err(Diagnostic::error(
-                    params.loc_of(name).cloned(),
-                    format!("sheared-ao: \"{name}\" must be in {lo}..={hi}, got {v}"),
-                ))
-            }
-        };
-        let positive = |name: &str, default: f32| -> Result<f64, Diagnostic> {
-            let v = params.get_one_float(name, default);
-            if v > 0.0 {
-                Ok(v as f64)
-            } else {
-                Err(Diagnostic::error(
-                    params.loc_of(name).cloned(),
-                    format!("sheared-ao: \"{name}\" must be positive, got {v}"),
-                ))
-            }
-        };
-        let sh = if params.get_one_bool("sh", false) {
-            let order = params.get_one_int("shorder", 3);
-            Some(
-                ShOrder::new(order.max(0) as usize)
-                    .map_err(|e| Diagnostic::error(params.loc_of("shorder").cloned(), format!("\"shorder\": {e}")))?,
-            )
+        let p = Params::new("sheared-ao", PARAMS, params, warnings);
+        let sh = if p.bool("sh")? {
+            Some(ShOrder::new(p.count("shorder")? as usize).map_err(|e| Diagnostic::error(None, e.to_string()))?)
         } else {
             None
         };
         Ok(Box::new(ShearedAo {
             sh,
-            nsamples: int_in("nsamples", 12, 1, 1024)?,
-            screen_radius: int_in("screenradius", 8, 0, 64)?,
-            brute_samples: int_in("brutesamples", 1, 1, 64)?,
-            max_points: int_in("maxpoints", 256, 1, 1 << 20)?,
+            nsamples: p.count("nsamples")?,
+            screen_radius: p.count("screenradius")?,
+            brute_samples: p.count("brutesamples")?,
+            max_points: p.count("maxpoints")?,
             filter: FilterParams {
-                cells: int_in("cells", 8, 1, 32)? as usize,
-                omega_v: positive("omegav", 2.0)?,
-                min_weight: positive("minweight", 2.0)?,
-                max_distance: positive("maxdistance", f32::INFINITY)?,
-                warp: match params.get_one_string("warp", "sphere").as_str() {
-                    "sphere" => Warp::Sphere,
-                    "cell" => Warp::Cell,
-                    other => {
-                        warnings.warn(
-                            params.loc_of("warp").cloned(),
-                            format!("sheared-ao: unknown warp \"{other}\" (expected sphere or cell): using \"sphere\""),
-                        );
-                        Warp::Sphere
-                    }
-                },
+                cells: p.count("cells")? as usize,
+                omega_v: p.float("omegav")? as f64,
+                min_weight: p.float("minweight")? as f64,
+                max_distance: p.float("maxdistance")? as f64,
+                warp: p.choice("warp", [Warp::Sphere, Warp::Cell])?,
             },
         }))
     }

@@ -34,7 +34,8 @@ pub mod lighting;
 pub mod visibility;
 
 use crate::common::direct::{estimate_direct, specular};
-use crate::common::{max_depth_param, pixel_bounds_param};
+use crate::common::params::{ParamSpec, Params, Range};
+use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use glam::DVec3;
 use lighting::EnvLighting;
 use penumbra_core::bxdf::{Bsdf, Bxdf, BxdfFlags};
@@ -67,48 +68,51 @@ pub struct Shexp {
     pub pixel_bounds: Option<Bounds2i>,
 }
 
+/// The parameters `shexp` reads.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::int("order", 4, "SH order of visibility and lighting (n² coefficients)").range(1, 8),
+    ParamSpec::choice(
+        "exp",
+        &["ss", "ol", "hyb"],
+        "SH exponential: scaling and squaring, optimal linear, or the hybrid",
+    )
+    .strict(),
+    ParamSpec::int("spheres", 32, "leaves of a closed mesh's sphere-set fit").range(1, 4096),
+    ParamSpec::float("bigblocker", 45.0, "caps wider than this (degrees) are multiplied in as SH products")
+        .within(Range::LeftOpen(0.0, 90.0)),
+    ParamSpec::int("lhresolution", 32, "normal-cubemap texels per face for the projection of L·max(0, N·ω)")
+        .range(1, 256),
+    ParamSpec::int("brightlights", 4, "bright compact regions of each environment map split off as directional lights")
+        .range(0, 64),
+    ParamSpec::bool("interreflect", false, "not implemented yet: warns, direct lighting only"),
+    max_depth(1024),
+    PIXEL_BOUNDS,
+];
+
 impl Shexp {
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let bad = |name: &str, msg: String| Diagnostic::error(params.loc_of(name).cloned(), msg);
-        let n = params.get_one_int("order", 4);
-        if !(1..=8).contains(&n) {
-            return Err(bad("order", format!("shexp: \"order\" {n} is out of range (1 to 8)")));
-        }
-        let order = ShOrder::new(n as usize).map_err(|e| bad("order", e.to_string()))?;
-        let e = params.get_one_string("exp", "ss");
-        let exp = ExpChoice::parse(&e)
-            .ok_or_else(|| bad("exp", format!("shexp: \"exp\" \"{e}\" unknown (\"ss\", \"ol\" or \"hyb\")")))?;
-        let spheres = params.get_one_int("spheres", 32);
-        if !(1..=4096).contains(&spheres) {
-            return Err(bad("spheres", format!("shexp: \"spheres\" {spheres} is out of range (1 to 4096)")));
-        }
-        let big = params.get_one_float("bigblocker", 45.0);
-        if !(big > 0.0 && big <= 90.0) {
-            return Err(bad("bigblocker", format!("shexp: \"bigblocker\" {big} is out of range (0 to 90 degrees)")));
-        }
-        let res = params.get_one_int("lhresolution", 32);
-        if !(1..=256).contains(&res) {
-            return Err(bad("lhresolution", format!("shexp: \"lhresolution\" {res} is out of range (1 to 256)")));
-        }
-        let bright = params.get_one_int("brightlights", 4);
-        if !(0..=64).contains(&bright) {
-            return Err(bad("brightlights", format!("shexp: \"brightlights\" {bright} is out of range (0 to 64)")));
-        }
-        if params.get_one_bool("interreflect", false) {
+        let p = Params::new("shexp", PARAMS, params, warnings);
+        let order = ShOrder::new(p.count("order")? as usize).map_err(|e| Diagnostic::error(None, e.to_string()))?;
+        let exp = p.choice("exp", [ExpChoice::ScalingSquaring, ExpChoice::OptimalLinear, ExpChoice::Hybrid])?;
+        let spheres = p.count("spheres")?;
+        let big = p.float("bigblocker")?;
+        let lh_resolution = p.count("lhresolution")? as usize;
+        let bright_lights = p.count("brightlights")? as usize;
+        if p.bool("interreflect")? {
             warnings.warn(
                 params.loc_of("interreflect").cloned(),
                 "shexp: \"interreflect\" is not implemented yet: direct lighting only",
             );
         }
-        let max_depth = max_depth_param(params, 1024)?;
-        let pixel_bounds = pixel_bounds_param(params, warnings);
+        let max_depth = max_depth_param(&p)?;
+        let pixel_bounds = pixel_bounds_param(&p)?;
         Ok(Box::new(Shexp {
             order,
             exp,
-            spheres: spheres as u32,
+            spheres,
             big_theta: (big as f64).to_radians(),
-            lh_resolution: res as usize,
-            bright_lights: bright as usize,
+            lh_resolution,
+            bright_lights,
             max_depth,
             pixel_bounds,
         }))

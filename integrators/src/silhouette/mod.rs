@@ -31,7 +31,8 @@
 //!   specular materials recurse as in `directlighting` (up to `"integer maxdepth"`, 5).
 
 use crate::common::direct::{estimate_direct, specular};
-use crate::common::max_depth_param;
+use crate::common::params::{ParamSpec, Params};
+use crate::common::{max_depth, max_depth_param, SH_ORDER};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray};
@@ -73,32 +74,29 @@ pub struct Silhouette {
     pub sh_order: ShOrder,
 }
 
+/// The parameters `silhouette` reads.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::choice(
+        "mode",
+        &["ao", "shade", "prt"],
+        "ambient occlusion, shading under the scene's lights, or AO plus SH transfer channels for penumbra relight",
+    )
+    .unset("ao without an infinite light, shade with one")
+    .strict(),
+    ParamSpec::int("resolution", 128, "meridians of the (φ, cos θ) parameterisation").range(4, 4096),
+    SH_ORDER,
+    max_depth(1024),
+];
+
 impl Silhouette {
-    pub fn create(params: &ParamSet, _warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let mode = match params.get_one_string("mode", "").as_str() {
-            "" => None,
-            "ao" => Some(Mode::Ao),
-            "shade" => Some(Mode::Shade),
-            "prt" => Some(Mode::Prt),
-            other => {
-                return Err(Diagnostic::error(
-                    params.loc_of("mode").cloned(),
-                    format!("silhouette: unknown \"mode\" \"{other}\" (expected \"ao\", \"shade\" or \"prt\")"),
-                ))
-            }
-        };
-        let order = params.get_one_int("shorder", 3);
-        let sh_order = ShOrder::new(order.max(0) as usize)
-            .map_err(|e| Diagnostic::error(params.loc_of("shorder").cloned(), format!("\"shorder\": {e}")))?;
-        let resolution = params.get_one_int("resolution", 128);
-        if !(4..=4096).contains(&resolution) {
-            return Err(Diagnostic::error(
-                params.loc_of("resolution").cloned(),
-                format!("\"resolution\" must be in 4..=4096, got {resolution}"),
-            ));
-        }
-        let max_depth = max_depth_param(params, 1024)?;
-        Ok(Box::new(Silhouette { mode, resolution: resolution as usize, max_depth, sh_order }))
+    pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
+        let p = Params::new("silhouette", PARAMS, params, warnings);
+        let mode = p.choice_or_unset("mode", [Mode::Ao, Mode::Shade, Mode::Prt])?;
+        let sh_order =
+            ShOrder::new(p.count("shorder")? as usize).map_err(|e| Diagnostic::error(None, e.to_string()))?;
+        let resolution = p.count("resolution")? as usize;
+        let max_depth = max_depth_param(&p)?;
+        Ok(Box::new(Silhouette { mode, resolution, max_depth, sh_order }))
     }
 }
 

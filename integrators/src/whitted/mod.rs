@@ -11,7 +11,8 @@
 //! are not sampled).
 
 use crate::common::direct::{shadow_ray, specular};
-use crate::common::{max_depth_param, pixel_bounds_param};
+use crate::common::params::{ParamSpec, Params};
+use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, Ray};
@@ -29,11 +30,15 @@ pub struct Whitted {
     pub pixel_bounds: Option<Bounds2i>,
 }
 
+/// The parameters `whitted` reads (pbrt-v3's).
+pub const PARAMS: &[ParamSpec] = &[max_depth(1024), PIXEL_BOUNDS];
+
 impl Whitted {
-    /// Reads `maxdepth` and `pixelbounds` (see the module doc).
+    /// Reads [`PARAMS`] (see the module doc).
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
-        let max_depth = max_depth_param(params, 1024)?;
-        let pixel_bounds = pixel_bounds_param(params, warnings);
+        let p = Params::new("whitted", PARAMS, params, warnings);
+        let max_depth = max_depth_param(&p)?;
+        let pixel_bounds = pixel_bounds_param(&p)?;
         Ok(Box::new(Whitted { max_depth, pixel_bounds }))
     }
 
