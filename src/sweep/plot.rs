@@ -169,6 +169,20 @@ fn place_labels(points: &[(i32, i32)], sizes: &[(i32, i32)], area: (u32, u32)) -
         .collect()
 }
 
+/// Draws the plot as SVG text and as PNG bytes.
+pub fn render_plots(title: &str, metric: Metric, series: &[Series]) -> Result<(String, Vec<u8>), String> {
+    use plotters::prelude::*;
+    plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
+        .map_err(|_| "the embedded plot font is invalid".to_string())?;
+    let mut svg = String::new();
+    draw_chart(SVGBackend::with_string(&mut svg, PLOT_SIZE).into_drawing_area(), title, metric, series)?;
+    let (w, h) = PLOT_SIZE;
+    let mut rgb = vec![255u8; w as usize * h as usize * 3];
+    draw_chart(BitMapBackend::with_buffer(&mut rgb, PLOT_SIZE).into_drawing_area(), title, metric, series)?;
+    let png = image::encode_png_rgb8(w, h, &rgb, Path::new("sweep.png")).map_err(|e| e.to_string())?;
+    Ok((svg, png))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -196,18 +210,4 @@ mod tests {
         // An isolated point gets its label above and to the right.
         assert_eq!(place_labels(&[(400, 300)], &[(12, 13)], PLOT_SIZE), vec![Some((406, 281))]);
     }
-}
-
-/// Draws the plot as SVG text and as PNG bytes.
-pub fn render_plots(title: &str, metric: Metric, series: &[Series]) -> Result<(String, Vec<u8>), String> {
-    use plotters::prelude::*;
-    plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
-        .map_err(|_| "the embedded plot font is invalid".to_string())?;
-    let mut svg = String::new();
-    draw_chart(SVGBackend::with_string(&mut svg, PLOT_SIZE).into_drawing_area(), title, metric, series)?;
-    let (w, h) = PLOT_SIZE;
-    let mut rgb = vec![255u8; w as usize * h as usize * 3];
-    draw_chart(BitMapBackend::with_buffer(&mut rgb, PLOT_SIZE).into_drawing_area(), title, metric, series)?;
-    let png = image::encode_png_rgb8(w, h, &rgb, Path::new("sweep.png")).map_err(|e| e.to_string())?;
-    Ok((svg, png))
 }
