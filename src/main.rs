@@ -6,6 +6,7 @@ use std::process::ExitCode;
 mod convert;
 mod diff;
 mod info;
+mod merge;
 mod render;
 mod sweep;
 
@@ -35,6 +36,8 @@ enum Command {
     Info(info::InfoArgs),
     /// Compare two images with OpenImageIO idiff's metrics and exit codes.
     Diff(diff::DiffArgs),
+    /// Merge the shard files of `render --tile I/N` / `--spp-offset K` into one image, bit-identical to the single render.
+    Merge(merge::MergeArgs),
     /// Error versus time: render with several integrators at growing budgets against a reference.
     Sweep(sweep::SweepArgs),
     /// Re-shade an image's SH transfer channels (sh.*, albedo.*) under new distant lighting.
@@ -58,6 +61,7 @@ fn main() -> ExitCode {
         Some(Command::Diff(a)) => diff::run(a),
         Some(Command::Render(a)) => render::run(a),
         Some(Command::Sweep(a)) => sweep::run(a),
+        Some(Command::Merge(a)) => merge::run(a),
         Some(Command::Relight(a)) => penumbra::relight::run(a),
         Some(Command::Convert(a)) => convert::run(a),
         None => render::run(render::RenderArgs::default()),

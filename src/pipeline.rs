@@ -85,6 +85,10 @@ pub enum PipelineError {
     Scene(Diagnostic),
     #[error(transparent)]
     Render(#[from] RenderError),
+    /// A request that cannot be rendered as asked (e.g. `--spp-offset` with a sampler that
+    /// does not allow it).
+    #[error("{0}")]
+    Invalid(String),
 }
 
 impl From<Diagnostic> for PipelineError {
@@ -103,13 +107,35 @@ pub struct RenderOptions<'a> {
     pub progress: Option<&'a (dyn Fn(u64, u64) + Sync)>,
 }
 
-/// Chooses the integrator, builds what it needs and renders.
-pub fn render(desc: &SceneDescription, opts: &RenderOptions, warnings: &DiagSink) -> Result<Rendered, PipelineError> {
+/// Chooses the integrator and builds what it needs.
+pub fn prepare(
+    desc: &SceneDescription,
+    opts: &RenderOptions,
+    warnings: &DiagSink,
+) -> Result<(Box<dyn Integrator>, Scene), PipelineError> {
     let integrator = choose_integrator(desc, opts.integrator, opts.params, warnings)?;
     let scene = Scene::build(desc, integrator.requirements(), &opts.build, warnings)?;
-    let mut film = Film::new(scene.film.clone(), scene.filter.radius(), integrator.extra_channels());
+    Ok((integrator, scene))
+}
+
+/// Renders the pixels of `spec` (the scene's film, or a part of it) into a new film.
+pub fn render_film(
+    integrator: &dyn Integrator,
+    scene: &Scene,
+    spec: FilmSpec,
+    opts: &RenderOptions,
+    warnings: &DiagSink,
+) -> Result<(Film, RenderStats), PipelineError> {
+    let mut film = Film::new(spec, scene.filter.radius(), integrator.extra_channels());
     let ctx = RenderContext { threads: opts.threads, cancel: opts.cancel, progress: opts.progress, warnings };
-    let stats = integrator.render(&scene, &ctx, &mut film)?;
+    let stats = integrator.render(scene, &ctx, &mut film)?;
+    Ok((film, stats))
+}
+
+/// Chooses the integrator, builds what it needs and renders.
+pub fn render(desc: &SceneDescription, opts: &RenderOptions, warnings: &DiagSink) -> Result<Rendered, PipelineError> {
+    let (integrator, scene) = prepare(desc, opts, warnings)?;
+    let (film, stats) = render_film(integrator.as_ref(), &scene, scene.film.clone(), opts, warnings)?;
     Ok(Rendered {
         integrator: integrator.name().to_string(),
         image: film.to_image(opts.with_variance),

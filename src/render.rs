@@ -3,8 +3,10 @@
 use penumbra::cli_params;
 use penumbra::output::{self, MissingDir};
 use penumbra::pipeline::{self, RenderOptions};
+use penumbra::shard::{self, ShardRequest};
 use penumbra_core::image::Image;
 use penumbra_core::scene::{BuildOptions, Crop};
+use penumbra_core::shard::TileLayout;
 use penumbra_parser::{DiagSink, Diagnostic, Param, SceneDescription};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -51,6 +53,44 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long, short = 'q')]
     pub quiet: bool,
+    /// Render shard I of N of the image's pixels (whole 16-pixel tiles, balanced by pixel
+    /// count) into a shard file (`-o NAME.shard`) for `penumbra merge`.
+    #[arg(long, value_name = "I/N")]
+    pub tile: Option<String>,
+    /// How `--tile` deals out the tiles: `rows` (runs in raster order) or `grid` (blocks).
+    #[arg(long, value_name = "rows|grid", default_value = "rows")]
+    pub tile_layout: String,
+    /// Render samples K … K+spp−1 of each pixel's sample sequence into a shard file, to be
+    /// merged with other ranges into one image at the summed spp (halton, sobol or random
+    /// samplers; integrators whose samples are independent).
+    #[arg(long, value_name = "K")]
+    pub spp_offset: Option<u32>,
+}
+
+impl RenderArgs {
+    /// Whether the render writes a shard file (`--tile` or `--spp-offset`).
+    fn shard_mode(&self) -> bool {
+        self.tile.is_some() || self.spp_offset.is_some()
+    }
+}
+
+/// `--tile I/N` and `--tile-layout`, checked.
+pub fn parse_tile(tile: Option<&str>, layout: &str, spp_offset: Option<u32>) -> Result<ShardRequest, String> {
+    let layout = TileLayout::parse(layout)
+        .ok_or_else(|| format!("--tile-layout must be \"rows\" or \"grid\", got \"{layout}\""))?;
+    let (index, count) = match tile {
+        None => (0, 1),
+        Some(t) => {
+            let bad = || format!("--tile expects I/N with 0 <= I < N (e.g. 2/7), got \"{t}\"");
+            let (i, n) = t.split_once('/').ok_or_else(bad)?;
+            let (i, n): (u32, u32) = (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+            if n == 0 || i >= n {
+                return Err(bad());
+            }
+            (i, n)
+        }
+    };
+    Ok(ShardRequest { index, count, layout, spp_offset })
 }
 
 pub fn parse_crop(s: &str) -> Result<Crop, String> {
@@ -121,7 +161,7 @@ fn fail(msg: impl std::fmt::Display) -> ExitCode {
     ExitCode::FAILURE
 }
 
-fn has_extension(path: &Path, ext: &str) -> bool {
+pub fn has_extension(path: &Path, ext: &str) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext))
 }
 
@@ -163,7 +203,9 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
         }
         Err(e) => return fail(e),
     }
-    if args.variance && !has_extension(&inputs.output, "exr") {
+    if inputs.shard.is_some() && (args.variance || args.exposure != 0.0) {
+        eprintln!("warning: --variance and --exposure apply to the merged image: give them to penumbra merge (the shard keeps every sum)");
+    } else if args.variance && !has_extension(&inputs.output, "exr") {
         eprintln!(
             "warning: --variance: {} has no room for the variance channels (only .exr has): writing R, G, B only",
             inputs.output.display()
@@ -192,6 +234,38 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
         cancel: &cancel,
         progress: Some(&progress),
     };
+    if let Some(req) = inputs.shard {
+        let scene_name = scene_label(&args);
+        let result = shard::render_shard(&parsed.scene, &scene_name, &args.params, &opts, req, &warnings);
+        if let Some(b) = &bar {
+            b.finish_and_clear();
+        }
+        print_warnings(&warnings);
+        let mut s = match result {
+            Ok(s) => s,
+            Err(e) => return render_failed(&e, &cancel),
+        };
+        s.header.stats.parse_seconds = parse_seconds;
+        if let Err(e) = s.write(&inputs.output) {
+            return fail(e);
+        }
+        if !args.quiet {
+            let h = &s.header;
+            eprintln!(
+                "{}: {} tile {}/{} ({} px in {} rectangles), samples {}..{}, render {:.3} s",
+                inputs.output.display(),
+                h.identity.integrator,
+                h.tile_index,
+                h.identity.tile_count,
+                s.pixels.len(),
+                h.rects.len(),
+                h.spp_offset,
+                h.spp_offset as u64 + h.spp as u64,
+                h.stats.render_seconds
+            );
+        }
+        return ExitCode::SUCCESS;
+    }
     let result = pipeline::render(&parsed.scene, &opts, &warnings);
     if let Some(b) = &bar {
         b.finish_and_clear();
@@ -199,20 +273,7 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
     print_warnings(&warnings);
     let r = match result {
         Ok(r) => r,
-        Err(e) => {
-            eprint!(
-                "{}",
-                match &e {
-                    pipeline::PipelineError::Scene(d) => d.to_string(),
-                    other => format!("error: {other}\n"),
-                }
-            );
-            if cancel.load(Ordering::SeqCst) {
-                eprintln!("interrupted: nothing was written");
-                return ExitCode::from(penumbra::exit::INTERRUPTED);
-            }
-            return ExitCode::FAILURE;
-        }
+        Err(e) => return render_failed(&e, &cancel),
     };
     let output = &inputs.output;
     let stats = stats_json(&args, &r, output, parse_seconds);
@@ -236,13 +297,36 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
     ExitCode::SUCCESS
 }
 
+/// Reports a failed render (status 130 when it was interrupted).
+fn render_failed(e: &pipeline::PipelineError, cancel: &AtomicBool) -> ExitCode {
+    eprint!(
+        "{}",
+        match e {
+            pipeline::PipelineError::Scene(d) => d.to_string(),
+            other => format!("error: {other}\n"),
+        }
+    );
+    if cancel.load(Ordering::SeqCst) {
+        eprintln!("interrupted: nothing was written");
+        return ExitCode::from(penumbra::exit::INTERRUPTED);
+    }
+    ExitCode::FAILURE
+}
+
+/// The scene as `stats.json` names it.
+fn scene_label(args: &RenderArgs) -> String {
+    args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| pipeline::DEFAULT_SCENE_NAME.to_string())
+}
+
 /// The command-line values `run` reads besides the scene: parsed and checked before rendering.
 struct Inputs {
     params: Vec<Param>,
     crop: Option<Crop>,
     resolution: Option<(u32, u32)>,
-    /// `-o`, else the scene's Film filename; .exr, .png or .pfm.
+    /// `-o`, else the scene's Film filename; .exr, .png or .pfm (.shard for a shard).
     output: PathBuf,
+    /// `--tile` / `--spp-offset`: the shard to render.
+    shard: Option<ShardRequest>,
 }
 
 impl Inputs {
@@ -254,17 +338,30 @@ impl Inputs {
         if let Some(c) = crop {
             check_crop(c, full_resolution(scene, resolution))?;
         }
-        let output = args
-            .output
-            .clone()
-            .unwrap_or_else(|| PathBuf::from(scene.film.params.get_one_string("filename", "pbrt.exr")));
+        let film_name = PathBuf::from(scene.film.params.get_one_string("filename", "pbrt.exr"));
+        if args.shard_mode() {
+            let req = parse_tile(args.tile.as_deref(), &args.tile_layout, args.spp_offset)?;
+            let output = args.output.clone().unwrap_or_else(|| {
+                let stem = film_name.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+                let range = args.spp_offset.map(|k| format!("-spp{k}")).unwrap_or_default();
+                film_name.with_file_name(format!("{stem}-{}of{}{range}.shard", req.index, req.count))
+            });
+            if !has_extension(&output, "shard") {
+                return Err(format!(
+                    "{}: --tile and --spp-offset write a shard file: name it NAME.shard",
+                    output.display()
+                ));
+            }
+            return Ok(Inputs { params, crop, resolution, output, shard: Some(req) });
+        }
+        let output = args.output.clone().unwrap_or(film_name);
         if !matches!(
             output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref(),
             Some("exr" | "png" | "pfm")
         ) {
             return Err(format!("{}: output must end in .exr, .png or .pfm", output.display()));
         }
-        Ok(Inputs { params, crop, resolution, output })
+        Ok(Inputs { params, crop, resolution, output, shard: None })
     }
 }
 
@@ -296,7 +393,7 @@ fn progress_bar() -> indicatif::ProgressBar {
 /// What `stats.json` records of a render.
 fn stats_json(args: &RenderArgs, r: &pipeline::Rendered, output: &Path, parse_seconds: f64) -> serde_json::Value {
     serde_json::json!({
-        "scene": args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| pipeline::DEFAULT_SCENE_NAME.to_string()),
+        "scene": scene_label(args),
         "integrator": r.integrator,
         "parameters": args.params,
         "image": output.display().to_string(),
@@ -316,7 +413,12 @@ fn stats_json(args: &RenderArgs, r: &pipeline::Rendered, output: &Path, parse_se
 
 /// Writes the image (R, G, B only unless it is an EXR; a PNG with `exposure` stops), then `stats`
 /// beside it; returns the image written.
-fn write_outputs(mut image: Image, output: &Path, exposure: f32, stats: &serde_json::Value) -> Result<Image, String> {
+pub fn write_outputs(
+    mut image: Image,
+    output: &Path,
+    exposure: f32,
+    stats: &serde_json::Value,
+) -> Result<Image, String> {
     if !has_extension(output, "exr") && image.channels.len() > 3 {
         image = image.select_channels(&["R", "G", "B"]).map_err(|e| e.to_string())?;
     }

@@ -70,6 +70,19 @@ pub struct PixelSums {
     pub own_count: u64,
 }
 
+impl PixelSums {
+    /// Adds `other`'s sums to these (a tile into the film, a shard's sample range into another's).
+    pub fn add(&mut self, other: &PixelSums) {
+        for c in 0..3 {
+            self.rgb[c] += other.rgb[c];
+            self.own_sum[c] += other.own_sum[c];
+            self.own_sum_sq[c] += other.own_sum_sq[c];
+        }
+        self.weight += other.weight;
+        self.own_count += other.own_count;
+    }
+}
+
 /// A tile's private accumulation buffer covering its pixels grown by the filter radius.
 pub struct FilmTile {
     pub bounds: Bounds2i,
@@ -173,14 +186,7 @@ impl Film {
                 continue;
             }
             let i = ((p.y - pb.min.y) * pb.width() + (p.x - pb.min.x)) as usize;
-            let (dst, src) = (&mut self.pixels[i], &tile.pixels[k]);
-            for c in 0..3 {
-                dst.rgb[c] += src.rgb[c];
-                dst.own_sum[c] += src.own_sum[c];
-                dst.own_sum_sq[c] += src.own_sum_sq[c];
-            }
-            dst.weight += src.weight;
-            dst.own_count += src.own_count;
+            self.pixels[i].add(&tile.pixels[k]);
             for e in 0..ne {
                 self.extra[i * ne + e] += tile.extra[k * ne + e];
             }
@@ -225,6 +231,20 @@ impl Film {
             self.pixels[i] = src.pixels[j].clone();
             self.extra[i * ne..(i + 1) * ne].copy_from_slice(&src.extra[j * ne..(j + 1) * ne]);
         }
+        true
+    }
+
+    /// Replaces every accumulator of pixel `p` (e.g. with a shard's, when shards are merged);
+    /// `extra` holds one weighted sum per extra channel. `false` (nothing changed) for a pixel
+    /// outside the film or a wrong number of extra values.
+    pub fn set_pixel_sums(&mut self, p: IVec2, sums: &PixelSums, extra: &[f64]) -> bool {
+        let (pb, ne) = (self.spec.pixel_bounds, self.extra_channel_names.len());
+        if !pb.contains(p) || extra.len() != ne {
+            return false;
+        }
+        let i = ((p.y - pb.min.y) * pb.width() + (p.x - pb.min.x)) as usize;
+        self.pixels[i] = sums.clone();
+        self.extra[i * ne..(i + 1) * ne].copy_from_slice(extra);
         true
     }
 

@@ -84,6 +84,14 @@ pub trait Integrator: Send + Sync {
     }
     /// Render the whole image into `film`.
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError>;
+    /// Whether renders of disjoint ranges of each pixel's samples (`render --spp-offset`, with
+    /// a sampler whose samples do not depend on the count) add up, sum for sum, to the render
+    /// of their union: true when each camera sample's estimate depends on its own sample values
+    /// alone — no work shared between a pixel's samples ([`PixelEstimator::shares_pixel_work`]),
+    /// no image-space pass over the finished film, no sample count raised by the integrator.
+    fn merges_sample_ranges(&self) -> bool {
+        false
+    }
 }
 
 /// A per-pixel-sample estimator; [`render_pixels`] gives it a whole `render`.

@@ -29,6 +29,7 @@ pub mod sampling;
 pub mod scene;
 pub mod sh;
 pub mod shapes;
+pub mod shard;
 pub mod silhouette;
 pub mod spectrum;
 pub mod sphereset;

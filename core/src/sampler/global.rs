@@ -182,6 +182,9 @@ impl<P: GlobalPattern> Sampler for GlobalSampler<P> {
     fn name(&self) -> &'static str {
         P::NAME
     }
+    fn samples_independent_of_count(&self) -> bool {
+        true
+    }
 }
 
 /// pbrt-v3's largest Halton pixel tile: pixels repeat the sequence every 128 pixels.

@@ -66,6 +66,78 @@ pub trait Sampler: Send + Sync {
     fn name(&self) -> &'static str {
         "sampler"
     }
+    /// Whether a pixel's sample `index` is the same whatever `samples_per_pixel` is, for any
+    /// index (halton, sobol, random: a function of pixel, index and seed alone), so that
+    /// renders of disjoint sample ranges ([`OffsetSampler`], `render --spp-offset`) take the
+    /// samples of one render of their union. Pixel samplers (stratified, 02sequence,
+    /// maxmindist) lay one pattern over all of a pixel's samples: `false`.
+    fn samples_independent_of_count(&self) -> bool {
+        false
+    }
+}
+
+/// Samples `offset … offset + spp − 1` of `inner`'s sequences: sample `i` of a pixel is the
+/// inner sampler's sample `offset + i` (for a progressive reference split into jobs). Only
+/// meaningful for samplers whose [`Sampler::samples_independent_of_count`].
+pub struct OffsetSampler {
+    inner: Box<dyn Sampler>,
+    offset: u32,
+}
+
+impl OffsetSampler {
+    /// `None` when sample `offset + spp − 1` would overflow the sample index.
+    pub fn new(inner: Box<dyn Sampler>, offset: u32) -> Option<OffsetSampler> {
+        offset.checked_add(inner.samples_per_pixel())?;
+        Some(OffsetSampler { inner, offset })
+    }
+}
+
+impl Sampler for OffsetSampler {
+    fn samples_per_pixel(&self) -> u32 {
+        self.inner.samples_per_pixel()
+    }
+    fn round_count(&self, n: u32) -> u32 {
+        self.inner.round_count(n)
+    }
+    fn request_1d_array(&mut self, n: u32) {
+        self.inner.request_1d_array(n)
+    }
+    fn request_2d_array(&mut self, n: u32) {
+        self.inner.request_2d_array(n)
+    }
+    fn start_pixel_sample(&mut self, pixel: IVec2, index: u32) {
+        self.inner.start_pixel_sample(pixel, self.offset + index)
+    }
+    fn get_1d(&mut self) -> f32 {
+        self.inner.get_1d()
+    }
+    fn get_2d(&mut self) -> Vec2 {
+        self.inner.get_2d()
+    }
+    fn skip_1d(&mut self) {
+        self.inner.skip_1d()
+    }
+    fn skip_2d(&mut self) {
+        self.inner.skip_2d()
+    }
+    fn get_1d_array(&mut self, n: u32) -> Option<&[f32]> {
+        self.inner.get_1d_array(n)
+    }
+    fn get_2d_array(&mut self, n: u32) -> Option<&[Vec2]> {
+        self.inner.get_2d_array(n)
+    }
+    fn clone_box(&self) -> Box<dyn Sampler> {
+        Box::new(OffsetSampler { inner: self.inner.clone_box(), offset: self.offset })
+    }
+    fn set_sample_bounds(&mut self, min: IVec2, max: IVec2) {
+        self.inner.set_sample_bounds(min, max)
+    }
+    fn name(&self) -> &'static str {
+        self.inner.name()
+    }
+    fn samples_independent_of_count(&self) -> bool {
+        self.inner.samples_independent_of_count()
+    }
 }
 
 #[derive(Debug, thiserror::Error, PartialEq)]

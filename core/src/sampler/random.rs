@@ -90,4 +90,7 @@ impl Sampler for RandomSampler {
     fn name(&self) -> &'static str {
         "random"
     }
+    fn samples_independent_of_count(&self) -> bool {
+        true
+    }
 }

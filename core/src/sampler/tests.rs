@@ -394,3 +394,37 @@ fn skipping_dimensions_leaves_the_same_sequence() {
         }
     }
 }
+
+/// `samples_independent_of_count` is what `--spp-offset` relies on: for the samplers that
+/// claim it, sample `8 + i` of a 16-spp sampler equals sample `i` of a 4-spp sampler offset
+/// by 8 (dimensions and arrays); for the others the values really do depend on the count.
+#[test]
+fn offset_samples_equal_the_longer_sequence_exactly_where_claimed() {
+    let draw = |s: &mut dyn Sampler, p: IVec2, i: u32| {
+        s.start_pixel_sample(p, i);
+        let mut v = vec![s.get_1d(), s.get_2d().x, s.get_1d()];
+        // (A pixel sampler asked for a sample past its count has no arrays: NaN is unequal.)
+        v.extend(s.get_1d_array(4).map_or(vec![f32::NAN], |a| a.to_vec()));
+        v.extend(s.get_2d_array(2).map_or(vec![f32::NAN], |a| a.iter().flat_map(|q| [q.x, q.y]).collect()));
+        v.push(s.get_1d());
+        v
+    };
+    let prepare = |mut s: Box<dyn Sampler>| {
+        s.set_sample_bounds(IVec2::ZERO, IVec2::new(40, 30));
+        s.request_1d_array(4);
+        s.request_2d_array(2);
+        s
+    };
+    for kind in ALL {
+        let mut long = prepare(make(kind, &[], Some(16), 5));
+        let mut short = prepare(Box::new(OffsetSampler::new(make(kind, &[], Some(4), 5), 8).unwrap()));
+        let mut same = true;
+        for p in [IVec2::new(0, 0), IVec2::new(17, 3), IVec2::new(39, 29)] {
+            for i in 0..4 {
+                same &= draw(long.as_mut(), p, 8 + i) == draw(short.as_mut(), p, i);
+            }
+        }
+        assert_eq!(same, short.samples_independent_of_count(), "{kind}: equal samples {same}");
+    }
+    assert!(OffsetSampler::new(make("random", &[], Some(4), 0), u32::MAX - 2).is_none());
+}

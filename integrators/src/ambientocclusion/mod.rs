@@ -137,6 +137,9 @@ impl Integrator for AmbientOcclusion {
     fn name(&self) -> &str {
         "ambientocclusion"
     }
+    fn merges_sample_ranges(&self) -> bool {
+        true
+    }
     fn requirements(&self) -> Requirements {
         Requirements { accel: true, materials: self.sh.is_some(), ..Default::default() }
     }

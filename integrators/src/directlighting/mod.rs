@@ -160,6 +160,9 @@ impl Integrator for DirectLighting {
     fn name(&self) -> &str {
         "directlighting"
     }
+    fn merges_sample_ranges(&self) -> bool {
+        true
+    }
     fn requirements(&self) -> Requirements {
         Requirements { accel: true, lights: true, materials: true, ..Default::default() }
     }

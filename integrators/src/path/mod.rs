@@ -148,6 +148,9 @@ impl Integrator for PathIntegrator {
     fn name(&self) -> &str {
         "path"
     }
+    fn merges_sample_ranges(&self) -> bool {
+        true
+    }
     fn requirements(&self) -> Requirements {
         Requirements { accel: true, lights: true, materials: true, ..Default::default() }
     }

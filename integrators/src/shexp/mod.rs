@@ -271,6 +271,9 @@ impl Integrator for Shexp {
     fn name(&self) -> &str {
         "shexp"
     }
+    fn merges_sample_ranges(&self) -> bool {
+        true
+    }
     fn requirements(&self) -> Requirements {
         Requirements {
             accel: true,

@@ -336,6 +336,9 @@ impl Integrator for Silhouette {
     fn name(&self) -> &str {
         "silhouette"
     }
+    fn merges_sample_ranges(&self) -> bool {
+        true
+    }
     fn requirements(&self) -> Requirements {
         Requirements { accel: true, lights: true, materials: true, dual_edges: true, ..Default::default() }
     }

@@ -92,6 +92,9 @@ impl Integrator for Whitted {
     fn name(&self) -> &str {
         "whitted"
     }
+    fn merges_sample_ranges(&self) -> bool {
+        true
+    }
     fn requirements(&self) -> Requirements {
         Requirements { accel: true, lights: true, materials: true, ..Default::default() }
     }
