@@ -98,9 +98,10 @@ fn expected_rays(name: &str) -> Option<(&'static [&'static str], u64, u64)> {
         // No environment here: the area light goes through directlighting's estimator.
         "shexp" => (&[], 1 + 2, 2),
         // Its own driver: pass 1 traces one camera ray per camera sample (the margin is clipped
-        // to the image, which this render fills) and `nsamples` cached rays; `minweight` huge
-        // brute-forces every cell in pass 2: cells² × brutesamples rays (4 + 2² × 3 = 16).
-        "sheared-ao" => (&["nsamples=4", "cells=2", "brutesamples=3", "minweight=1e30"], 1 + 16, 16),
+        // to the image, which this render fills) and `nsamples` cached occlusion rays;
+        // `minweight` huge brute-forces every cell in pass 2: cells² × brutesamples occlusion
+        // rays (4 + 2² × 3 = 16 shadow rays).
+        "sheared-ao" => (&["nsamples=4", "cells=2", "brutesamples=3", "minweight=1e30"], 1, 16),
         _ => return None,
     })
 }

@@ -21,9 +21,9 @@ fn unoccluded_plane_is_pi_exactly() {
 }
 
 /// Rays of a crop, in closed form: pass 1 traces the crop *and its margin* (`screenradius`
-/// pixels each side, within the image): one camera ray and `nsamples` cached rays per camera
-/// sample; pass 2, only over the crop, `cells² × brutesamples` per camera sample when every
-/// cell is brute-forced (`minweight` huge).
+/// pixels each side, within the image): one camera ray (`rays`) and `nsamples` cached occlusion
+/// rays (`shadow_rays`) per camera sample; pass 2, only over the crop, `cells² × brutesamples`
+/// occlusion rays per camera sample when every cell is brute-forced (`minweight` huge).
 #[test]
 fn a_crop_counts_its_margin_rays_once() {
     let crop = Some(Crop::Pixels([8, 16, 4, 12]));
@@ -34,7 +34,7 @@ fn a_crop_counts_its_margin_rays_once() {
     let (crop_samples, region_samples) = (8 * 8 * 2, 20 * 18 * 2);
     assert_eq!(r.stats.camera_samples, crop_samples);
     assert_eq!(r.stats.shadow_rays, region_samples * 4 + crop_samples * 4 * 3);
-    assert_eq!(r.stats.rays, region_samples * (1 + 4) + crop_samples * 4 * 3);
+    assert_eq!(r.stats.rays, region_samples);
     assert_eq!(r.stats.counters["pass1_points"], region_samples as f64);
     assert_eq!(r.stats.counters["pass1_rays_per_point"], 4.0);
     assert_eq!(r.stats.counters["pass2_rays_per_point"], 12.0);
@@ -165,10 +165,10 @@ fn sh_matches_ambientocclusion() {
             let dm = (a.iter().sum::<f64>() - b.iter().sum::<f64>()) / n / m0;
             let e = (a.iter().zip(&b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / n).sqrt() / m0;
             eprintln!("{name} sh.{i}: mean difference {:+.4} % of sh.0, RMSE {:.4} of sh.0", dm * 100.0, e);
-            // Measured (32², 4 spp against 16 × 256 rays): at most 0.37 % and 0.041 on
-            // spheres-on-plane, 2.75 % (sh.5) and 0.109 on blinds; ambientocclusion's own noise
-            // in these means is about 0.07 %.
-            let (max_dm, max_e) = if name == "blinds" { (0.035, 0.13) } else { (0.006, 0.05) };
+            // Measured (32², 4 spp against 16 × 256 rays): at most 0.38 % and 0.041 on
+            // spheres-on-plane, 2.19 % (sh.5) and 0.106 on blinds, whose AO mean is 0.64 % low
+            // at this resolution; ambientocclusion's own noise in these means is about 0.07 %.
+            let (max_dm, max_e) = if name == "blinds" { (0.03, 0.12) } else { (0.006, 0.05) };
             assert!(dm.abs() < max_dm && e < max_e, "{name} sh.{i}: mean difference {dm:.4}, RMSE {e:.4}");
         }
     }

@@ -208,8 +208,11 @@ struct Bounds {
     z_min: f64,
     z_max: f64,
     brute: bool,
-    /// Eq. 8 × footprint in closed form, `z_min z_max / (Ω_v (z_max − z_min))` (∞ with one depth or
-    /// no occluder).
+    /// Some neighbour ray in this cell's direction escaped: the cell holds an occluder edge with
+    /// open sky (depth ∞) beside it.
+    miss: bool,
+    /// Eq. 8 in closed form, `z_min z_max / (Ω_v (z_max − z_min))`, with `z_max = ∞` (so
+    /// `z_min / Ω_v`) in a cell with a miss; ∞ with one depth and no miss, or no occluder.
     radius: f64,
     /// Harmonic mean of the bounds (∞ without occluder: unoccluded rays are not warped).
     mid: f64,
@@ -247,7 +250,7 @@ pub fn filter_receiver<'a>(
     let p = recv.p;
     let inf = f64::INFINITY;
     scratch.bounds.clear();
-    scratch.bounds.resize(nc, Bounds { z_min: inf, z_max: 0.0, brute: false, radius: inf, mid: inf });
+    scratch.bounds.resize(nc, Bounds { z_min: inf, z_max: 0.0, brute: false, miss: false, radius: inf, mid: inf });
     if scratch.centers.len() != nc {
         scratch.centers = (0..nc).map(|c| recv.frame.from_local(cell_center(c, params.cells))).collect();
     } else {
@@ -267,7 +270,10 @@ pub fn filter_receiver<'a>(
     // Loop 1: occluder depth bounds per cell, cells binned by the effective direction.
     for q in neighbours.clone() {
         for r in &q.rays {
-            let Some(hit) = occluding(r, q) else { continue };
+            let Some(hit) = occluding(r, q) else {
+                scratch.bounds[cell_of(recv.frame.to_local(r.d), params.cells)].miss = true;
+                continue;
+            };
             let u = hit - p;
             let z = u.length();
             if !(u.dot(n) > 1e-9 * z) {
@@ -286,7 +292,13 @@ pub fn filter_receiver<'a>(
         b.mid = 2.0 / (1.0 / b.z_min + 1.0 / b.z_max);
         // Contact test Ω_v / z_min > Ω_pix = 0.5 / footprint.
         b.brute = b.z_min < contact;
-        b.radius = if b.z_max > b.z_min { b.z_min * b.z_max / (params.omega_v * (b.z_max - b.z_min)) } else { inf };
+        b.radius = if b.miss {
+            b.z_min / params.omega_v
+        } else if b.z_max > b.z_min {
+            b.z_min * b.z_max / (params.omega_v * (b.z_max - b.z_min))
+        } else {
+            inf
+        };
     }
     // The receiver's mid depth over all cells, for `Warp::Sphere`.
     let (gmin, gmax) = scratch

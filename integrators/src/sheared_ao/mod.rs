@@ -27,9 +27,10 @@
 //!   per pass-1 camera sample (crop *and* margin) its camera ray, pass-throughs and `nsamples`
 //!   cached rays; per pass-2 camera sample (crop only) `brutesamples` rays per brute-forced
 //!   cell and no camera ray. So with `P` pass-1 and `C` pass-2 camera samples and a brute-forced
-//!   fraction `f`: rays = `P (1 + nsamples) + C f cells² brutesamples` (+ pass-throughs),
-//!   shadow rays the same without the `P` camera rays (`tests/conformance.rs`,
-//!   `tests/sheared_ao.rs::a_crop_counts_its_margin_rays_once`).
+//!   fraction `f`: rays (camera rays) = `P` (+ pass-throughs), shadow rays
+//!   `P nsamples + C f cells² brutesamples` (`tests/conformance.rs`,
+//!   `tests/sheared_ao.rs::a_crop_counts_its_margin_rays_once`). (The occlusion rays were
+//!   counted in both before, and the margin's camera rays in neither.)
 //!
 //! Parameters: [`PARAMS`], beside [`ShearedAo::create`] (`maxpoints` caps the cache points
 //! per receiver, nearest pixels first; `warp`: see [`filter::Warp`]).
@@ -39,6 +40,12 @@
 //! * Ω_pix^max = 0.5 / footprint, footprint = the larger side of the pixel's footprint on the
 //!   receiver's tangent plane (camera rays one pixel over); with Eq. 8 the spatial radius is
 //!   `z_min z_max / (Ω_v (z_max − z_min))` and the contact test `z_min < 2 Ω_v · footprint`;
+//! * the depth bounds count open sky: a cell where some neighbour ray (unwarped direction)
+//!   escaped has `z_max = ∞`, so radius `z_min / Ω_v` — its visibility has an edge between an
+//!   occluder and infinity, and the occluders alone (one depth: an infinite radius)
+//!   understate its bandwidth. Bias against `ambientocclusion` at 1024 rays on the same camera
+//!   samples (64², 4 spp, `nsamples` 8): blinds −0.30 % → −0.21 %, spheres-on-plane −0.064 % →
+//!   −0.044 %, same rays; RMSE 0.0449 → 0.0406, 0.0115 → 0.0113;
 //! * a cell with no occluded neighbour ray is not brute-forced: its depth is taken as
 //!   infinite (no warp, infinite radius: every ray weighs 1); only a cell whose weight stays
 //!   below `minweight` is;
@@ -491,13 +498,13 @@ impl Integrator for ShearedAo {
         let lock = |m: Mutex<RayCount>| m.into_inner().unwrap_or_else(|e| e.into_inner());
         let (c1, c2) = (lock(pass1_rays), lock(pass2_rays));
         let (r1, r2) = (c1.occlusion, c2.occlusion);
-        // Every ray once, by this integrator (it is its own driver): pass 1's camera rays over the
-        // whole region (the margin too) with their pass-throughs, and the occlusion rays of both
-        // passes. Pass 2 traces no camera ray.
+        // Every ray once, by this integrator (it is its own driver): `rays` are pass 1's camera
+        // rays over the whole region (the margin too) with their pass-throughs (pass 2 traces
+        // none), `shadow_rays` the occlusion rays of both passes.
         let mut stats = RenderStats {
             spp,
             camera_samples: sample_bounds.area() as u64 * spp as u64,
-            rays: c1.camera + c2.camera + r1 + r2,
+            rays: c1.camera + c2.camera,
             shadow_rays: r1 + r2,
             threads: if ctx.threads > 0 { ctx.threads } else { rayon::current_num_threads() },
             render_seconds: start.elapsed().as_secs_f64(),
