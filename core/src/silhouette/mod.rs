@@ -6,6 +6,7 @@
 //! - [`param`]: the `(φ, cos θ)` sphere parameterisation (Jacobian 1, one shared start for
 //!   every isoline) used instead of the paper's octahedral map;
 //! - [`table`]: prefix sums of radiance-weighted moments along meridians (environment lighting);
+//! - [`shtable`]: the same for radiance-weighted SH basis functions (glossy lobes);
 //! - [`traverse`]: per-meridian crossing buckets, the depth-complexity walk and the intervals
 //!   of minimal depth complexity;
 //! - [`orient`]: the orientation predicate everything is decided by.
@@ -13,11 +14,13 @@
 pub mod dual;
 pub mod orient;
 pub mod param;
+pub mod shtable;
 pub mod table;
 pub mod traverse;
 
 pub use dual::{Contour, Cull, DualEdges};
 pub use param::{Meridians, PoleFrame};
+pub use shtable::ShTable;
 pub use table::MomentTable;
 pub use traverse::{Interval, Traversal, Visibility};
 

@@ -25,8 +25,14 @@
 //!   radiance `ρ/π · n_s·v`; the visible set is the hemisphere of the face-forwarded
 //!   geometric normal (pbrt-v3's reflection test), the cosine that of the shading normal
 //!   (signed: it differs from pbrt-v3's `|cos|` only where the two normals disagree).
-//!   Materials with a glossy lobe or no Lambertian form take the infinite lights through
-//!   `directlighting`'s estimator (counted as `"silhouette.estimator_fallbacks"`). Area,
+//!   Materials with other non-specular reflection lobes (microfacet, Fresnel blend,
+//!   Oren–Nayar) keep the vector irradiance for their Lambertian lobes and shade the rest by
+//!   SH projection ([`glossy`]): the visible environment `L·V·H` projected onto `core::sh`
+//!   from a second prefix-sum table ([`ShTable`], built on first use) and dotted with the
+//!   projection of the material's own BRDF × |cos| over the same hemisphere, at an order
+//!   chosen from the lobe's roughness (at most `"integer glossyorder"`, 12). Materials with a
+//!   non-specular transmission lobe take the infinite lights through `directlighting`'s
+//!   estimator (counted as `"silhouette.estimator_fallbacks"`). Area,
 //!   point, spot and distant lights are always added by that estimator, and perfectly
 //!   specular materials recurse as in `directlighting` (up to `"integer maxdepth"`, 5).
 
@@ -46,12 +52,15 @@ use penumbra_core::sampling::uniform_sample_hemisphere;
 use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
 use penumbra_core::sh::{basis, quadrature::gauss_legendre, transfer::TransferChannels, ShOrder, MAX_ORDER};
 use penumbra_core::silhouette::{
-    param::moment, Contour, DualEdges, Interval, Meridians, MomentTable, PoleFrame, Traversal,
+    param::moment, Contour, DualEdges, Interval, Meridians, MomentTable, PoleFrame, ShTable, Traversal,
 };
 use penumbra_core::{Rgb, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::OnceLock;
+
+pub mod glossy;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
@@ -72,6 +81,9 @@ pub struct Silhouette {
     pub max_depth: u32,
     /// `"integer shorder"` (3): the order of the `prt` transfer channels.
     pub sh_order: ShOrder,
+    /// `"integer glossyorder"` (12): the highest SH order glossy lobes are shaded at (the order
+    /// of the environment's SH table).
+    pub glossy_order: ShOrder,
 }
 
 /// The parameters `silhouette` reads.
@@ -85,6 +97,12 @@ pub const PARAMS: &[ParamSpec] = &[
     .strict(),
     ParamSpec::int("resolution", 128, "meridians of the (φ, cos θ) parameterisation").range(4, 4096),
     SH_ORDER,
+    ParamSpec::int(
+        "glossyorder",
+        12,
+        "the highest SH order glossy lobes are shaded at (the order of the environment's SH table)",
+    )
+    .range(1, 16),
     max_depth(1024),
 ];
 
@@ -95,8 +113,10 @@ impl Silhouette {
         let sh_order =
             ShOrder::new(p.count("shorder")? as usize).map_err(|e| Diagnostic::error(None, e.to_string()))?;
         let resolution = p.count("resolution")? as usize;
+        let glossy_order =
+            ShOrder::new(p.count("glossyorder")? as usize).map_err(|e| Diagnostic::error(None, e.to_string()))?;
         let max_depth = max_depth_param(&p)?;
-        Ok(Box::new(Silhouette { mode, resolution, max_depth, sh_order }))
+        Ok(Box::new(Silhouette { mode, resolution, max_depth, sh_order, glossy_order }))
     }
 }
 
@@ -118,6 +138,7 @@ struct Counters {
     occluded_points: AtomicU64,
     estimator_fallbacks: AtomicU64,
     fallbacks: AtomicU64,
+    glossy_points: AtomicU64,
 }
 
 /// Rays per side of the stratified grid of the Monte Carlo fallback.
@@ -139,6 +160,11 @@ struct Estimator<'a> {
     table: Option<MomentTable>,
     /// `prt`: the transfer order and Gauss–Legendre nodes in θ per interval.
     sh: Option<(ShOrder, Vec<f64>, Vec<f64>)>,
+    /// `shade`: the infinite lights, the glossy order and the SH table of their radiance
+    /// (built when a glossy lobe first needs it).
+    infinite: Vec<&'a Light>,
+    glossy_order: ShOrder,
+    sh_table: OnceLock<ShTable>,
     counters: Counters,
 }
 
@@ -279,8 +305,12 @@ impl Estimator<'_> {
             let d = material.ltc_lobes(si, textures)?;
             d.specular.is_none().then_some(d)
         });
+        let split = match (&lambertian, &self.table) {
+            (None, Some(_)) => glossy::Split::of(bsdf, self.glossy_order),
+            _ => None,
+        };
         for (k, light) in scene.light_list().iter().enumerate() {
-            if light.is_infinite() && lambertian.is_some() {
+            if light.is_infinite() && (lambertian.is_some() || split.is_some()) {
                 continue;
             }
             if light.is_infinite() {
@@ -311,6 +341,9 @@ impl Estimator<'_> {
             let e = Rgb::new(ns.dot(v[0]) as f32, ns.dot(v[1]) as f32, ns.dot(v[2]) as f32);
             l += d.diffuse * e.max(Rgb::ZERO) * std::f32::consts::FRAC_1_PI;
         }
+        if let (Some(split), Some(table)) = (split, &self.table) {
+            l += self.shade_split(&split, si, bsdf, table, scene, stats);
+        }
         if depth + 1 < self.max_depth {
             for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
                 l += specular(si, bsdf, sampler, stats, kind, |r, sampler, stats| {
@@ -319,6 +352,71 @@ impl Estimator<'_> {
             }
         }
         l
+    }
+}
+
+impl Estimator<'_> {
+    /// A surface with non-Lambertian lobes under the infinite lights: its Lambertian lobes by
+    /// the vector irradiance, the others by SH projection of the visible environment and of
+    /// the lobes ([`glossy`]).
+    fn shade_split(
+        &self,
+        split: &glossy::Split,
+        si: &SurfaceInteraction,
+        bsdf: &penumbra_core::bxdf::Bsdf,
+        table: &MomentTable,
+        scene: &Scene,
+        stats: &mut ThreadStats,
+    ) -> Rgb {
+        self.counters.glossy_points.fetch_add(1, Ordering::Relaxed);
+        let sh_table = self.sh_table.get_or_init(|| {
+            ShTable::build(&self.meridians, self.meridians.n.min(glossy::TABLE_CELLS), self.glossy_order, |w| {
+                let l = self.radiance(w);
+                [l.x as f64, l.y as f64, l.z as f64]
+            })
+        });
+        let order = split.order;
+        let k = order.coeffs();
+        let ng = face_forward(si.n, si.wo);
+        let (mut v, mut v_mc) = ([glam::DVec3::ZERO; 3], [glam::DVec3::ZERO; 3]);
+        let (mut lsh, mut lsh_mc) = ([0.0f64; 3 * glossy::MAX_COEFFS], [0.0f64; 3 * glossy::MAX_COEFFS]);
+        let mut y = [0.0f64; glossy::MAX_COEFFS];
+        let m = &self.meridians;
+        self.visible(scene, si, ng, stats, |piece| match piece {
+            Piece::Interval(frame, iv) => {
+                let i = iv.meridian as usize;
+                table.add(frame, m, i, iv.lo, iv.hi, &mut v);
+                sh_table.add(frame, i, iv.lo, iv.hi, order, &mut lsh[..3 * k]);
+            }
+            Piece::Ray(dir, w) => {
+                let l = self.radiance(dir);
+                basis::eval(order, dir, &mut y[..k]);
+                for c in 0..3 {
+                    v_mc[c] += dir * (w * l[c] as f64);
+                    for j in 0..k {
+                        lsh_mc[c * k + j] += w * l[c] as f64 * y[j];
+                    }
+                }
+            }
+        });
+        let mut out = Rgb::ZERO;
+        if split.diffuse != Rgb::ZERO {
+            let ns = face_forward(bsdf.shading_normal(), ng).as_dvec3();
+            let e: [f64; 3] = std::array::from_fn(|c| ns.dot(v[c] * m.dphi + v_mc[c]));
+            out += split.diffuse
+                * Rgb::new(e[0] as f32, e[1] as f32, e[2] as f32).max(Rgb::ZERO)
+                * std::f32::consts::FRAC_1_PI;
+        }
+        for (a, b) in lsh[..3 * k].iter_mut().zip(&lsh_mc[..3 * k]) {
+            *a = *a * m.dphi + b;
+        }
+        out + glossy::shade(split, bsdf, si.wo, ng, &lsh[..3 * k])
+    }
+
+    /// The infinite lights' radiance from direction `w` (world).
+    fn radiance(&self, w: glam::DVec3) -> Rgb {
+        let ray = Ray::new(Vec3::ZERO, w.as_vec3(), f32::INFINITY);
+        self.infinite.iter().map(|l| l.le(&ray)).sum()
     }
 }
 
@@ -370,8 +468,18 @@ impl Integrator for Silhouette {
             let (x, w) = gauss_legendre(2 * self.sh_order.n() + 6);
             (self.sh_order, x, w)
         });
-        let est =
-            Estimator { mode, max_depth: self.max_depth, dual, meridians, table, sh, counters: Counters::default() };
+        let est = Estimator {
+            mode,
+            max_depth: self.max_depth,
+            dual,
+            meridians,
+            table,
+            sh,
+            infinite,
+            glossy_order: self.glossy_order,
+            sh_table: OnceLock::new(),
+            counters: Counters::default(),
+        };
         let mut stats = render_pixels(&est, scene, ctx, film)?;
         let c = &est.counters;
         let get = |a: &AtomicU64| a.load(Ordering::Relaxed) as f64;
@@ -382,6 +490,7 @@ impl Integrator for Silhouette {
         stats.counters.insert("silhouette.occluded_points".into(), get(&c.occluded_points));
         stats.counters.insert("silhouette.estimator_fallbacks".into(), get(&c.estimator_fallbacks));
         stats.counters.insert("silhouette.fallbacks".into(), get(&c.fallbacks));
+        stats.counters.insert("silhouette.glossy_points".into(), get(&c.glossy_points));
         Ok(stats)
     }
 }
