@@ -31,8 +31,10 @@ use glam::{DVec3, Vec3};
 
 /// Edges per leaf.
 const LEAF: usize = 4;
-/// Absolute slack (normalised units) of the box-versus-hyperplane test, for its own rounding.
-const BOX_SLACK: f64 = 1e-12;
+/// Rounding bound, relative to the sum of the magnitudes of its terms, of a dot product of up
+/// to 4 terms (γ₄ ≈ 4ε, doubled): every slack of the hierarchy's filters is this times the
+/// magnitudes involved, so none is an absolute length and the filters are scale-free.
+const DOT_ROUNDING: f64 = 8.0 * f64::EPSILON;
 
 /// A contour edge of a shading point, in normalised scene coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -342,14 +344,18 @@ impl DualEdges {
         while sp > 0 {
             sp -= 1;
             let node = &self.nodes[stack[sp] as usize];
-            // The hyperplane x·(p,1) = 0 against the padded box.
+            // The hyperplane x·(p,1) = 0 against the padded box, with a slack for the rounding
+            // of the test's own sums (relative to their terms).
             let (mut mn, mut mx) = (node.lo[3], node.hi[3]);
+            let mut mag = node.lo[3].abs().max(node.hi[3].abs());
             for k in 0..3 {
                 let (l, h) = (node.lo[k] * p[k], node.hi[k] * p[k]);
                 mn += l.min(h);
                 mx += l.max(h);
+                mag += l.abs().max(h.abs());
             }
-            if mn > BOX_SLACK || mx < -BOX_SLACK || cull.box_behind(node.plo, node.phi) {
+            let slack = DOT_ROUNDING * mag;
+            if mn > slack || mx < -slack || cull.box_behind(node.plo, node.phi) {
                 continue;
             }
             if node.count > 0 {
@@ -411,8 +417,10 @@ impl Cull {
             if self.n.y > 0.0 { hi.y } else { lo.y },
             if self.n.z > 0.0 { hi.z } else { lo.z },
         );
-        // Every point of the box is at most the far corner's elevation; the margin keeps this
+        // Every point of the box is at most the far corner's elevation; the margin (a bound on
+        // the rounding of `n·(x − p)` for any `x` in the box, relative to its terms) keeps this
         // test from rounding differently from `behind` at elevation ≈ 0.
-        self.n.dot(far - self.p) <= -1e-14
+        let reach = (lo - self.p).abs().max((hi - self.p).abs());
+        self.n.dot(far - self.p) <= -2.0 * DOT_ROUNDING * self.n.abs().dot(reach)
     }
 }

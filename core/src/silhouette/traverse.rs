@@ -18,7 +18,10 @@ use super::dual::Contour;
 use super::param::{azimuth, Meridians, PoleFrame};
 use glam::DVec3;
 
-/// Crossings of one meridian closer than this in `v` are one event.
+/// Crossings of one meridian closer than this in `v` are one event. `v = cos θ` is
+/// dimensionless (a crossing's `v` depends on directions from the point only), so this is a
+/// scale-free tolerance of ~10⁴ ulps of `v`: coincident crossings (T-junctions, duplicated
+/// edges), computed in f64, land closer than this.
 pub const MERGE: f64 = 1e-12;
 
 /// An interval `[lo, hi]` of `v` on a meridian with relative depth complexity `w`.

@@ -70,7 +70,9 @@ pub enum Mode {
 }
 
 /// The tangent-plane cull's tolerance: edges below an elevation of ~1e-6 rad are dropped
-/// (the normal is given in f32; coplanar neighbours of the shading point lie there).
+/// (the normal is given in f32; coplanar neighbours of the shading point lie there). An
+/// angle, so scale-free, like every tolerance of the traversal (`v` merging) and of the
+/// dual-edge filters (rounding bounds relative to their terms).
 const CULL_TOL: f64 = 1e-6;
 
 pub struct Silhouette {
