@@ -209,3 +209,77 @@ fn reference_integrator_defaults_to_the_first_integrators_natural_reference() {
         let _ = std::fs::remove_dir_all(&out);
     }
 }
+
+/// `--plan`, every item run as its own process (in reverse order), then `--collect`: the
+/// ordinary sweep's CSV rows, timing columns aside (ltc's coverage floor makes its budget-1
+/// item a 16-spp render and its budget-4 and 16 items skips, as in the sweep).
+#[test]
+fn planned_items_collect_to_the_sweeps_rows() {
+    let args = ["-i", "directlighting,ltc", "--reference-spp", "32", "--budgets", "1,4,16", "--resolution", "16x16"];
+    let (plain, fanned) = (out_dir("plain"), out_dir("fanned"));
+    let o = sweep(&args, &plain);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let with = |extra: &[&str]| {
+        let mut a = args.to_vec();
+        a.extend_from_slice(extra);
+        sweep(&a, &fanned)
+    };
+    let o = with(&["--plan"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let n: usize = text(&o.stdout).trim().parse().unwrap();
+    assert_eq!(n, 1 + 2 * 3, "the reference and 2 × 3 renders");
+    let o = with(&["--collect"]);
+    assert!(
+        !o.status.success() && text(&o.stderr).contains("item 0 (the reference) has not run"),
+        "{}",
+        text(&o.stderr)
+    );
+    for k in (0..n).rev() {
+        let o = with(&["--run-item", &k.to_string()]);
+        assert!(o.status.success(), "item {k}: {}", text(&o.stderr));
+    }
+    let o = with(&["--collect"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let untimed = |dir: &Path| -> Vec<String> {
+        let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
+        parse_csv(&csv); // (checks the columns)
+        csv.lines()
+            .map(|l| {
+                let f: Vec<&str> = l.split(',').collect();
+                [&f[..2], &f[5..]].concat().join(",")
+            })
+            .collect()
+    };
+    let rows = untimed(&plain);
+    // The header, directlighting's three budgets, ltc's one 16-spp render (4 and 16 are covered).
+    assert_eq!(rows.len(), 1 + 3 + 1, "{rows:?}");
+    assert_eq!(untimed(&fanned), rows);
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fanned.join("sweep.json")).unwrap()).unwrap();
+    assert!(doc["items"][0]["machine"]["cores"].as_u64().unwrap() >= 1, "{}", doc["items"]);
+    // Other arguments than the plan's are refused; so is --time-limit.
+    let o = sweep(
+        &[
+            "-i",
+            "directlighting",
+            "--reference-spp",
+            "32",
+            "--budgets",
+            "1",
+            "--resolution",
+            "16x16",
+            "--run-item",
+            "0",
+        ],
+        &fanned,
+    );
+    assert!(
+        !o.status.success() && text(&o.stderr).contains("give the arguments --plan was given"),
+        "{}",
+        text(&o.stderr)
+    );
+    let o = with(&["--plan", "--time-limit", "5"]);
+    assert!(!o.status.success() && text(&o.stderr).contains("--time-limit"), "{}", text(&o.stderr));
+    let _ = std::fs::remove_dir_all(&plain);
+    let _ = std::fs::remove_dir_all(&fanned);
+}

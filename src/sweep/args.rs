@@ -108,6 +108,18 @@ pub struct SweepArgs {
     /// Only the summary on stdout; no per-render lines.
     #[arg(long, short = 'q')]
     pub quiet: bool,
+    /// Write the sweep's renders as independent items to OUTDIR/plan.json and exit (for a batch
+    /// scheduler: needs --budgets, or the doubling schedule up to --max-budget; not --time-limit).
+    #[arg(long, conflicts_with_all = ["run_item", "collect"])]
+    pub plan: bool,
+    /// Run item K of the plan (give the arguments --plan was given): one render (or the
+    /// --reference-spp reference), written under OUTDIR/items/ (OUTDIR/cache/ for the reference).
+    #[arg(long, value_name = "K", conflicts_with = "collect")]
+    pub run_item: Option<usize>,
+    /// Compare the items' renders with the reference and write sweep.csv, sweep.json, the plot
+    /// and summary.md, as the sweep itself would (timings are each item's own).
+    #[arg(long)]
+    pub collect: bool,
 }
 
 /// An error metric, lower is better (PSNR is recorded but cannot be plotted on a log axis).

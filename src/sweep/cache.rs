@@ -9,7 +9,7 @@ use penumbra_core::scene::{BuildOptions, Crop};
 use penumbra_parser::DiagSink;
 use serde_json::{json, Value};
 use std::collections::BTreeSet;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
@@ -42,6 +42,18 @@ pub fn reference_key(
     format!("{:016x}", fnv1a64(&key))
 }
 
+/// The seed of the `--reference-spp` render.
+fn reference_seed(args: &SweepArgs) -> u64 {
+    args.reference_seed.unwrap_or(args.seed.wrapping_add(1))
+}
+
+/// Where the `--reference-spp` render is cached (`None` with `--reference`).
+pub(super) fn cached_reference_path(args: &SweepArgs, s: &Setup) -> Option<PathBuf> {
+    let n = args.reference_spp.filter(|_| args.reference.is_none())?;
+    let key = reference_key(&s.scene_bytes, args.reference_integrator(), s.resolution, s.crop, n, reference_seed(args));
+    Some(args.output.join("cache").join(format!("{key}.exr")))
+}
+
 /// The image every render is compared with, and how `sweep.json` and the summary name it.
 pub(super) struct Reference {
     pub image: Image,
@@ -68,11 +80,10 @@ pub(super) fn reference(
             reference_label = format!("`{}`", p.display());
         }
         (None, Some(n)) => {
-            let rseed = args.reference_seed.unwrap_or(args.seed.wrapping_add(1));
+            let rseed = reference_seed(args);
             let ri = args.reference_integrator();
-            let key = reference_key(&s.scene_bytes, ri, s.resolution, s.crop, n, rseed);
+            let path = cached_reference_path(args, s).unwrap_or_default();
             let cache_dir = args.output.join("cache");
-            let path = cache_dir.join(format!("{key}.exr"));
             let cached = read_cached(&path);
             let was_cached = cached.is_some();
             if let Some(img) = cached {

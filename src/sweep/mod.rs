@@ -12,6 +12,7 @@
 
 mod args;
 mod cache;
+mod fanout;
 mod output;
 mod plot;
 mod schedule;
@@ -79,25 +80,39 @@ fn size_matches(reference: &Image, (w, h): (u32, u32)) -> Result<(), Failure> {
     Ok(())
 }
 
-fn compare_row(
-    integrator: &str,
-    budget: u32,
-    rendered: &pipeline::Rendered,
-    total_s: f64,
-    reference: &Image,
-    with_flip: bool,
-) -> Result<Row, Failure> {
-    let test = rgb_only(&rendered.image, "render")?;
+/// One timed render of the sweep: its R, G, B and its clocks.
+pub(crate) struct Timed {
+    pub image: Image,
+    pub spp: u32,
+    pub build_s: f64,
+    pub render_s: f64,
+    pub total_s: f64,
+}
+
+impl Timed {
+    fn of(rendered: &pipeline::Rendered, total_s: f64) -> Result<Timed, Failure> {
+        Ok(Timed {
+            image: rgb_only(&rendered.image, "render")?,
+            spp: rendered.stats.spp,
+            build_s: rendered.build.total_seconds(),
+            render_s: rendered.stats.render_seconds,
+            total_s,
+        })
+    }
+}
+
+fn compare_row(integrator: &str, budget: u32, t: &Timed, reference: &Image, with_flip: bool) -> Result<Row, Failure> {
+    let test = &t.image;
     size_matches(reference, (test.width, test.height))?;
-    let c = metrics::compare(&test, reference, 1e-6, 1e-6).map_err(fail)?;
-    let flip = if with_flip { flip_of(&test, reference) } else { None };
+    let c = metrics::compare(test, reference, 1e-6, 1e-6).map_err(fail)?;
+    let flip = if with_flip { flip_of(test, reference) } else { None };
     Ok(Row {
         integrator: integrator.to_string(),
         budget,
-        spp: rendered.stats.spp,
-        build_s: rendered.build.total_seconds(),
-        render_s: rendered.stats.render_seconds,
-        total_s,
+        spp: t.spp,
+        build_s: t.build_s,
+        render_s: t.render_s,
+        total_s: t.total_s,
         mae: c.mean_error,
         rmse: c.rms_error,
         psnr: c.psnr,
@@ -143,13 +158,16 @@ pub fn run(mut args: SweepArgs) -> ExitCode {
 
 fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
     let mut s = setup(args)?;
+    if args.plan {
+        return fanout::plan(args, &s);
+    }
+    if let Some(k) = args.run_item {
+        return fanout::run_item(args, &mut s, k);
+    }
     // The reference file is read before anything renders.
-    let file_reference = match &args.reference {
-        Some(p) => Some(rgb_only(&image::read(p).map_err(fail)?, &p.display().to_string())?),
-        None => None,
-    };
-    if let Some(r) = &file_reference {
-        check_reference_size(r, &s)?;
+    let file_reference = read_file_reference(args, &s)?;
+    if args.collect {
+        return fanout::collect(args, &mut s, file_reference);
     }
     std::fs::create_dir_all(&args.output).map_err(|e| fail(format!("cannot create {}: {e}", args.output.display())))?;
     let cancel = cancel_on_interrupt();
@@ -183,6 +201,14 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
         Some(e) => Err(e),
         None => Ok(0),
     }
+}
+
+/// The `--reference` image (R, G, B), checked against the renders' size.
+fn read_file_reference(args: &SweepArgs, s: &Setup) -> Result<Option<Image>, Failure> {
+    let Some(p) = &args.reference else { return Ok(None) };
+    let r = rgb_only(&image::read(p).map_err(fail)?, &p.display().to_string())?;
+    check_reference_size(&r, s)?;
+    Ok(Some(r))
 }
 
 /// What every render of the sweep shares.
@@ -219,13 +245,12 @@ impl Sweep<'_> {
                 schedule.skip();
                 continue;
             }
-            let (r, total_s) = match self.render(name, budget, seen)? {
-                Ok(r) => r,
+            let timed = match render_one(args, self.s, self.cancel, name, budget, seen)? {
+                Ok((r, total_s)) => Timed::of(&r, total_s)?,
                 Err(e) => return Ok(Some(e)),
             };
-            // The row's budget is what was rendered (more than asked when the integrator raises it).
-            let taken = if args.budget_param.is_none() { budget.max(r.stats.spp) } else { budget };
-            let row = match compare_row(name, taken, &r, total_s, self.reference, !args.no_flip) {
+            let taken = taken_budget(args, budget, timed.spp);
+            let row = match compare_row(name, taken, &timed, self.reference, !args.no_flip) {
                 Ok(row) => row,
                 Err(e) => return Ok(Some(e)),
             };
@@ -251,45 +276,55 @@ impl Sweep<'_> {
         say(format!("{name:>16}: done, {:.2} s in all", schedule.spent()));
         Ok(None)
     }
+}
 
-    /// One timed render of `name` at `budget` (spp, or the `--budget-param` value); the inner
-    /// `Err` is a failed or cancelled render, which stops the sweep.
-    fn render(
-        &self,
-        name: &str,
-        budget: u32,
-        seen: &mut BTreeSet<String>,
-    ) -> Result<Result<(pipeline::Rendered, f64), Failure>, Failure> {
-        let (args, s) = (self.args, self.s);
-        let mut params = s.params.clone();
-        let spp = match &args.budget_param {
-            Some(p) => {
-                params.push(budget_param(p, budget)?);
-                args.spp
-            }
-            None => Some(budget),
-        };
-        let warnings = DiagSink::new();
-        let opts = RenderOptions {
-            integrator: Some(name),
-            params: &params,
-            build: BuildOptions { spp, seed: args.seed, crop: s.crop, resolution: s.resolution },
-            threads: args.threads,
-            with_variance: false,
-            cancel: self.cancel,
-            progress: None,
-        };
-        let t0 = Instant::now();
-        let result = pipeline::render(&s.desc, &opts, &warnings);
-        let total_s = t0.elapsed().as_secs_f64();
-        print_new_warnings(&warnings, seen);
-        Ok(match result {
-            Ok(r) => Ok((r, total_s)),
-            Err(e) => Err(if self.cancel.load(Ordering::SeqCst) {
-                Failure { code: EXIT_CANCELLED, message: format!("{e}: the finished renders were written") }
-            } else {
-                fail(format!("{name} at budget {budget}: {e}"))
-            }),
-        })
+/// The row's budget: what was rendered (more than asked when the integrator raises the spp).
+fn taken_budget(args: &SweepArgs, budget: u32, spp: u32) -> u32 {
+    if args.budget_param.is_none() {
+        budget.max(spp)
+    } else {
+        budget
     }
+}
+
+/// One timed render of `name` at `budget` (spp, or the `--budget-param` value); the inner
+/// `Err` is a failed or cancelled render, which stops the sweep.
+fn render_one(
+    args: &SweepArgs,
+    s: &Setup,
+    cancel: &AtomicBool,
+    name: &str,
+    budget: u32,
+    seen: &mut BTreeSet<String>,
+) -> Result<Result<(pipeline::Rendered, f64), Failure>, Failure> {
+    let mut params = s.params.clone();
+    let spp = match &args.budget_param {
+        Some(p) => {
+            params.push(budget_param(p, budget)?);
+            args.spp
+        }
+        None => Some(budget),
+    };
+    let warnings = DiagSink::new();
+    let opts = RenderOptions {
+        integrator: Some(name),
+        params: &params,
+        build: BuildOptions { spp, seed: args.seed, crop: s.crop, resolution: s.resolution },
+        threads: args.threads,
+        with_variance: false,
+        cancel,
+        progress: None,
+    };
+    let t0 = Instant::now();
+    let result = pipeline::render(&s.desc, &opts, &warnings);
+    let total_s = t0.elapsed().as_secs_f64();
+    print_new_warnings(&warnings, seen);
+    Ok(match result {
+        Ok(r) => Ok((r, total_s)),
+        Err(e) => Err(if cancel.load(Ordering::SeqCst) {
+            Failure { code: EXIT_CANCELLED, message: format!("{e}: the finished renders were written") }
+        } else {
+            fail(format!("{name} at budget {budget}: {e}"))
+        }),
+    })
 }

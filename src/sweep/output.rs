@@ -104,6 +104,8 @@ pub struct Outputs<'a> {
     budget_name: String,
     threads: usize,
     args_json: Value,
+    /// `sweep --collect`: each item's machine and timings file.
+    items: Option<Value>,
 }
 
 impl<'a> Outputs<'a> {
@@ -137,7 +139,14 @@ impl<'a> Outputs<'a> {
                 "resolution": args.resolution,
                 "crop": args.crop,
             }),
+            items: None,
         }
+    }
+
+    /// Records the items a `--collect` gathered (written to `sweep.json`).
+    pub fn with_items(mut self, items: Value) -> Self {
+        self.items = Some(items);
+        self
     }
 
     pub fn write_tables(&self, rows: &[Row], complete: bool) -> Result<(), String> {
@@ -155,6 +164,10 @@ impl<'a> Outputs<'a> {
             "complete": complete,
             "rows": rows.iter().map(row_json).collect::<Vec<_>>(),
         });
+        let mut doc = doc;
+        if let (Some(items), Some(map)) = (&self.items, doc.as_object_mut()) {
+            map.insert("items".into(), items.clone());
+        }
         write_text(&self.dir.join("sweep.json"), &(serde_json::to_string_pretty(&doc).unwrap_or_default() + "\n"))
     }
 
