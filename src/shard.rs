@@ -35,7 +35,10 @@ pub const FORMAT_VERSION: u32 = 1;
 /// `f64` values per pixel before the extra channels (the `u64` count included).
 const SUMS_PER_PIXEL: usize = 11;
 
-/// 64-bit FNV-1a, continued from `h` (start with [`FNV_START`]).
+/// The 64-bit FNV-1a offset basis: the hash of nothing.
+pub const FNV_START: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// 64-bit FNV-1a of `bytes`, continued from `h` (start with [`FNV_START`]).
 pub fn fnv1a64_from(mut h: u64, bytes: &[u8]) -> u64 {
     for &b in bytes {
         h ^= b as u64;
@@ -43,7 +46,6 @@ pub fn fnv1a64_from(mut h: u64, bytes: &[u8]) -> u64 {
     }
     h
 }
-pub const FNV_START: u64 = 0xcbf2_9ce4_8422_2325;
 
 /// The hash of a scene: every file the parser read (the main file, its `Include`s, `.spd`
 /// files), contents only, in reading order (so a scene copied elsewhere keeps its hash); the

@@ -16,12 +16,7 @@ use std::time::Instant;
 
 /// 64-bit FNV-1a.
 pub fn fnv1a64(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for &b in bytes {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
+    penumbra::shard::fnv1a64_from(penumbra::shard::FNV_START, bytes)
 }
 
 /// The cache key of a `--reference-spp` render.
