@@ -44,6 +44,47 @@ pub fn thread_count(requested: usize) -> (usize, Option<String>) {
     }
 }
 
+/// `-i a,b,c`: the names trimmed, without repeats, each one `penumbra_integrators::find` knows.
+pub fn integrator_list(names: &[String]) -> Result<Vec<String>, String> {
+    let mut out: Vec<String> = Vec::new();
+    for n in names.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
+        if penumbra_integrators::find(n).is_none() {
+            return Err(format!(
+                "unknown integrator \"{n}\"; valid names: {}",
+                penumbra_integrators::names().join(", ")
+            ));
+        }
+        if !out.iter().any(|m| m == n) {
+            out.push(n.to_string());
+        }
+    }
+    if out.is_empty() {
+        return Err("-i: no integrator given".into());
+    }
+    Ok(out)
+}
+
+/// Prints a command's final error on stderr (with an `error: ` prefix unless it has one) and
+/// exits with `code`.
+pub fn exit_with_error(code: u8, message: &str) -> std::process::ExitCode {
+    let m = message.trim_end();
+    if m.starts_with("error") || m.contains(": error") {
+        eprintln!("{m}");
+    } else {
+        eprintln!("error: {m}");
+    }
+    std::process::ExitCode::from(code)
+}
+
+/// `--threads N` clamped by [`thread_count`], its warning printed.
+pub fn threads_or_warn(requested: usize) -> usize {
+    let (threads, warning) = thread_count(requested);
+    if let Some(w) = warning {
+        eprintln!("{w}");
+    }
+    threads
+}
+
 /// `base` with every command-line parameter added (replacing same-named ones).
 pub fn merge(base: &ParamSet, cli: &[Param]) -> ParamSet {
     let mut ps = base.clone();

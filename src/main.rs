@@ -8,6 +8,7 @@ mod diff;
 mod info;
 mod merge;
 mod render;
+mod stability;
 mod sweep;
 
 #[derive(Parser)]
@@ -21,7 +22,9 @@ mod sweep;
     after_help = "Exit status (every subcommand): 0 success; 1 error (a scene, input or output that \
         cannot be used); 64 command-line usage error (unknown option, missing or malformed argument); \
         130 interrupted (Ctrl-C). `diff` adds OpenImageIO idiff's 1 warning, 2 failure, 3 different \
-        sizes or channel sets, 4 unreadable file or bad option value."
+        sizes or channel sets, 4 unreadable file or bad option value; \
+        `stability` uses the same scheme: 0 stable, 1 a tolerance exceeded, 2 non-finite values, 4 an \
+        unusable scene or option."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -40,6 +43,9 @@ enum Command {
     Merge(merge::MergeArgs),
     /// Error versus time: render with several integrators at growing budgets against a reference.
     Sweep(sweep::SweepArgs),
+    /// Numerical stability: render the scene scaled, rotated, moved far away, with lights and
+    /// geometry edited, and report how each integrator's image changes where it must not.
+    Stability(stability::StabilityArgs),
     /// Re-shade an image's SH transfer channels (sh.*, albedo.*) under new distant lighting.
     Relight(penumbra::relight::RelightArgs),
     /// Convert an image between EXR, PNG and PFM, with an exposure in stops (e.g. EXR to PNG to look at it).
@@ -62,6 +68,7 @@ fn main() -> ExitCode {
         Some(Command::Render(a)) => render::run(a),
         Some(Command::Sweep(a)) => sweep::run(a),
         Some(Command::Merge(a)) => merge::run(a),
+        Some(Command::Stability(a)) => stability::run(a),
         Some(Command::Relight(a)) => penumbra::relight::run(a),
         Some(Command::Convert(a)) => convert::run(a),
         None => render::run(render::RenderArgs::default()),

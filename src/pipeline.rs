@@ -134,8 +134,20 @@ pub fn render_film(
 
 /// Chooses the integrator, builds what it needs and renders.
 pub fn render(desc: &SceneDescription, opts: &RenderOptions, warnings: &DiagSink) -> Result<Rendered, PipelineError> {
-    let (integrator, scene) = prepare(desc, opts, warnings)?;
-    let (film, stats) = render_film(integrator.as_ref(), &scene, scene.film.clone(), opts, warnings)?;
+    let integrator = choose_integrator(desc, opts.integrator, opts.params, warnings)?;
+    render_with(integrator.as_ref(), desc, opts, warnings)
+}
+
+/// Builds what `integrator` needs and renders (`opts.integrator` and `opts.params` are not read:
+/// the integrator is already made).
+pub fn render_with(
+    integrator: &dyn Integrator,
+    desc: &SceneDescription,
+    opts: &RenderOptions,
+    warnings: &DiagSink,
+) -> Result<Rendered, PipelineError> {
+    let scene = Scene::build(desc, integrator.requirements(), &opts.build, warnings)?;
+    let (film, stats) = render_film(integrator, &scene, scene.film.clone(), opts, warnings)?;
     Ok(Rendered {
         integrator: integrator.name().to_string(),
         image: film.to_image(opts.with_variance),

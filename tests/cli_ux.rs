@@ -306,7 +306,7 @@ fn parser_messages_point_at_the_cause_and_escape_bytes() {
 fn default_outputs_are_gitignored() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let ignore = std::fs::read_to_string(root.join(".gitignore")).unwrap();
-    for pattern in ["/penumbra.exr", "*.stats.json", "/sweep-out/"] {
+    for pattern in ["/penumbra.exr", "*.stats.json", "/sweep-out/", "/stability-out/"] {
         assert!(ignore.lines().any(|l| l.trim() == pattern), "{pattern} missing from .gitignore");
     }
     // Where git is at hand, ask it (the patterns above are what it matches).
@@ -318,6 +318,7 @@ fn default_outputs_are_gitignored() {
             "penumbra.exr",
             "penumbra.stats.json",
             "sweep-out/sweep.csv",
+            "stability-out/stability.json",
             "scenes/x.stats.json",
         ])
         .status();

@@ -92,6 +92,20 @@ pub trait Integrator: Send + Sync {
     fn merges_sample_ranges(&self) -> bool {
         false
     }
+    /// An upper bound this integrator guarantees on every pixel's R, G, B (with a non-negative
+    /// pixel filter), if it declares one; `penumbra stability` counts the pixels above it.
+    fn radiance_bound(&self) -> Option<RadianceBound> {
+        None
+    }
+}
+
+/// What [`Integrator::radiance_bound`] declares.
+pub enum RadianceBound {
+    /// Every value is at most this (e.g. ambient occlusion's hemisphere integral).
+    Constant(f32),
+    /// Every pixel is at most the same pixel rendered by this integrator with the same scene
+    /// and samples (e.g. `ltc` without shadows: the unshadowed value).
+    Image(Box<dyn Integrator>),
 }
 
 /// A per-pixel-sample estimator; [`render_pixels`] gives it a whole `render`.

@@ -85,6 +85,16 @@ pub const REGISTRY: &[Entry] = &[
     },
 ];
 
+/// Integrators that [`find`] knows but [`names`] and [`REGISTRY`] do not list: test-only
+/// estimators, deliberately wrong, that show a check catches what it claims to.
+pub const HIDDEN: &[Entry] = &[Entry {
+    name: ambientocclusion::FIXED_EPSILON_NAME,
+    method:
+        "ambientocclusion with a fixed absolute ray epsilon (deliberately unstable, for penumbra stability's tests)",
+    create: ambientocclusion::AmbientOcclusion::create_fixed_epsilon,
+    params: ambientocclusion::PARAMS,
+}];
+
 /// pbrt-v3 integrators penumbra does not implement; scenes naming them render with the fallback.
 pub const PBRT_UNIMPLEMENTED: &[&str] = &["volpath", "bdpt", "mlt", "sppm"];
 
@@ -93,7 +103,7 @@ pub fn names() -> Vec<&'static str> {
 }
 
 pub fn find(name: &str) -> Option<&'static Entry> {
-    REGISTRY.iter().find(|e| e.name == name)
+    REGISTRY.iter().chain(HIDDEN).find(|e| e.name == name)
 }
 
 #[cfg(test)]

@@ -2,7 +2,7 @@
 
 use crate::diag::FileLoc;
 use crate::params::ParamSet;
-use crate::transform::AnimatedTransform;
+use crate::transform::{AnimatedTransform, Transform};
 use std::path::PathBuf;
 
 /// A directive's type name (`"sphere"`, `"matte"`, `"halton"`…), its parameters and where it was written.
@@ -143,5 +143,28 @@ impl SceneDescription {
         } else {
             self.base_dir.join(p)
         }
+    }
+
+    /// Moves the whole scene by `world_from_world` (applied after every transform of the
+    /// description): shapes, instances, lights, textures, media and the camera together, so
+    /// the image is unchanged up to rounding when `world_from_world` is a rigid motion. (Under
+    /// a scale by `s`, point-like lights' irradiance changes by 1/s²: pbrt's intensities are
+    /// per steradian, not per area. Callers that want the same image scale them.)
+    pub fn transform_world(&mut self, world_from_world: &Transform) {
+        let apply = |t: &mut AnimatedTransform| {
+            t.start = world_from_world.compose(&t.start);
+            t.end = world_from_world.compose(&t.end);
+        };
+        apply(&mut self.camera.world_from_camera);
+        let inv = world_from_world.inverse();
+        let c = &mut self.camera.camera_from_world;
+        c.start = c.start.compose(&inv);
+        c.end = c.end.compose(&inv);
+        self.shapes.iter_mut().for_each(|s| apply(&mut s.render_from_object));
+        // Instance definitions' shapes are in instance space: only their uses move.
+        self.instances.iter_mut().for_each(|i| apply(&mut i.render_from_instance));
+        self.lights.iter_mut().for_each(|l| apply(&mut l.render_from_light));
+        self.textures.iter_mut().for_each(|t| apply(&mut t.render_from_texture));
+        self.media.iter_mut().for_each(|m| apply(&mut m.render_from_medium));
     }
 }

@@ -580,3 +580,37 @@ fn concurrent_parses_of_one_name_quote_their_own_text() {
         }
     });
 }
+
+/// `transform_world` moves the camera, shapes, instances, lights and textures together: a
+/// point keeps its camera-space position, and the camera's two transforms stay inverses.
+#[test]
+fn transform_world_moves_everything_together() {
+    let mut o = parse(
+        "LookAt 0 1 -5  0 0 0  0 1 0 Camera \"perspective\" WorldBegin
+         Translate 1 2 3 Shape \"sphere\" LightSource \"point\" Texture \"t\" \"float\" \"checkerboard\"
+         ObjectBegin \"o\" Shape \"sphere\" ObjectEnd ObjectInstance \"o\" WorldEnd",
+    )
+    .scene;
+    let t = Transform::translate([1e3, -2.0, 7.0]).compose(&Transform::rotate(37.0, [1.0, 2.0, 3.0]).unwrap());
+    let before = o.clone();
+    o.transform_world(&t);
+    let p = [0.5, -0.25, 2.0];
+    let in_camera = |d: &SceneDescription, w: [f64; 3]| d.camera.camera_from_world.start.apply_point(w);
+    let object_in_camera =
+        |d: &SceneDescription, f: &dyn Fn(&SceneDescription) -> Transform| in_camera(d, f(d).apply_point(p));
+    let getters: [&dyn Fn(&SceneDescription) -> Transform; 4] = [
+        &|d| d.shapes[0].render_from_object.start,
+        &|d| d.lights[0].render_from_light.start,
+        &|d| d.textures[0].render_from_texture.start,
+        &|d| d.instances[0].render_from_instance.start,
+    ];
+    for f in getters {
+        let (a, b) = (object_in_camera(&before, f), object_in_camera(&o, f));
+        assert!(close(a, b), "{a:?} vs {b:?}");
+    }
+    let c = &o.camera;
+    let round_trip = c.camera_from_world.start.apply_point(c.world_from_camera.start.apply_point(p));
+    assert!(close(round_trip, p), "{round_trip:?}");
+    // The instance definition's shapes stay in instance space.
+    assert_eq!(o.instance_definitions, before.instance_definitions);
+}

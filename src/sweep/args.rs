@@ -182,27 +182,13 @@ pub struct Setup {
 /// Checks the arguments, reads and parses the scene, and creates each integrator once (so bad
 /// parameter values fail before any render).
 pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
-    let mut integrators: Vec<String> = Vec::new();
-    for n in args.integrators.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
-        if penumbra_integrators::find(n).is_none() {
-            return Err(fail(format!(
-                "unknown integrator \"{n}\"; valid names: {}",
-                penumbra_integrators::names().join(", ")
-            )));
-        }
-        if !integrators.iter().any(|m| m == n) {
-            integrators.push(n.to_string());
-        }
-    }
+    let integrators = cli_params::integrator_list(&args.integrators).map_err(fail)?;
     if args.reference_spp.is_some() && penumbra_integrators::find(args.reference_integrator()).is_none() {
         return Err(fail(format!(
             "unknown reference integrator \"{}\"; valid names: {}",
             args.reference_integrator(),
             penumbra_integrators::names().join(", ")
         )));
-    }
-    if integrators.is_empty() {
-        return Err(fail("-i: no integrator given"));
     }
     if let Some(t) = args.time_limit {
         if !(t > 0.0) || !t.is_finite() {

@@ -14,7 +14,7 @@ mod args;
 mod cache;
 mod fanout;
 mod output;
-mod plot;
+pub(crate) mod plot;
 mod schedule;
 mod summary;
 #[cfg(test)]
@@ -53,7 +53,8 @@ fn rgb_only(img: &Image, what: &str) -> Result<Image, Failure> {
     img.select_channels(&["R", "G", "B"]).map_err(|e| fail(format!("{what}: {e}")))
 }
 
-fn print_new_warnings(w: &DiagSink, seen: &mut BTreeSet<String>) {
+/// Prints the warnings of `w` not printed before.
+pub(crate) fn print_new_warnings(w: &DiagSink, seen: &mut BTreeSet<String>) {
     for d in w.take() {
         let text = d.to_string();
         if seen.insert(text.clone()) {
@@ -137,22 +138,10 @@ fn flip_of(a: &Image, b: &Image) -> Option<f64> {
 }
 
 pub fn run(mut args: SweepArgs) -> ExitCode {
-    let (threads, warning) = penumbra::cli_params::thread_count(args.threads);
-    if let Some(w) = warning {
-        eprintln!("{w}");
-    }
-    args.threads = threads;
+    args.threads = penumbra::cli_params::threads_or_warn(args.threads);
     match run_inner(&args) {
         Ok(code) => ExitCode::from(code),
-        Err(f) => {
-            let m = f.message.trim_end();
-            if m.starts_with("error") || m.contains(": error") {
-                eprintln!("{m}");
-            } else {
-                eprintln!("error: {m}");
-            }
-            ExitCode::from(f.code)
-        }
+        Err(f) => penumbra::cli_params::exit_with_error(f.code, &f.message),
     }
 }
 

@@ -169,11 +169,16 @@ fn place_labels(points: &[(i32, i32)], sizes: &[(i32, i32)], area: (u32, u32)) -
         .collect()
 }
 
+/// Registers the embedded font as plotters' "sans-serif" (for every drawing of the application).
+pub(crate) fn register_font() -> Result<(), String> {
+    plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, FONT)
+        .map_err(|_| "the embedded plot font is invalid".to_string())
+}
+
 /// Draws the plot as SVG text and as PNG bytes.
 pub fn render_plots(title: &str, metric: Metric, series: &[Series]) -> Result<(String, Vec<u8>), String> {
     use plotters::prelude::*;
-    plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
-        .map_err(|_| "the embedded plot font is invalid".to_string())?;
+    register_font()?;
     let mut svg = String::new();
     draw_chart(SVGBackend::with_string(&mut svg, PLOT_SIZE).into_drawing_area(), title, metric, series)?;
     let (w, h) = PLOT_SIZE;

@@ -19,7 +19,7 @@ use crate::common::{SH_ORDER, SH_TRANSFER};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, Frame, Ray};
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::material::Material;
@@ -30,7 +30,7 @@ use penumbra_core::sh::{basis, transfer::TransferChannels, ShOrder, MAX_ORDER};
 use penumbra_core::texture::TextureEvalContext;
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
-use std::f32::consts::FRAC_1_PI;
+use std::f32::consts::{FRAC_1_PI, PI};
 
 pub struct AmbientOcclusion {
     pub nsamples: u32,
@@ -38,7 +38,18 @@ pub struct AmbientOcclusion {
     pub max_distance: f32,
     /// The order of the SH transfer channels, when they are written (`"bool sh"`).
     pub sh: Option<ShOrder>,
+    /// Occlusion rays start this far (absolute, world units) along the normal instead of at
+    /// pbrt-v3's error-bounded offset: the classic fixed ray epsilon, which breaks at small
+    /// scales (it steps over contact occluders) and far from the origin (it is below the
+    /// rounding of the hit point). Only the hidden integrator [`FIXED_EPSILON_NAME`] sets it,
+    /// so that `penumbra stability` can be shown to catch what it claims to.
+    pub fixed_epsilon: Option<f32>,
 }
+
+/// The hidden, deliberately unstable integrator: `ambientocclusion` with a fixed ray epsilon.
+pub const FIXED_EPSILON_NAME: &str = "ambientocclusion-fixed-epsilon";
+/// Its epsilon: 1e-3 world units, a common choice in renderers tuned at unit scale.
+pub const FIXED_EPSILON: f32 = 1e-3;
 
 /// The parameters `ambientocclusion` reads.
 pub const PARAMS: &[ParamSpec] = &[
@@ -52,6 +63,15 @@ pub const PARAMS: &[ParamSpec] = &[
 
 impl AmbientOcclusion {
     pub fn create(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
+        Ok(Box::new(Self::from_params(params, warnings)?))
+    }
+
+    /// [`FIXED_EPSILON_NAME`]'s constructor (same parameters).
+    pub fn create_fixed_epsilon(params: &ParamSet, warnings: &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic> {
+        Ok(Box::new(AmbientOcclusion { fixed_epsilon: Some(FIXED_EPSILON), ..Self::from_params(params, warnings)? }))
+    }
+
+    fn from_params(params: &ParamSet, warnings: &DiagSink) -> Result<AmbientOcclusion, Diagnostic> {
         let p = Params::new("ambientocclusion", PARAMS, params, warnings);
         let nsamples = p.count("nsamples")?;
         let max_distance = p.float("maxdistance")?;
@@ -60,7 +80,7 @@ impl AmbientOcclusion {
         } else {
             None
         };
-        Ok(Box::new(AmbientOcclusion { nsamples, cos_sample: p.bool("cossample")?, max_distance, sh }))
+        Ok(AmbientOcclusion { nsamples, cos_sample: p.bool("cossample")?, max_distance, sh, fixed_epsilon: None })
     }
 }
 
@@ -103,7 +123,10 @@ impl PixelEstimator for Estimator<'_> {
                     continue;
                 }
                 let wi = frame.from_local(w);
-                let mut r = si.spawn_ray(wi);
+                let mut r = match self.ao.fixed_epsilon {
+                    Some(eps) => Ray::new(si.p + n * eps, wi, f32::INFINITY),
+                    None => si.spawn_ray(wi),
+                };
                 r.t_max = self.ao.max_distance;
                 stats.shadow_rays += 1;
                 if !scene.occluded(&r) {
@@ -135,7 +158,11 @@ pub(crate) fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Rgb {
 
 impl Integrator for AmbientOcclusion {
     fn name(&self) -> &str {
-        "ambientocclusion"
+        if self.fixed_epsilon.is_some() {
+            FIXED_EPSILON_NAME
+        } else {
+            "ambientocclusion"
+        }
     }
     fn merges_sample_ranges(&self) -> bool {
         true
@@ -153,5 +180,10 @@ impl Integrator for AmbientOcclusion {
                 .warn(None, format!("ambientocclusion: taking {n} samples, not {} as specified", self.nsamples));
         }
         render_pixels(&Estimator { ao: self, n }, scene, ctx, film)
+    }
+    /// Each unoccluded sample adds `cos θ / (pdf · n)`: π/n with cosine sampling, at most 2π/n
+    /// with uniform sampling.
+    fn radiance_bound(&self) -> Option<RadianceBound> {
+        Some(RadianceBound::Constant(if self.cos_sample { PI } else { 2.0 * PI }))
     }
 }

@@ -57,7 +57,7 @@ use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::Ray;
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, ThreadStats,
 };
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
@@ -286,6 +286,12 @@ impl Integrator for LtcIntegrator {
             other_lights: scene.light_list().iter().any(|l| !matches!(l, Light::Area(_))),
         };
         render_pixels(&est, scene, ctx, film)
+    }
+    /// Occluders only remove parts of a light's polygon, whose integrand is non-negative
+    /// (form factor, LTC), and the pixel clusters do not depend on shadows: the unshadowed
+    /// render bounds every pixel.
+    fn radiance_bound(&self) -> Option<RadianceBound> {
+        self.shadows.then(|| RadianceBound::Image(Box::new(LtcIntegrator { shadows: false, ..*self })))
     }
 }
 
