@@ -1,27 +1,31 @@
 //! `--param key=value` on the command line, with the value's type inferred.
 
+use penumbra_integrators::common::params::listing;
+use penumbra_integrators::Entry;
 use penumbra_parser::{Diagnostic, FileLoc, Param, ParamSet, ParamValue};
-use std::sync::Arc;
 
 /// Parses `key=value`: `true`/`false` → bool, an integer → integer, a number → float,
-/// comma-separated numbers → floats, anything else → string. Values inferred as
-/// integers are also accepted where a float is asked for.
+/// comma-separated integers → integers, other comma-separated numbers → floats, anything
+/// else → string. [`conform`] then gives each the type its integrator declares. Located at
+/// `<command line>`.
 pub fn parse_param(arg: &str) -> Result<Param, Diagnostic> {
-    let (k, v) = arg
-        .split_once('=')
-        .ok_or_else(|| Diagnostic::error(None, format!("--param expects key=value, got \"{arg}\"")))?;
+    let (k, v) = arg.split_once('=').ok_or_else(|| {
+        Diagnostic::error(Some(FileLoc::command_line()), format!("--param expects key=value, got \"{arg}\""))
+    })?;
     let k = k.trim();
     if k.is_empty() {
-        return Err(Diagnostic::error(None, format!("--param has an empty key in \"{arg}\"")));
+        return Err(Diagnostic::error(Some(FileLoc::command_line()), format!("--param has an empty key in \"{arg}\"")));
     }
     let v = v.trim();
-    let loc = FileLoc::new(Arc::from("<command line>"), 1, 1);
+    let loc = FileLoc::command_line();
     let value = if v == "true" || v == "false" {
         ParamValue::Bool(vec![v == "true"])
     } else if let Ok(i) = v.parse::<i32>() {
         ParamValue::Int(vec![i])
     } else if let Ok(f) = v.parse::<f32>() {
         ParamValue::Float(vec![f])
+    } else if v.contains(',') && v.split(',').all(|s| s.trim().parse::<i32>().is_ok()) {
+        ParamValue::Int(v.split(',').map(|s| s.trim().parse::<i32>().unwrap_or(0)).collect())
     } else if v.contains(',') && v.split(',').all(|s| s.trim().parse::<f32>().is_ok()) {
         ParamValue::Float(v.split(',').map(|s| s.trim().parse::<f32>().unwrap_or(0.0)).collect())
     } else {
@@ -30,6 +34,28 @@ pub fn parse_param(arg: &str) -> Result<Param, Diagnostic> {
     let mut p = Param::new(k, value, loc);
     p.loose = true;
     Ok(p)
+}
+
+/// Every `--param` argument, parsed ([`parse_param`]).
+pub fn parse_all(args: &[String]) -> Result<Vec<Param>, Diagnostic> {
+    args.iter().map(|a| parse_param(a)).collect()
+}
+
+/// The command-line parameters given the types `integrator` declares for them
+/// ([`penumbra_integrators::common::params::ParamSpec::conform`]): a name it does not declare, or
+/// a value that is not of its type or out of its range, is an error that lists its parameters.
+pub fn conform(integrator: &Entry, params: &[Param]) -> Result<Vec<Param>, Diagnostic> {
+    params
+        .iter()
+        .map(|p| {
+            let error =
+                |msg: String| Diagnostic::error(Some(p.loc.clone()), format!("{msg}; {}", listing(integrator.params)));
+            match integrator.params.iter().find(|s| s.name == p.name) {
+                None => Err(error(format!("integrator \"{}\" has no parameter \"{}\"", integrator.name, p.name))),
+                Some(spec) => spec.conform(integrator.name, p).map_err(error),
+            }
+        })
+        .collect()
 }
 
 /// `--threads N` (0: all cores). More threads than the machine has cores add nothing (images
@@ -104,7 +130,44 @@ mod tests {
         assert_eq!(parse_param("maxdistance=0.5").unwrap().value, ParamValue::Float(vec![0.5]));
         assert_eq!(parse_param("cossample=false").unwrap().value, ParamValue::Bool(vec![false]));
         assert_eq!(parse_param("mode=silhouette").unwrap().value, ParamValue::String(vec!["silhouette".into()]));
+        assert_eq!(parse_param("pixelbounds=0,4,2,8").unwrap().value, ParamValue::Int(vec![0, 4, 2, 8]));
         assert!(parse_param("novalue").is_err());
         assert!(parse_param("=3").is_err());
+    }
+}
+
+#[cfg(test)]
+mod conform_tests {
+    use super::*;
+
+    fn conformed(integrator: &str, args: &[&str]) -> Result<Vec<Param>, String> {
+        let entry = penumbra_integrators::find(integrator).unwrap();
+        let params: Vec<Param> = args.iter().map(|a| parse_param(a).unwrap()).collect();
+        conform(entry, &params).map_err(|d| d.message)
+    }
+
+    #[test]
+    fn types_come_from_the_integrator() {
+        let p = conformed("ambientocclusion", &["maxdistance=1", "nsamples=8", "cossample=false"]).unwrap();
+        assert_eq!(p[0].value, ParamValue::Float(vec![1.0]));
+        assert_eq!(p[1].value, ParamValue::Int(vec![8]));
+        assert_eq!(p[2].value, ParamValue::Bool(vec![false]));
+        assert!(p.iter().all(|p| p.loc == FileLoc::command_line()));
+        let p = conformed("directlighting", &["pixelbounds=0,4,2,8"]).unwrap();
+        assert_eq!(p[0].value, ParamValue::Int(vec![0, 4, 2, 8]));
+    }
+
+    #[test]
+    fn unknown_and_ill_typed_are_errors() {
+        let e = conformed("ltc", &["shadow=false"]).unwrap_err();
+        assert!(e.contains("no parameter \"shadow\"") && e.contains("shadows (bool)"), "{e}");
+        let e = conformed("ltc", &["shadows=flase"]).unwrap_err();
+        assert!(e.contains("expects a bool"), "{e}");
+        let e = conformed("ambientocclusion", &["nsamples=2.5"]).unwrap_err();
+        assert!(e.contains("expects an integer"), "{e}");
+        let e = conformed("ltc", &["mode=fast"]).unwrap_err();
+        assert!(e.contains("auto, silhouette"), "{e}");
+        let e = conformed("ambientocclusion", &["nsamples=0"]).unwrap_err();
+        assert!(e.contains("must be in 1..=1048576, got 0"), "{e}");
     }
 }

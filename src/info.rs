@@ -2,7 +2,7 @@
 
 use penumbra::{cli_params, pipeline};
 use penumbra_core::scene::{BuildOptions, Scene};
-use penumbra_parser::{DiagSink, Entity, ParamValue, SceneDescription, ShapeDesc};
+use penumbra_parser::{DiagSink, Entity, Param, ParamValue, SceneDescription, ShapeDesc};
 use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::PathBuf;
@@ -31,10 +31,20 @@ pub fn run(args: InfoArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    // As `render`: a bad `--param` is a usage error.
+    let params = match cli_params::parse_all(&args.params)
+        .and_then(|p| pipeline::conform_params(&parsed.scene, args.integrator.as_deref(), &p))
+    {
+        Ok(p) => p,
+        Err(d) => {
+            eprint!("{d}");
+            return ExitCode::from(penumbra::exit::USAGE);
+        }
+    };
     let warnings = DiagSink::new();
     warnings.extend(parsed.warnings);
     print!("{}", summary(&parsed.scene));
-    let checked = check(&parsed.scene, &args, &warnings);
+    let checked = check(&parsed.scene, &args, &params, &warnings);
     for w in warnings.take() {
         eprint!("{w}");
     }
@@ -51,11 +61,9 @@ pub fn run(args: InfoArgs) -> ExitCode {
 }
 
 /// What the chosen integrator would build (after checking it all but the BVH).
-fn check(desc: &SceneDescription, args: &InfoArgs, warnings: &DiagSink) -> Result<String, String> {
-    let params: Vec<_> =
-        args.params.iter().map(|p| cli_params::parse_param(p)).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
+fn check(desc: &SceneDescription, args: &InfoArgs, params: &[Param], warnings: &DiagSink) -> Result<String, String> {
     let integrator =
-        pipeline::choose_integrator(desc, args.integrator.as_deref(), &params, warnings).map_err(|d| d.to_string())?;
+        pipeline::choose_integrator(desc, args.integrator.as_deref(), params, warnings).map_err(|d| d.to_string())?;
     let req = integrator.requirements();
     let scene = Scene::check(desc, req, &BuildOptions::default(), warnings).map_err(|d| d.to_string())?;
     let mut o = String::new();

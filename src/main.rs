@@ -34,6 +34,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene (default: the embedded default scene).
+    #[command(after_help = penumbra_integrators::help_text())]
     Render(render::RenderArgs),
     /// Check a scene as `render` would (every warning and error, no rendering) and print what it contains.
     Info(info::InfoArgs),

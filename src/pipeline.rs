@@ -5,7 +5,7 @@ use penumbra_core::film::{Film, FilmSpec};
 use penumbra_core::image::Image;
 use penumbra_core::integrator::{Integrator, RenderContext, RenderError, RenderStats};
 use penumbra_core::scene::{BuildOptions, BuildReport, Scene};
-use penumbra_parser::{DiagSink, Diagnostic, Param, ParseOutput, SceneDescription};
+use penumbra_parser::{DiagSink, Diagnostic, Param, ParamSet, ParseOutput, SceneDescription};
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
@@ -26,8 +26,34 @@ pub fn load_scene(path: Option<&Path>) -> Result<ParseOutput, Diagnostic> {
     }
 }
 
+/// The integrator that will run: `-i`, else the scene's when penumbra implements it, else
+/// [`FALLBACK_INTEGRATOR`] (`choose_integrator` says so).
+pub fn integrator_name<'a>(desc: &'a SceneDescription, cli_name: Option<&'a str>) -> &'a str {
+    match cli_name {
+        Some(n) => n,
+        None if penumbra_integrators::find(&desc.integrator.kind).is_some() => &desc.integrator.kind,
+        None => FALLBACK_INTEGRATOR,
+    }
+}
+
+/// The command-line parameters typed for the integrator that will run
+/// ([`cli_params::conform`]): an unknown name or an ill-typed value is an error naming its
+/// parameters (a usage error). An unknown integrator is left for [`choose_integrator`].
+pub fn conform_params(
+    desc: &SceneDescription,
+    cli_name: Option<&str>,
+    cli_params: &[Param],
+) -> Result<Vec<Param>, Diagnostic> {
+    match penumbra_integrators::find(integrator_name(desc, cli_name)) {
+        Some(entry) => cli_params::conform(entry, cli_params),
+        None => Ok(cli_params.to_vec()),
+    }
+}
+
 /// The integrator to run and its parameters: `-i` wins; otherwise the scene's
-/// own, falling back (with a warning) when penumbra does not implement it.
+/// own, falling back (with a warning) when penumbra does not implement it. The scene's
+/// parameters keep pbrt-v3's semantics (unused ones warn); the command line's must be ones
+/// the integrator declares ([`conform_params`]).
 pub fn choose_integrator(
     desc: &SceneDescription,
     cli_name: Option<&str>,
@@ -35,16 +61,12 @@ pub fn choose_integrator(
     warnings: &DiagSink,
 ) -> Result<Box<dyn Integrator>, Diagnostic> {
     let scene_name = desc.integrator.kind.as_str();
-    let (name, base) = match cli_name {
-        Some(n) if n == scene_name => (n.to_string(), desc.integrator.params.clone()),
-        Some(n) => {
-            desc.integrator.params.mark_all_used();
-            (n.to_string(), Default::default())
-        }
-        None if penumbra_integrators::find(scene_name).is_some() => {
-            (scene_name.to_string(), desc.integrator.params.clone())
-        }
-        None => {
+    let name = integrator_name(desc, cli_name);
+    let base = if name == scene_name {
+        desc.integrator.params.clone()
+    } else {
+        desc.integrator.params.mark_all_used();
+        if cli_name.is_none() {
             let known = penumbra_integrators::PBRT_UNIMPLEMENTED.contains(&scene_name);
             warnings.warn(
                 Some(desc.integrator.loc.clone()),
@@ -53,18 +75,21 @@ pub fn choose_integrator(
                     if known { "pbrt-v3" } else { "unknown" }
                 ),
             );
+            // pbrt-v3's other integrators share `path`'s `maxdepth`.
             let base = desc.integrator.params.clone();
             base.mark_all_used();
-            (FALLBACK_INTEGRATOR.to_string(), base)
+            base
+        } else {
+            ParamSet::default()
         }
     };
-    let entry = penumbra_integrators::find(&name).ok_or_else(|| {
+    let entry = penumbra_integrators::find(name).ok_or_else(|| {
         Diagnostic::error(
             None,
             format!("unknown integrator \"{name}\"; valid names: {}", penumbra_integrators::names().join(", ")),
         )
     })?;
-    let params = cli_params::merge(&base, cli_params);
+    let params = cli_params::merge(&base, &cli_params::conform(entry, cli_params)?);
     let integrator = (entry.create)(&params, warnings)?;
     warnings.extend(params.report_unused(&format!("integrator \"{name}\"")));
     Ok(integrator)

@@ -7,7 +7,7 @@ use penumbra::shard::{self, ShardRequest};
 use penumbra_core::image::Image;
 use penumbra_core::scene::{BuildOptions, Crop};
 use penumbra_core::shard::TileLayout;
-use penumbra_parser::{DiagSink, Diagnostic, Param, SceneDescription};
+use penumbra_parser::{DiagSink, Param, SceneDescription};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -21,11 +21,12 @@ pub struct RenderArgs {
     /// Integrator to use (overrides the scene's `Integrator`).
     #[arg(short = 'i', long = "integrator")]
     pub integrator: Option<String>,
-    /// Integrator parameter `key=value` (repeatable; type inferred).
+    /// Integrator parameter `key=value` (repeatable): one the integrator declares (listed
+    /// below), its value of the declared type.
     #[arg(long = "param", value_name = "KEY=VALUE")]
     pub params: Vec<String>,
     /// Samples per pixel (overrides the scene's sampler).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=penumbra_core::sampler::MAX_SAMPLES))]
     pub spp: Option<u32>,
     /// Output image (.exr, .png or .pfm; default: the scene's Film filename).
     #[arg(short = 'o', long = "output")]
@@ -188,7 +189,18 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
     };
     let parse_seconds = t0.elapsed().as_secs_f64();
     warnings.extend(parsed.warnings);
-    let inputs = match Inputs::of(&args, &parsed.scene) {
+    // A malformed `--param`, one the integrator does not declare, or one of the wrong type is
+    // a usage error.
+    let params = match cli_params::parse_all(&args.params)
+        .and_then(|p| pipeline::conform_params(&parsed.scene, args.integrator.as_deref(), &p))
+    {
+        Ok(p) => p,
+        Err(d) => {
+            eprint!("{d}");
+            return ExitCode::from(penumbra::exit::USAGE);
+        }
+    };
+    let inputs = match Inputs::of(&args, &parsed.scene, params) {
         Ok(i) => i,
         Err(e) => return fail(e),
     };
@@ -330,9 +342,7 @@ struct Inputs {
 }
 
 impl Inputs {
-    fn of(args: &RenderArgs, scene: &SceneDescription) -> Result<Inputs, String> {
-        let params: Result<Vec<_>, Diagnostic> = args.params.iter().map(|p| cli_params::parse_param(p)).collect();
-        let params = params.map_err(|e| e.message)?;
+    fn of(args: &RenderArgs, scene: &SceneDescription, params: Vec<Param>) -> Result<Inputs, String> {
         let crop = args.crop.as_deref().map(parse_crop).transpose()?;
         let resolution = args.resolution.as_deref().map(parse_resolution).transpose()?;
         if let Some(c) = crop {

@@ -106,6 +106,42 @@ pub fn find(name: &str) -> Option<&'static Entry> {
     REGISTRY.iter().chain(HIDDEN).find(|e| e.name == name)
 }
 
+/// `render --help`'s list of the registered integrators and their parameters.
+pub fn help_text() -> String {
+    let mut o =
+        String::from("Integrators (-i NAME) and their parameters (--param NAME=VALUE; name: type = default):\n");
+    for e in REGISTRY {
+        o += &format!("  {}: {}\n", e.name, e.method);
+        o += &common::params::help_text(e.params);
+    }
+    o
+}
+
+/// The README's list of the registered integrators' parameters (between [`README_BEGIN`] and
+/// [`README_END`]; `cargo run -p penumbra-integrators --example readme-params` rewrites it).
+pub fn markdown() -> String {
+    let mut o = String::new();
+    for e in REGISTRY {
+        o += &format!("\n**`{}`**\n\n", e.name);
+        o += &common::params::markdown(e.params);
+    }
+    o
+}
+
+pub const README_BEGIN: &str = "<!-- integrator-params:begin (generated from the registry: cargo run -p penumbra-integrators --example readme-params) -->";
+pub const README_END: &str = "<!-- integrator-params:end -->";
+
+/// `readme` with the text between its markers replaced by [`markdown`].
+pub fn with_generated_params(readme: &str) -> Result<String, String> {
+    let begin = readme.find(README_BEGIN).ok_or("README: the integrator-params begin marker is missing")?;
+    let end = readme.find(README_END).ok_or("README: the integrator-params end marker is missing")?;
+    let from = begin + README_BEGIN.len();
+    if end < from {
+        return Err("README: the integrator-params end marker comes before the begin marker".into());
+    }
+    Ok(format!("{}\n{}\n{}", &readme[..from], markdown(), &readme[end..]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -21,6 +21,10 @@ impl FileLoc {
     pub fn builtin() -> Self {
         FileLoc { file: Arc::from("<default>"), line: 0, column: 0 }
     }
+    /// The location of values given on the command line (shown as `<command line>`).
+    pub fn command_line() -> Self {
+        FileLoc { file: Arc::from("<command line>"), line: 0, column: 0 }
+    }
     pub fn is_builtin(&self) -> bool {
         self.line == 0
     }

@@ -158,12 +158,7 @@ pub fn setup(args: &StabilityArgs) -> Result<Setup, Failure> {
         Some(list) => variants::select(&all, list).map_err(fail)?,
         None => all,
     };
-    let params = args
-        .params
-        .iter()
-        .map(|p| cli_params::parse_param(p))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| fail(e.message))?;
+    let params = cli_params::parse_all(&args.params).map_err(|e| fail(e.message))?;
     let parsed = pipeline::load_scene(Some(&args.scene)).map_err(|d| fail(d.to_string()))?;
     let resolution = match &args.resolution {
         Some(r) => parse_resolution(r).map_err(fail)?,

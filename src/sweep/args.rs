@@ -8,6 +8,7 @@ use penumbra::cli_params;
 use penumbra::pipeline;
 use penumbra_core::metrics;
 use penumbra_core::scene::Crop;
+use penumbra_integrators::common::params::Kind;
 use penumbra_parser::{DiagSink, Param, SceneDescription};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
@@ -77,7 +78,8 @@ pub struct SweepArgs {
     /// Samples per pixel when the budget is a parameter (default: the scene's sampler).
     #[arg(long, requires = "budget_param", value_parser = clap::value_parser!(u32).range(1..))]
     pub spp: Option<u32>,
-    /// Integrator parameter `key=value` for every integrator (repeatable; type inferred).
+    /// Integrator parameter `key=value` for every integrator (repeatable): each must declare it
+    /// (`penumbra render --help` lists them), its value of the declared type.
     #[arg(long = "param", value_name = "KEY=VALUE")]
     pub params: Vec<String>,
     /// Worker threads (default: all cores).
@@ -215,12 +217,14 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
             return Err(fail("--budget-param expects a parameter name"));
         }
     }
-    let params = args
-        .params
-        .iter()
-        .map(|p| cli_params::parse_param(p))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| fail(e.message))?;
+    let usage = |d: penumbra_parser::Diagnostic| Failure { code: penumbra::exit::USAGE, message: d.to_string() };
+    let params = cli_params::parse_all(&args.params).map_err(usage)?;
+    // Every `--param` applies to every integrator of the sweep: each must declare it, with its type.
+    for n in &integrators {
+        if let Some(entry) = penumbra_integrators::find(n) {
+            cli_params::conform(entry, &params).map_err(usage)?;
+        }
+    }
     let crop = args.crop.as_deref().map(parse_crop).transpose().map_err(fail)?;
     let resolution = args.resolution.as_deref().map(parse_resolution).transpose().map_err(fail)?;
     let scene_bytes =
@@ -233,20 +237,21 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
     warnings.extend(parsed.warnings);
     // Create each integrator once with its parameters, so that bad values fail before any render.
     for n in &integrators {
+        // The budget parameter must be an integer parameter the integrator declares.
+        if let (Some(name), Some(entry)) = (&args.budget_param, penumbra_integrators::find(n)) {
+            if !entry.params.iter().any(|s| s.name == name.trim() && s.kind == Kind::Int) {
+                return Err(fail(format!(
+                    "--budget-param {}: integrator \"{n}\" has no such integer parameter",
+                    name.trim()
+                )));
+            }
+        }
         let mut p = params.clone();
         if let Some(name) = &args.budget_param {
             p.push(budget_param(name, 1)?);
         }
         pipeline::choose_integrator(&parsed.scene, Some(n), &p, &warnings)
             .map_err(|d| Failure { code: 1, message: format!("integrator \"{n}\": {}", d.message) })?;
-        // The budget parameter must be one the integrator reads.
-        if let (Some(name), Some(entry)) = (&args.budget_param, penumbra_integrators::find(n)) {
-            let ps = cli_params::merge(&Default::default(), &[budget_param(name, 1)?]);
-            let _ = (entry.create)(&ps, &DiagSink::new());
-            if !ps.find(name.trim()).is_some_and(|p| p.was_used()) {
-                return Err(fail(format!("--budget-param {}: integrator \"{n}\" has no such parameter", name.trim())));
-            }
-        }
     }
     let mut seen = BTreeSet::new();
     print_new_warnings(&warnings, &mut seen);

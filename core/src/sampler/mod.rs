@@ -142,10 +142,19 @@ impl Sampler for OffsetSampler {
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SamplerError {
-    #[error("{loc}: sampler \"{name}\" unknown (valid samplers: {valid})")]
+    #[error("sampler \"{name}\" unknown (valid samplers: {valid})")]
     Unknown { name: String, loc: FileLoc, valid: String },
-    #[error("{loc}: sampler \"{sampler}\": invalid \"{param}\" {value}: {reason}")]
+    #[error("sampler \"{sampler}\": invalid \"{param}\" {value}: {reason}")]
     InvalidParameter { sampler: String, param: String, value: i64, reason: String, loc: FileLoc },
+}
+
+impl SamplerError {
+    /// Where the bad value was written: the scene, or `<command line>` for `--spp`.
+    pub fn loc(&self) -> &FileLoc {
+        match self {
+            SamplerError::Unknown { loc, .. } | SamplerError::InvalidParameter { loc, .. } => loc,
+        }
+    }
 }
 
 /// The names `create_sampler` accepts (pbrt-v3's; "lowdiscrepancy" is an alias of "02sequence").
@@ -204,7 +213,7 @@ pub fn create_sampler(
                 param: "spp".into(),
                 value: n as i64,
                 reason: format!("must be between 1 and {MAX_SAMPLES}"),
-                loc: FileLoc::new("<command line>".into(), 0, 0),
+                loc: FileLoc::command_line(),
             }),
             Some(n) => Ok(n),
             None => Ok(from_scene),
@@ -240,7 +249,7 @@ pub fn create_sampler(
                         param: "spp".into(),
                         value: n as i64,
                         reason: format!("must be between 1 and {MAX_SAMPLES}"),
-                        loc: FileLoc::new("<command line>".into(), 0, 0),
+                        loc: FileLoc::command_line(),
                     });
                 }
                 let mut x = (n as f64).sqrt() as u32;

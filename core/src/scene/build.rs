@@ -188,7 +188,7 @@ fn sampler(
 ) -> Result<Box<dyn Sampler>, Diagnostic> {
     let sampler_with = |spp: Option<u32>, warnings: &DiagSink| {
         create_sampler(&desc.sampler, spp, opts.seed, warnings)
-            .map_err(|e| Diagnostic::error(Some(desc.sampler.loc.clone()), e.to_string()))
+            .map_err(|e| Diagnostic::error(Some(e.loc().clone()), e.to_string()))
     };
     let mut sampler = sampler_with(opts.spp, warnings)?;
     if let Some((min, why)) = req.min_pixel_samples {

@@ -374,67 +374,48 @@ fn or_list(words: &[&str]) -> String {
     }
 }
 
-/// `render --help`'s list: one block per integrator, one line per parameter.
-pub fn help_text(integrators: &[(&str, &[ParamSpec])]) -> String {
+/// One integrator's parameters as `render --help` lists them: one line each.
+pub fn help_text(specs: &[ParamSpec]) -> String {
     let mut o = String::new();
-    for (name, specs) in integrators {
-        let _ = writeln!(o, "  {name}");
-        if specs.is_empty() {
-            let _ = writeln!(o, "      (no parameters)");
-        }
-        for s in specs.iter() {
-            let range = s.range.describe();
-            let range = if range.is_empty() { String::new() } else { format!(", {range}") };
-            let _ = writeln!(o, "      {}: {} = {}{range}  {}", s.name, s.kind.describe(), s.default, s.doc);
-        }
+    if specs.is_empty() {
+        let _ = writeln!(o, "      (no parameters)");
+    }
+    for s in specs {
+        let range = s.range.describe();
+        let range = if range.is_empty() { String::new() } else { format!(", {range}") };
+        let _ = writeln!(o, "      {}: {} = {}{range}. {}", s.name, s.kind.describe(), s.default, s.doc);
     }
     o
 }
 
-/// The README's list: one table per integrator.
-pub fn markdown(integrators: &[(&str, &[ParamSpec])]) -> String {
+/// One integrator's parameters as the README lists them: a table.
+pub fn markdown(specs: &[ParamSpec]) -> String {
     let mut o = String::new();
-    for (name, specs) in integrators {
-        let _ = writeln!(o, "**`{name}`**");
-        let _ = writeln!(o);
-        if specs.is_empty() {
-            let _ = writeln!(o, "No parameters.");
-            let _ = writeln!(o);
-            continue;
-        }
-        let _ = writeln!(o, "| parameter | type | default | accepts | doc |");
-        let _ = writeln!(o, "|---|---|---|---|---|");
-        for s in specs.iter() {
-            let accepts = match s.kind {
-                Kind::Enum(words) => words.iter().map(|w| format!("`{w}`")).collect::<Vec<_>>().join(", "),
-                _ => s.range.describe(),
-            };
-            let _ = writeln!(
-                o,
-                "| `\"{}\"` | {} | {} | {accepts} | {} |",
-                s.declaration(),
-                s.kind.describe().replace('|', "\\|"),
-                s.default,
-                s.doc.replace('|', "\\|")
-            );
-        }
-        let _ = writeln!(o);
+    if specs.is_empty() {
+        let _ = writeln!(o, "No parameters.");
+        return o;
+    }
+    let _ = writeln!(o, "| parameter | default | accepts | |");
+    let _ = writeln!(o, "|---|---|---|---|");
+    for s in specs {
+        let accepts = match s.kind {
+            Kind::Enum(words) => words.iter().map(|w| format!("`{w}`")).collect::<Vec<_>>().join(", "),
+            Kind::Ints(n) => format!("{n} values"),
+            _ => s.range.describe(),
+        };
+        let _ =
+            writeln!(o, "| `\"{}\"` | {} | {accepts} | {} |", s.declaration(), s.default, s.doc.replace('|', "\\|"));
     }
     o
 }
 
-/// The error for command-line parameters `owner` does not declare: names every parameter it
-/// has, with its type.
-pub fn unknown_error(owner: &str, specs: &[ParamSpec], name: &str) -> String {
-    let known = if specs.is_empty() {
-        "it has no parameters".to_string()
-    } else {
-        format!(
-            "its parameters: {}",
-            specs.iter().map(|s| format!("{} ({})", s.name, s.kind.describe())).collect::<Vec<_>>().join(", ")
-        )
-    };
-    format!("integrator \"{owner}\" has no parameter \"{name}\"; {known}")
+/// `its parameters: name (type), …`, for command-line errors.
+pub fn listing(specs: &[ParamSpec]) -> String {
+    if specs.is_empty() {
+        return "it has no parameters".to_string();
+    }
+    let each: Vec<String> = specs.iter().map(|s| format!("{} ({})", s.name, s.kind.describe())).collect();
+    format!("its parameters: {}", each.join(", "))
 }
 
 #[cfg(test)]
