@@ -79,6 +79,17 @@ fn verdict(v: Option<(&Variant, Expect)>, m: &Measures, t: &Tolerances) -> Vec<&
     why
 }
 
+/// Non-finite values anywhere (2) outrank a tolerance exceeded (1).
+fn exit_code(rows: &[Row]) -> u8 {
+    if rows.iter().any(|r| r.m.nonfinite > 0) {
+        EXIT_NONFINITE
+    } else if rows.iter().any(|r| !r.fails.is_empty()) {
+        EXIT_TOLERANCE
+    } else {
+        EXIT_STABLE
+    }
+}
+
 fn run_inner(args: &StabilityArgs) -> Result<u8, Failure> {
     let mut s = setup(args)?;
     std::fs::create_dir_all(&args.output).map_err(|e| fail(format!("cannot create {}: {e}", args.output.display())))?;
@@ -126,13 +137,7 @@ fn run_inner(args: &StabilityArgs) -> Result<u8, Failure> {
             rows.push(Row::new(name, Some((v, expect)), geo.extent, m, r.seconds, fails));
         }
     }
-    let code = if rows.iter().any(|r| r.m.nonfinite > 0) {
-        EXIT_NONFINITE
-    } else if rows.iter().any(|r| !r.fails.is_empty()) {
-        EXIT_TOLERANCE
-    } else {
-        EXIT_STABLE
-    };
+    let code = exit_code(&rows);
     let out = output::Report { args, setup: &s, geo: &geo, rows: &rows, notes: &notes, exit_code: code };
     out.write(&cells).map_err(fail)?;
     if args.json {
@@ -219,5 +224,40 @@ impl Study<'_> {
         } else {
             fail(format!("{name} on {label}: {e}"))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What fails a row: non-finite always; negative and bound counts over their tolerance;
+    /// |z| only where the image must not change, and translations only up to `far`.
+    #[test]
+    fn verdicts_and_exit_codes() {
+        let t = Tolerances::parse("z=8,negative=0,bound=0,far=100").unwrap();
+        let m = |z: f64| Measures { max_z: Some(z), above_bound: Some(0), ..Default::default() };
+        let (rot, far, rough) =
+            (Variant::new(Kind::Rotate), Variant::new(Kind::Translate(1e4)), Variant::new(Kind::Roughness(0.0)));
+        fn v(v: &Variant) -> Option<(&Variant, Expect)> {
+            Some((v, v.expect(true)))
+        }
+        assert!(verdict(v(&rot), &m(7.9), &t).is_empty());
+        assert_eq!(verdict(v(&rot), &m(8.1), &t), ["z"]);
+        assert_eq!(verdict(v(&rot), &m(f64::NAN), &t), ["z"], "a NaN |z| is not within tolerance");
+        assert!(verdict(v(&far), &m(1e3), &t).is_empty(), "beyond far: reported, not gated");
+        assert!(verdict(v(&rough), &m(1e3), &t).is_empty(), "roughness changes the image");
+        let bad = Measures { negative: 2, above_bound: Some(1), ..m(1.0) };
+        assert_eq!(verdict(v(&rough), &bad, &t), ["negative", "bound"]);
+        let none = Tolerances::parse("none").unwrap();
+        assert!(verdict(v(&rot), &Measures { negative: 5, ..m(1e9) }, &none).is_empty());
+        let nan = Measures { nonfinite: 1, ..m(0.0) };
+        assert_eq!(verdict(None, &nan, &none), ["nonfinite"]);
+
+        let row = |m: Measures, fails| Row::new("x", None, 1.0, m, 0.0, fails);
+        assert_eq!(exit_code(&[row(m(1.0), vec![])]), EXIT_STABLE);
+        assert_eq!(exit_code(&[row(m(1.0), vec![]), row(m(9.0), vec!["z"])]), EXIT_TOLERANCE);
+        assert_eq!(exit_code(&[row(m(9.0), vec!["z"]), row(nan, vec!["nonfinite"])]), EXIT_NONFINITE);
+        assert_eq!((EXIT_STABLE, EXIT_TOLERANCE, EXIT_NONFINITE, EXIT_ERROR), (0, 1, 2, 4));
     }
 }

@@ -335,7 +335,9 @@ fn contact_sheet(cells: &[ContactCell]) -> Result<Vec<u8>, String> {
         let small = ("sans-serif", 10).into_font().color(&RGBColor(70, 70, 70));
         root.draw(&Text::new("base | variant | |z| (0-10)", (4, 4), small.clone())).map_err(e)?;
         for (i, name) in integrators.iter().enumerate() {
-            root.draw(&Text::new(name.to_string(), ((label_w + i * cell_w) as i32, 16), font.clone())).map_err(e)?;
+            // About 7 px a character at 12 px: longer names are cut to their cell.
+            let fit: String = name.chars().take(cell_w / 7).collect();
+            root.draw(&Text::new(fit, ((label_w + i * cell_w) as i32, 16), font.clone())).map_err(e)?;
         }
         for (j, v) in variants.iter().enumerate() {
             let y0 = head_h + j * cell_h;

@@ -306,6 +306,81 @@ mod tests {
         assert!(select(&all, &["nope".into()]).unwrap_err().contains("unknown variant \"nope\""));
     }
 
+    const SCENE: &str = r#"LookAt 0 2 -5  0 0 0  0 1 0 Camera "perspective"
+        Film "image" "integer xresolution" 8 "integer yresolution" 8
+        WorldBegin
+        LightSource "point" "rgb I" [1 1 1] "point from" [0 3 0]
+        AttributeBegin AreaLightSource "diffuse" "rgb L" [2 2 2]
+          Shape "trianglemesh" "integer indices" [0 1 2] "point P" [1 2 0  3 2 0  2 2 3] AttributeEnd
+        Material "plastic" "float roughness" 0.3
+        Shape "trianglemesh" "integer indices" [0 1 2 0 2 3] "point P" [-1 0 -1 1 0 -1 1 0 1 -1 0 1]
+        Material "substrate"
+        Shape "sphere" "float radius" 0.5
+        WorldEnd"#;
+
+    fn rgb(ps: &ParamSet, name: &str) -> Vec<f32> {
+        match &ps.find(name).unwrap().value {
+            ParamValue::Spectrum(SpectrumValue::Rgb(v)) => v.clone(),
+            v => panic!("{v:?}"),
+        }
+    }
+
+    #[test]
+    fn variants_edit_the_description() {
+        let base = penumbra_parser::parse_str(SCENE, "<test>", None).unwrap().scene;
+        let geo = Geometry::of(&base, &BuildOptions::default()).unwrap();
+        // The quad (first shape with a material and no area light), diagonal 2√2.
+        assert_eq!(geo.chosen_shape.map(|(i, _)| i), Some(1));
+        assert!((geo.chosen_shape.unwrap().1 - 8f64.sqrt()).abs() < 1e-6, "{:?}", geo.chosen_shape);
+        let apply = |k: Kind| Variant::new(k).apply(&base, &geo).unwrap();
+
+        // Scale: the point light's scale by s², so its irradiance at scaled distances is unchanged.
+        let d = apply(Kind::Scale(1e-4));
+        assert!((rgb(&d.lights[0].entity.params, "scale")[0] - 1e-8).abs() < 1e-14);
+        let p = d.shapes[1].render_from_object.start.apply_point([1.0, 0.0, 1.0]);
+        assert!((p[0] - 1e-4).abs() < 1e-12 && (p[2] - 1e-4).abs() < 1e-12, "{p:?}");
+
+        // Translation by 1e2 extents along (1,1,1)/√3.
+        let d = apply(Kind::Translate(1e2));
+        let p = d.shapes[1].render_from_object.start.apply_point([0.0; 3]);
+        assert!((p[0] - 1e2 * geo.extent / 3f64.sqrt()).abs() < 1e-9, "{p:?}");
+
+        // Light scale: every light and area light.
+        let d = apply(Kind::LightScale(1e6));
+        assert_eq!(rgb(&d.lights[0].entity.params, "scale"), vec![1e6; 3]);
+        assert_eq!(rgb(&d.area_lights[0].params, "scale"), vec![1e6; 3]);
+
+        // Tiny light: the emitter shrunk 1000× about its centroid (2, 2, 1), radiance × 1e6.
+        let d = apply(Kind::TinyLight);
+        let t = &d.shapes[0].render_from_object.start;
+        let (c, v) = (t.apply_point([2.0, 2.0, 1.0]), t.apply_point([1.0, 2.0, 0.0]));
+        assert!(c.iter().zip([2.0, 2.0, 1.0]).all(|(a, b)| (a - b).abs() < 1e-12), "{c:?}");
+        assert!((v[0] - (2.0 - 1e-3)).abs() < 1e-9, "{v:?}");
+        assert!((rgb(&d.area_lights[0].params, "scale")[0] - 1e6).abs() < 1.0);
+
+        // Duplicate and offset copy: one more shape, the copy 1e-6 of the quad's size away.
+        let d = apply(Kind::Duplicate);
+        assert_eq!((d.shapes.len(), &d.shapes[3]), (4, &base.shapes[1]));
+        let d = apply(Kind::OffsetCopy);
+        let (a, b) = (
+            base.shapes[1].render_from_object.start.apply_point([0.0; 3]),
+            d.shapes[3].render_from_object.start.apply_point([0.0; 3]),
+        );
+        let moved = (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt();
+        assert!((moved / (OFFSET_FRACTION * 8f64.sqrt()) - 1.0).abs() < 1e-6, "{moved}");
+
+        // Roughness: plastic's roughness; substrate's u and v roughness, written where absent.
+        let d = apply(Kind::Roughness(0.0));
+        let rough = |m: usize, n: &str| d.materials[m].entity.params.find(n).map(|p| p.value.clone());
+        let zero = Some(ParamValue::Float(vec![0.0]));
+        let (plastic, substrate) = (
+            d.materials.iter().position(|m| m.entity.kind == "plastic").unwrap(),
+            d.materials.iter().position(|m| m.entity.kind == "substrate").unwrap(),
+        );
+        assert_eq!(rough(plastic, "roughness"), zero);
+        assert_eq!((rough(substrate, "uroughness"), rough(substrate, "vroughness")), (zero.clone(), zero));
+    }
+
     #[test]
     fn light_scale_multiplies_or_adds_the_scale_parameter() {
         let mut ps = ParamSet::new();
