@@ -19,15 +19,17 @@ scene, camera included, scaled (point-like lights' intensity by s^2, so the imag
 rotate: everything turned 37 degrees about (1,2,3) around the scene's centre; translate-1e2,
 translate-1e4 (--translations): moved by that many scene extents (the error is reported against the
 distance); light-1e6, light-1e-6: every light's scale multiplied (the image scales exactly: compared
-after dividing); tiny-light: area lights shrunk 1000x at constant power; duplicate: one shape written
-twice (coincident); offset-copy: and its copy moved by 1e-6 of its size; roughness-0, roughness-1:
-every microfacet roughness at the clamps. Groups: all, scale, translate, light, roughness, geometry.
+after dividing, or unchanged where the image does not depend on the lights, e.g. ambient occlusion,
+whichever is nearer); tiny-light: area lights shrunk 1000x at constant power; grazing-light: area
+lights turned 89 degrees about an axis in their plane; duplicate: one shape written twice
+(coincident); offset-copy: and its copy moved by 1e-6 of its size; roughness-0, roughness-1: every
+microfacet roughness at the clamps. Groups: all, scale, translate, light, roughness, geometry.
 
 Per integrator and variant: non-finite and negative pixels, pixels above the bound the integrator
 declares (ltc: its unshadowed render; ambientocclusion: pi, 2pi with uniform sampling), the largest
 |z| of the difference from the base render against both renders' per-pixel variance (plus a floor
 of 1e-4 of the value), the fraction of pixels with |z| > 3, the relative RMS difference and seconds.
-tiny-light and roughness-* change the image: only their counts are gated.
+tiny-light, grazing-light and roughness-* change the image: only their counts are gated.
 
 --fail-on KEY=VALUE[,...] (default z=8,negative=0,bound=0,far=100; `none`: only non-finite values
 fail): z: largest |z| allowed on the variants that must not change the image; negative, bound:

@@ -59,6 +59,9 @@ impl Row {
             "variant": self.variant_name(),
             "expect": match self.expect {
                 None => "base".to_string(),
+                Some(Expect::Same) if self.variant.as_deref().is_some_and(|v| v.starts_with("light-")) => {
+                    "same (the image does not depend on the lights)".to_string()
+                }
                 Some(Expect::Same) => "same".to_string(),
                 Some(Expect::Scaled(k)) => format!("scaled {k}"),
                 Some(Expect::Changed) => "changed".to_string(),

@@ -24,6 +24,9 @@ pub enum Kind {
     /// Every area light's shape shrunk about its centre by [`TINY_LIGHT_FACTOR`] at constant
     /// power (radiance × 1/factor²).
     TinyLight,
+    /// Every area light's shape turned [`GRAZING_DEGREES`] about its centre and an axis in its
+    /// plane: what it lit, it now lights at grazing angles.
+    GrazingLight,
     /// One shape (the first that neither emits nor lacks a material) written twice.
     Duplicate,
     /// That shape and a copy of it moved by [`OFFSET_FRACTION`] of its size.
@@ -43,9 +46,20 @@ pub enum Expect {
     Changed,
 }
 
+impl Expect {
+    /// What the variant's image is divided by before it is compared with the base.
+    pub fn factor(self) -> f64 {
+        match self {
+            Expect::Scaled(k) => k,
+            _ => 1.0,
+        }
+    }
+}
+
 pub const ROTATION_DEGREES: f64 = 37.0;
 pub const ROTATION_AXIS: [f64; 3] = [1.0, 2.0, 3.0];
 pub const TINY_LIGHT_FACTOR: f64 = 1e-3;
+pub const GRAZING_DEGREES: f64 = 89.0;
 pub const OFFSET_FRACTION: f64 = 1e-6;
 /// The translation direction (normalised when used).
 const TRANSLATION_DIRECTION: [f64; 3] = [1.0, 1.0, 1.0];
@@ -74,6 +88,7 @@ impl Variant {
             Kind::Rotate => "rotate".into(),
             Kind::LightScale(k) => format!("light-{}", factor_name(k)),
             Kind::TinyLight => "tiny-light".into(),
+            Kind::GrazingLight => "grazing-light".into(),
             Kind::Duplicate => "duplicate".into(),
             Kind::OffsetCopy => "offset-copy".into(),
             Kind::Roughness(r) => format!("roughness-{r}"),
@@ -81,14 +96,12 @@ impl Variant {
         Variant { name, kind }
     }
 
-    /// What the image must do, for an integrator that reads the scene's lights (`lit`) or not
-    /// (ambient occlusion: a light's scale changes nothing).
-    pub fn expect(&self, lit: bool) -> Expect {
+    /// What the image must do (a light scale: unless the image does not depend on the lights).
+    pub fn expect(&self) -> Expect {
         match self.kind {
             Kind::Scale(_) | Kind::Translate(_) | Kind::Rotate | Kind::Duplicate | Kind::OffsetCopy => Expect::Same,
-            Kind::LightScale(k) if lit => Expect::Scaled(k),
-            Kind::LightScale(_) => Expect::Same,
-            Kind::TinyLight | Kind::Roughness(_) => Expect::Changed,
+            Kind::LightScale(k) => Expect::Scaled(k),
+            Kind::TinyLight | Kind::GrazingLight | Kind::Roughness(_) => Expect::Changed,
         }
     }
 
@@ -144,6 +157,30 @@ impl Variant {
                     scale_spectrum_param(&mut a.params, "scale", 1.0 / (f * f))?;
                 }
             }
+            Kind::GrazingLight => {
+                let mut any = false;
+                for s in d.shapes.iter_mut().filter(|s| s.area_light.is_some()) {
+                    let t = s.render_from_object.start;
+                    let c = t.apply_point(object_centroid(s));
+                    let n = world_normal(s);
+                    // An axis in the light's plane: n × the coordinate axis least along n.
+                    let e = (0..3).min_by(|&a, &b| n[a].abs().total_cmp(&n[b].abs())).unwrap_or(0);
+                    let axis = match e {
+                        0 => [0.0, n[2], -n[1]],
+                        1 => [-n[2], 0.0, n[0]],
+                        _ => [n[1], -n[0], 0.0],
+                    };
+                    let r = Transform::rotate(GRAZING_DEGREES, axis).ok_or("a light without a normal")?;
+                    let turn = Transform::translate(c).compose(&r).compose(&Transform::translate(c.map(|v| -v)));
+                    let x = &mut s.render_from_object;
+                    x.start = turn.compose(&x.start);
+                    x.end = turn.compose(&x.end);
+                    any = true;
+                }
+                if !any {
+                    return Err("the scene has no area light".into());
+                }
+            }
             Kind::Duplicate | Kind::OffsetCopy => {
                 let (i, size) = geo.chosen_shape.ok_or("the scene has no shape that could be copied")?;
                 let mut copy = d.shapes[i].clone();
@@ -189,6 +226,7 @@ pub fn defaults(scales: &[f64], translations: &[f64]) -> Vec<Variant> {
     v.extend(translations.iter().map(|&k| Variant::new(Kind::Translate(k))));
     v.extend([1e6, 1e-6].map(|k| Variant::new(Kind::LightScale(k))));
     v.push(Variant::new(Kind::TinyLight));
+    v.push(Variant::new(Kind::GrazingLight));
     v.push(Variant::new(Kind::Duplicate));
     v.push(Variant::new(Kind::OffsetCopy));
     v.extend([0.0, 1.0].map(|r| Variant::new(Kind::Roughness(r))));
@@ -204,7 +242,7 @@ pub fn select(all: &[Variant], list: &[String]) -> Result<Vec<Variant>, String> 
             "all" => true,
             "scale" => matches!(v.kind, Kind::Scale(_)),
             "translate" => matches!(v.kind, Kind::Translate(_)),
-            "light" => matches!(v.kind, Kind::LightScale(_) | Kind::TinyLight),
+            "light" => matches!(v.kind, Kind::LightScale(_) | Kind::TinyLight | Kind::GrazingLight),
             "roughness" => matches!(v.kind, Kind::Roughness(_)),
             "geometry" => matches!(v.kind, Kind::Duplicate | Kind::OffsetCopy),
             _ => v.name == item,
@@ -269,6 +307,26 @@ fn object_centroid(s: &ShapeDesc) -> [f64; 3] {
         }
         _ => [0.0; 3],
     }
+}
+
+/// A shape's world-space normal: of its first triangle for a mesh written with `P` and
+/// `indices`, else of its object-space z axis (pbrt's disk).
+fn world_normal(s: &ShapeDesc) -> [f64; 3] {
+    let t = &s.render_from_object.start;
+    if let (Some(ParamValue::Point3(p)), Some(ParamValue::Int(i))) =
+        (s.entity.params.find("P").map(|p| &p.value), s.entity.params.find("indices").map(|p| &p.value))
+    {
+        let v = |k: usize| -> Option<[f64; 3]> {
+            let j = *i.get(k)? as usize;
+            let q = p.get(3 * j..3 * j + 3)?;
+            Some(t.apply_point([q[0] as f64, q[1] as f64, q[2] as f64]))
+        };
+        if let (Some(a), Some(b), Some(c)) = (v(0), v(1), v(2)) {
+            let (u, w) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+            return [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+        }
+    }
+    t.apply_normal([0.0, 0.0, 1.0])
 }
 
 /// Multiplies a light's spectrum parameter `name` (absent: 1) by `k`, as RGB.
@@ -357,6 +415,16 @@ mod tests {
         assert!(c.iter().zip([2.0, 2.0, 1.0]).all(|(a, b)| (a - b).abs() < 1e-12), "{c:?}");
         assert!((v[0] - (2.0 - 1e-3)).abs() < 1e-9, "{v:?}");
         assert!((rgb(&d.area_lights[0].params, "scale")[0] - 1e6).abs() < 1.0);
+
+        // Grazing: the emitter's normal turned 89° about its centroid.
+        let d = apply(Kind::GrazingLight);
+        let t = &d.shapes[0].render_from_object.start;
+        let c = t.apply_point([2.0, 2.0, 1.0]);
+        assert!(c.iter().zip([2.0, 2.0, 1.0]).all(|(a, b)| (a - b).abs() < 1e-12), "{c:?}");
+        let (n0, n1) = (world_normal(&base.shapes[0]), world_normal(&d.shapes[0]));
+        let len = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let cos = (0..3).map(|i| n0[i] * n1[i]).sum::<f64>() / (len(n0) * len(n1));
+        assert!((cos - GRAZING_DEGREES.to_radians().cos()).abs() < 1e-9, "{cos}");
 
         // Duplicate and offset copy: one more shape, the copy 1e-6 of the quad's size away.
         let d = apply(Kind::Duplicate);
