@@ -311,3 +311,21 @@ fn slurm_sweep_recipe_collects_the_sweeps_rows() {
     assert_eq!(untimed("plain").len(), 5);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The SLURM recipes on a real one-node SLURM (`deploy/slurm/localhost-run.sh`: munged,
+/// slurmctld and slurmd on localhost): two frames and a sweep submitted as job arrays with
+/// dependent merge/collect jobs, compared with single renders byte for byte.
+#[test]
+#[ignore = "needs root and Debian's slurm-wlm (apt-get install slurm-wlm)"]
+fn slurm_recipes_on_a_localhost_cluster() {
+    let out = Command::new("bash")
+        .arg(root().join("deploy/slurm/localhost-run.sh"))
+        .env("PENUMBRA", env!("CARGO_BIN_EXE_penumbra"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}\n{}", String::from_utf8_lossy(&out.stderr));
+    for what in ["frame: 7 SLURM tasks merged", "reference: 4 x 8 spp", "sweep: 4 rows collected"] {
+        assert!(text.contains(what), "{text}");
+    }
+}
