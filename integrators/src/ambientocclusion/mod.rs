@@ -26,7 +26,7 @@ use penumbra_core::material::Material;
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::{cosine_sample_hemisphere, uniform_sample_hemisphere};
 use penumbra_core::scene::{Requirements, Scene};
-use penumbra_core::sh::{basis, transfer::TransferChannels, ShOrder, MAX_ORDER};
+use penumbra_core::sh::{basis, transfer::TransferChannels, ShOrder};
 use penumbra_core::texture::TextureEvalContext;
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
@@ -110,8 +110,10 @@ impl PixelEstimator for Estimator<'_> {
             let frame = Frame::from_zx(n, si.dpdu);
             let Some(us) = sampler.get_2d_array(self.n) else { return Rgb::ZERO };
             let mut sum = 0.0f32;
+            // The SH transfer accumulators only when asked for (zeroing two arrays of
+            // MAX_ORDER² doubles per camera sample was a fifth of a 1-sample AO render).
             let k = self.ao.sh.map_or(0, |o| o.coeffs());
-            let (mut transfer, mut y) = ([0.0f64; MAX_ORDER * MAX_ORDER], [0.0f64; MAX_ORDER * MAX_ORDER]);
+            let (mut transfer, mut y) = (vec![0.0f64; k], vec![0.0f64; k]);
             for &u in us {
                 let (w, pdf) = if self.ao.cos_sample {
                     let w = cosine_sample_hemisphere(u);
