@@ -249,7 +249,15 @@ pub struct Distribution1D {
     pub cdf: Vec<f32>,
     /// ∫₀¹ of the piecewise-constant function (mean of `func`).
     pub func_int: f32,
+    /// A guide table over `u`: entry `b` of `m + 1` (`m` a power of two) is the cell that
+    /// `u = b / m` falls in, so that `u`'s cell lies between entries `⌊u m⌋` and `⌊u m⌋ + 1`
+    /// and the search runs in that range only — the same cell as a search over all of `cdf`
+    /// (the search is monotone in `u`, and `b / m` and `u m` are exact).
+    guide: Vec<u32>,
 }
+
+/// The largest guide table: 2¹⁶ buckets.
+const MAX_GUIDE_LOG2: u32 = 16;
 
 impl Distribution1D {
     /// An empty `func` is treated as a single zero cell.
@@ -271,7 +279,21 @@ impl Distribution1D {
         };
         let mut cdf = cdf;
         cdf[n] = 1.0;
-        Distribution1D { func, cdf, func_int: total.min(f32::MAX as f64) as f32 }
+        // About 8 cells per bucket: 3 search steps left, and an eighth of the entries to build
+        // (an environment map has a distribution per row).
+        let m = (n.next_power_of_two() / 8).clamp(1, 1 << MAX_GUIDE_LOG2);
+        // One sweep: entry b is the largest i < n with cdf[i] <= b / m (cdf[0] = 0 always is).
+        let mut i = 0;
+        let guide = (0..=m)
+            .map(|b| {
+                let u = b as f32 / m as f32;
+                while i + 1 < n && cdf[i + 1] <= u {
+                    i += 1;
+                }
+                i as u32
+            })
+            .collect();
+        Distribution1D { func, cdf, func_int: total.min(f32::MAX as f64) as f32, guide }
     }
 
     pub fn count(&self) -> usize {
@@ -284,7 +306,11 @@ impl Distribution1D {
 
     fn offset_of(&self, u: f32) -> usize {
         let u = if u.is_nan() { 0.0 } else { u.clamp(0.0, ONE_MINUS_EPSILON_F32) };
-        find_interval(self.cdf.len(), |i| self.cdf[i] <= u)
+        let m = self.guide.len() - 1;
+        let b = ((u * m as f32) as usize).min(m - 1);
+        // cdf[lo] <= b / m <= u, and u's cell is at most hi: search lo + 1 ..= hi.
+        let (lo, hi) = (self.guide[b] as usize, self.guide[b + 1] as usize);
+        lo + find_interval(hi - lo + 2, |i| self.cdf[lo + i] <= u)
     }
 
     /// Density (w.r.t. [0,1)) of the cell at `offset`.
@@ -388,6 +414,35 @@ impl Distribution2D {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn guide_table_finds_the_cell_a_full_search_finds() {
+        // Skewed, zero-run, uniform-fallback and single-cell functions; u at random, at every
+        // cdf value and its neighbours, at the guide's bucket bounds, and at the ends.
+        let mut rng = crate::rng::Rng::new(5);
+        let mut funcs: Vec<Vec<f32>> = vec![vec![0.0; 7], vec![2.0], vec![1.0, 0.0, 0.0, 5.0, 0.0]];
+        for n in [3usize, 64, 1000, 70_000] {
+            funcs.push((0..n).map(|i| if i % 7 == 3 { 0.0 } else { rng.uniform_f32().powi(8) * 1e3 }).collect());
+        }
+        let mut checked = 0;
+        for f in &funcs {
+            let d = Distribution1D::new(f);
+            let m = d.guide.len() - 1;
+            let mut us: Vec<f32> = (0..2000).map(|_| rng.uniform_f32()).collect();
+            for &c in &d.cdf {
+                us.extend([c, f32::from_bits(c.to_bits().saturating_sub(1)), f32::from_bits(c.to_bits() + 1)]);
+            }
+            us.extend((0..=m.min(5000)).map(|b| b as f32 / m as f32));
+            us.extend([0.0, -0.0, ONE_MINUS_EPSILON_F32, 1.0, 2.0, -1.0, f32::NAN]);
+            for u in us {
+                let clamped = if u.is_nan() { 0.0 } else { u.clamp(0.0, ONE_MINUS_EPSILON_F32) };
+                let full = find_interval(d.cdf.len(), |i| d.cdf[i] <= clamped);
+                assert_eq!(d.offset_of(u), full, "u {u} of {} cells", f.len());
+                checked += 1;
+            }
+        }
+        assert!(checked > 20_000);
+    }
     use crate::stats::chi2_test;
 
     const N: usize = 200_000;
