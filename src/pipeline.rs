@@ -153,7 +153,9 @@ pub fn render_film(
 ) -> Result<(Film, RenderStats), PipelineError> {
     let mut film = Film::new(spec, scene.filter.radius(), integrator.extra_channels());
     let ctx = RenderContext { threads: opts.threads, cancel: opts.cancel, progress: opts.progress, warnings };
-    let stats = integrator.render(scene, &ctx, &mut film)?;
+    penumbra_core::phase::take();
+    let mut stats = integrator.render(scene, &ctx, &mut film)?;
+    stats.phases = penumbra_core::phase::take();
     Ok((film, stats))
 }
 

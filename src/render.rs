@@ -66,6 +66,11 @@ pub struct RenderArgs {
     /// samplers; integrators whose samples are independent).
     #[arg(long, value_name = "K")]
     pub spp_offset: Option<u32>,
+    /// Record where the render's time goes (`phases` in stats.json: calls and estimated
+    /// thread-seconds of camera rays, closest-hit and shadow queries, shading, light sampling;
+    /// costs a few percent).
+    #[arg(long)]
+    pub phases: bool,
 }
 
 impl RenderArgs {
@@ -246,6 +251,7 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
         cancel: &cancel,
         progress: Some(&progress),
     };
+    penumbra_core::phase::set_enabled(args.phases);
     if let Some(req) = inputs.shard {
         let scene_name = scene_label(&args);
         let result = shard::render_shard(&parsed.scene, &scene_name, &args.params, &opts, req, &warnings);

@@ -331,3 +331,31 @@ fn default_outputs_are_gitignored() {
         }
     }
 }
+
+#[test]
+fn phases_count_what_the_render_counts() {
+    // `--phases` records one camera ray per camera sample, one shadow query per shadow ray and
+    // one closest-hit query (the camera ray's first or another) per ray; without it, nothing.
+    let d = dir("phases");
+    let s = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/suite/ltc/two-lights-metal.pbrt");
+    let s = s.to_str().unwrap();
+    let stats = |extra: &[&str]| -> serde_json::Value {
+        let mut args = vec!["render", s, "--spp", "4", "--resolution", "16x16", "--threads", "2", "-q", "-o", "t.pfm"];
+        args.extend_from_slice(extra);
+        let o = penumbra(&d, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_slice(&std::fs::read(d.join("t.stats.json")).unwrap()).unwrap()
+    };
+    assert_eq!(stats(&[])["stats"]["phases"], serde_json::json!({}));
+    let st = &stats(&["--phases"])["stats"];
+    let (p, calls) = (&st["phases"], |k: &str| st["phases"][k]["calls"].as_f64().unwrap_or(0.0));
+    assert_eq!(calls("camera_ray"), st["camera_samples"].as_f64().unwrap(), "{p}");
+    assert_eq!(calls("camera_hit"), st["camera_samples"].as_f64().unwrap(), "{p}");
+    assert_eq!(calls("camera_hit") + calls("closest_hit"), st["rays"].as_f64().unwrap(), "{p}");
+    assert_eq!(calls("shadow"), st["shadow_rays"].as_f64().unwrap(), "{p}");
+    assert!(calls("shading") > 0.0 && calls("light_sampling") > 0.0, "{p}");
+    for k in ["camera_hit", "closest_hit", "shadow", "shading", "light_sampling"] {
+        let sec = p[k]["seconds"].as_f64().unwrap();
+        assert!(sec > 0.0 && sec < 2.0 * st["render_seconds"].as_f64().unwrap() * 2.0, "{k}: {p}");
+    }
+}

@@ -15,10 +15,11 @@ Each row is a temporary copy of a scene written beside it (so relative paths res
 `penumbra render COPY --threads 2 --quiet -o OUT.pfm` render that same file. Printed per row:
 median and min–max of each program's wall time, penumbra / pbrt-v3 (medians), and the RMSE of
 the two images against each other (`penumbra diff`; equal spp, so this is noise, not bias).
-Then penumbra's own figures from the `stats.json` of its last run: parse, scene build and BVH
+Then penumbra's own figures from the `stats.json` of one more, untimed run with `--phases`: parse, scene and BVH
 build seconds, render seconds, rays per second (all queries over render time), and the
-per-phase estimates (`phases`: camera-ray, closest-hit and shadow queries per thread-second,
-shading and light-sampling seconds; sampled per thread, about one call in 64 timed).
+per-phase estimates of `stats.phases` (core/src/phase.rs: per-thread counters, about one call in
+64 timed): camera-ray generation, camera-ray first hits, other closest hits and shadow queries
+(calls, estimated thread-seconds, calls per thread-second), shading and light-sampling seconds.
 Run it on a quiet machine at normal priority: the times are only as good as the machine is idle.
 """
 import argparse, json, os, statistics, struct, subprocess, sys, tempfile, time
@@ -188,6 +189,8 @@ def main():
                     times["penumbra"].append(wall(ours))
             finally:
                 os.remove(copy)
+            # One more penumbra run, untimed, recording where its time goes (--phases).
+            wall(ours + ["--phases"])
             stats = json.load(open(pe_img[: -len(".pfm")] + ".stats.json"))
             med = {k: statistics.median(v) for k, v in times.items()}
             row = {"name": name, "integrator": integ, "scene": rel, "spp": spp, "resolution": res, "times": times,
@@ -200,9 +203,9 @@ def main():
     for r in results:
         print(f"| `{r['integrator']}` {r['name']} {r['resolution']}² | {r['spp']} | {fmt_times(r['times']['pbrt-v3'])} "
               f"| {fmt_times(r['times']['penumbra'])} | {r['ratio']:.2f} | {r['rmse']:.3g} |")
-    print("\npenumbra per phase (last run; phases: calls, estimated thread-seconds and rate per thread-second)")
-    print("| case | parse s | shapes s | BVH s | render s | M rays/s | camera-ray hits | closest hits | shadow |"
-          " shading s | light sampling s |\n|---|---|---|---|---|---|---|---|---|---|---|")
+    print("\npenumbra per phase (an untimed run with --phases: calls, estimated thread-seconds and rate per thread-second)")
+    print("| case | parse s | shapes s | BVH s | render s | M rays/s | camera rays | camera-ray hits | closest hits "
+          "| shadow | shading s | light sampling s |\n|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in results:
         p = r["penumbra"]
 
@@ -214,7 +217,7 @@ def main():
             return "–" if p.get(f"{k}_s") is None else f"{p[f'{k}_s']:.2f}"
 
         print(f"| {r['name']} | {p['parse_s']:.3f} | {p['shapes_s']:.3f} | {p['bvh_s']:.3f} | {p['render_s']:.2f} "
-              f"| {p['Mrays_per_s']:.2f} | {rate('camera_hit')} | {rate('closest_hit')} | {rate('shadow')} "
+              f"| {p['Mrays_per_s']:.2f} | {rate('camera_ray')} | {rate('camera_hit')} | {rate('closest_hit')} | {rate('shadow')} "
               f"| {secs('shading')} | {secs('light_sampling')} |")
     if args.json:
         with open(args.json, "w") as f:

@@ -7,6 +7,7 @@
 //! instead of NaN or infinity; elsewhere the values are pbrt-v3's.
 
 use crate::microfacet::{cos_phi, sin_phi, sin_theta, MicrofacetDistribution};
+use crate::phase::Phase;
 use crate::spectrum::Rgb;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -760,56 +761,62 @@ impl Bsdf {
     /// surface). Reflection lobes count when `wo` and `wi` are on the same side of
     /// the *geometric* normal, transmission lobes otherwise (pbrt-v3).
     pub fn f(&self, wo_w: Vec3, wi_w: Vec3, flags: BxdfFlags) -> Rgb {
-        let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
-        if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
-            return Rgb::ZERO;
-        }
-        self.f_local(wo_w, wi_w, wo, wi, flags)
+        crate::phase::timed(Phase::Shading, || {
+            let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
+            if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
+                return Rgb::ZERO;
+            }
+            self.f_local(wo_w, wi_w, wo, wi, flags)
+        })
     }
 
     /// `(self.f(wo_w, wi_w, flags), self.pdf(wo_w, wi_w, flags))`, bit for bit, in one pass.
     pub fn f_pdf(&self, wo_w: Vec3, wi_w: Vec3, flags: BxdfFlags) -> (Rgb, f32) {
-        let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
-        if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
-            return (Rgb::ZERO, 0.0);
-        }
-        let reflect = self.reflects(wo_w, wi_w);
-        let mut f = Rgb::ZERO;
-        let mut pdf = 0.0;
-        let mut matching = 0;
-        for b in self.bxdfs().iter().filter(|b| b.matches(flags)) {
-            matching += 1;
-            if lobe_counts(b.flags(), reflect) {
-                let (fb, pb) = b.f_pdf(wo, wi);
-                f += fb;
-                pdf += pb;
-            } else {
-                pdf += b.pdf(wo, wi);
+        crate::phase::timed(Phase::Shading, || {
+            let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
+            if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
+                return (Rgb::ZERO, 0.0);
             }
-        }
-        (f, if matching > 0 { pdf / matching as f32 } else { 0.0 })
+            let reflect = self.reflects(wo_w, wi_w);
+            let mut f = Rgb::ZERO;
+            let mut pdf = 0.0;
+            let mut matching = 0;
+            for b in self.bxdfs().iter().filter(|b| b.matches(flags)) {
+                matching += 1;
+                if lobe_counts(b.flags(), reflect) {
+                    let (fb, pb) = b.f_pdf(wo, wi);
+                    f += fb;
+                    pdf += pb;
+                } else {
+                    pdf += b.pdf(wo, wi);
+                }
+            }
+            (f, if matching > 0 { pdf / matching as f32 } else { 0.0 })
+        })
     }
 
     /// Average of the matching lobes' densities (pbrt-v3's `BSDF::Pdf`).
     pub fn pdf(&self, wo_w: Vec3, wi_w: Vec3, flags: BxdfFlags) -> f32 {
-        if self.n == 0 {
-            return 0.0;
-        }
-        let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
-        if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
-            return 0.0;
-        }
-        let mut pdf = 0.0;
-        let mut matching = 0;
-        for b in self.bxdfs().iter().filter(|b| b.matches(flags)) {
-            matching += 1;
-            pdf += b.pdf(wo, wi);
-        }
-        if matching > 0 {
-            pdf / matching as f32
-        } else {
-            0.0
-        }
+        crate::phase::timed(Phase::Shading, || {
+            if self.n == 0 {
+                return 0.0;
+            }
+            let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
+            if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
+                return 0.0;
+            }
+            let mut pdf = 0.0;
+            let mut matching = 0;
+            for b in self.bxdfs().iter().filter(|b| b.matches(flags)) {
+                matching += 1;
+                pdf += b.pdf(wo, wi);
+            }
+            if matching > 0 {
+                pdf / matching as f32
+            } else {
+                0.0
+            }
+        })
     }
 
     /// Sample a world-space incident direction (pbrt-v3's `BSDF::Sample_f`): `u.x`
@@ -818,56 +825,58 @@ impl Bsdf {
     /// pdf is the average over all matching lobes and `f` the sum of the matching
     /// lobes selected by the geometric normal, as [`Bsdf::pdf`] and [`Bsdf::f`].
     pub fn sample_f(&self, wo_w: Vec3, u: Vec2, flags: BxdfFlags) -> Option<BsdfSample> {
-        let matching = self.num_components(flags);
-        if matching == 0 {
-            return None;
-        }
-        let ux = clamp_u(u.x);
-        let comp = ((ux * matching as f32).floor() as usize).min(matching - 1);
-        let bxdf = self.bxdfs().iter().filter(|b| b.matches(flags)).nth(comp)?;
-        let u_remapped = Vec2::new((ux * matching as f32 - comp as f32).min(ONE_MINUS_EPSILON), u.y);
+        crate::phase::timed(Phase::Shading, || {
+            let matching = self.num_components(flags);
+            if matching == 0 {
+                return None;
+            }
+            let ux = clamp_u(u.x);
+            let comp = ((ux * matching as f32).floor() as usize).min(matching - 1);
+            let bxdf = self.bxdfs().iter().filter(|b| b.matches(flags)).nth(comp)?;
+            let u_remapped = Vec2::new((ux * matching as f32 - comp as f32).min(ONE_MINUS_EPSILON), u.y);
 
-        let wo = self.world_to_local(wo_w);
-        if wo.z == 0.0 || !wo.is_finite() {
-            return None;
-        }
-        let s = bxdf.sample_f(wo, u_remapped)?;
-        if s.pdf.is_nan() || s.pdf <= 0.0 {
-            return None;
-        }
-        let wi_w = self.local_to_world(s.wi);
-        let mut pdf = s.pdf;
-        let mut f = s.f;
-        let specular = bxdf.flags().is_specular();
-        if !specular && matching == 1 && !lobe_counts(bxdf.flags(), self.reflects(wo_w, wi_w)) {
-            // As pbrt-v3, `f` counts a lobe only on its side of the *geometric* normal: a
-            // direction sampled about a tilted shading normal may cross the surface.
-            f = Rgb::ZERO;
-        }
-        if !specular && matching > 1 {
-            // pdf: the sampled lobe's, then the others' in order; f: every matching lobe that
-            // the geometric normal selects, in order (the sampled lobe's value is `s.f`).
-            let reflect = self.reflects(wo_w, wi_w);
-            f = Rgb::ZERO;
-            for (i, b) in self.bxdfs().iter().filter(|b| b.matches(flags)).enumerate() {
-                let counts = lobe_counts(b.flags(), reflect);
-                if i == comp {
-                    if counts {
-                        f += s.f;
+            let wo = self.world_to_local(wo_w);
+            if wo.z == 0.0 || !wo.is_finite() {
+                return None;
+            }
+            let s = bxdf.sample_f(wo, u_remapped)?;
+            if s.pdf.is_nan() || s.pdf <= 0.0 {
+                return None;
+            }
+            let wi_w = self.local_to_world(s.wi);
+            let mut pdf = s.pdf;
+            let mut f = s.f;
+            let specular = bxdf.flags().is_specular();
+            if !specular && matching == 1 && !lobe_counts(bxdf.flags(), self.reflects(wo_w, wi_w)) {
+                // As pbrt-v3, `f` counts a lobe only on its side of the *geometric* normal: a
+                // direction sampled about a tilted shading normal may cross the surface.
+                f = Rgb::ZERO;
+            }
+            if !specular && matching > 1 {
+                // pdf: the sampled lobe's, then the others' in order; f: every matching lobe that
+                // the geometric normal selects, in order (the sampled lobe's value is `s.f`).
+                let reflect = self.reflects(wo_w, wi_w);
+                f = Rgb::ZERO;
+                for (i, b) in self.bxdfs().iter().filter(|b| b.matches(flags)).enumerate() {
+                    let counts = lobe_counts(b.flags(), reflect);
+                    if i == comp {
+                        if counts {
+                            f += s.f;
+                        }
+                    } else if counts {
+                        let (fb, pb) = b.f_pdf(wo, s.wi);
+                        f += fb;
+                        pdf += pb;
+                    } else {
+                        pdf += b.pdf(wo, s.wi);
                     }
-                } else if counts {
-                    let (fb, pb) = b.f_pdf(wo, s.wi);
-                    f += fb;
-                    pdf += pb;
-                } else {
-                    pdf += b.pdf(wo, s.wi);
                 }
             }
-        }
-        if matching > 1 {
-            pdf /= matching as f32;
-        }
-        Some(BsdfSample { wi: wi_w, f, pdf, flags: s.flags })
+            if matching > 1 {
+                pdf /= matching as f32;
+            }
+            Some(BsdfSample { wi: wi_w, f, pdf, flags: s.flags })
+        })
     }
 }
 

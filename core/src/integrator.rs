@@ -72,6 +72,9 @@ pub struct RenderStats {
     pub threads: usize,
     /// Integrator-specific figures.
     pub counters: BTreeMap<String, f64>,
+    /// Calls and estimated thread-seconds per phase ([`crate::phase`]), filled in by whoever
+    /// runs the integrator (`penumbra render`), from [`crate::phase::take`].
+    pub phases: crate::phase::Phases,
 }
 
 pub trait Integrator: Send + Sync {
@@ -179,13 +182,18 @@ pub fn draw_camera_sample(sampler: &mut dyn Sampler, p: IVec2, uses_time: bool, 
     CameraDims { uses_time, uses_lens }.sample(sampler, p, true)
 }
 
-/// Runs `f` on a pool of `threads` workers (0: all cores).
+/// Runs `f` on a pool of `threads` workers (0: all cores); each worker's [`crate::phase`]
+/// counters are flushed to the process-wide totals before the pool ends.
 pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> Result<R, RenderError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| RenderError::Failed(format!("cannot start worker threads: {e}")))?;
-    Ok(pool.install(f))
+    let on = crate::phase::enabled();
+    pool.broadcast(|_| crate::phase::enable_here(on));
+    let r = pool.install(f);
+    pool.broadcast(|_| crate::phase::flush());
+    Ok(r)
 }
 
 /// The generic driver: tiles in parallel, per-tile sampler clones, deterministic merge.
@@ -354,15 +362,17 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
                 }
                 None => {
                     let cs = self.camera.sample(sampler.as_mut(), p, true);
-                    (cs, self.scene.camera.generate_ray(&cs))
+                    (cs, self.generate_ray(&cs))
                 }
             };
             aov.iter_mut().for_each(|v| *v = 0.0);
             let (est, scene, stats) = (self.est, self.scene, &mut out.stats);
+            crate::phase::camera_ray_given(true);
             let l = match &shared {
                 Some(sh) => est.li_shared(&ray, scene, sampler.as_mut(), stats, aov, sh, i),
                 None => est.li(&ray, scene, sampler.as_mut(), stats, aov),
             };
+            crate::phase::camera_ray_given(false);
             out.camera_samples += 1;
             let l = guard_radiance(l, self.film.spec.max_sample_luminance, stats);
             out.tile.add_sample(scene.filter.as_ref(), cs.p_film, l, aov);
@@ -377,10 +387,17 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
         for s in 0..self.spp {
             scratch.sampler.start_pixel_sample(p, s);
             let cs = self.camera.sample(scratch.sampler.as_mut(), p, true);
-            scratch.rays.push(self.scene.camera.generate_ray(&cs));
+            scratch.rays.push(self.generate_ray(&cs));
             scratch.cams.push(cs);
         }
-        self.est.begin_pixel(&scratch.rays, self.scene, stats)
+        crate::phase::camera_ray_given(true);
+        let shared = self.est.begin_pixel(&scratch.rays, self.scene, stats);
+        crate::phase::camera_ray_given(false);
+        shared
+    }
+
+    fn generate_ray(&self, cs: &CameraSample) -> Ray {
+        crate::phase::timed(crate::phase::Phase::CameraRay, || self.scene.camera.generate_ray(cs))
     }
 }
 

@@ -23,6 +23,7 @@ pub mod mesh;
 pub mod metal_data;
 pub mod metrics;
 pub mod microfacet;
+pub mod phase;
 pub mod rng;
 pub mod sampler;
 pub mod sampling;

@@ -23,6 +23,7 @@ use crate::geometry::{face_forward, gamma, interpolate, Bounds3, Ray};
 use crate::image::Image;
 use crate::interaction::SceneObject;
 use crate::mesh::TriangleMesh;
+use crate::phase::Phase;
 use crate::sampling::{spherical_phi, spherical_theta, uniform_sample_triangle, Distribution1D, Distribution2D};
 use crate::spectrum::luminance;
 use crate::Rgb;
@@ -370,7 +371,7 @@ impl Light {
     /// Samples an incident direction at `ctx` (pbrt-v3's `Sample_Li`). `None` if the
     /// pdf is 0 or the sample carries no radiance.
     pub fn sample_li(&self, ctx: &LightContext, u: Vec2, meshes: &[TriangleMesh]) -> Option<LightLiSample> {
-        match self {
+        crate::phase::timed(Phase::LightSampling, || match self {
             Light::Point(l) => point_sample(ctx, l.p, l.i, |_| Rgb::ONE),
             Light::Spot(l) => point_sample(ctx, l.p, l.i, |w| Rgb::splat(l.falloff(w))),
             Light::Goniometric(l) => point_sample(ctx, l.p, l.i, |w| l.scale(w)),
@@ -449,12 +450,12 @@ impl Light {
                 }
                 Some(LightLiSample { li, wi, pdf, p_light: p, p_light_error: p_err, n_light: n, delta: false })
             }
-        }
+        })
     }
 
     /// Solid-angle pdf of sampling `wi` from `ctx`; for area lights the caller passes the point it found on the light (`light_hit`: point and geometric normal), since the caller already traced the ray.
     pub fn pdf_li(&self, ctx: &LightContext, wi: Vec3, light_hit: Option<(Vec3, Vec3)>) -> f32 {
-        match self {
+        crate::phase::timed(Phase::LightSampling, || match self {
             Light::Infinite(l) => {
                 let Some((theta, sin_t, phi)) = l.angles(wi) else { return 0.0 };
                 if !(sin_t > 0.0) {
@@ -479,7 +480,7 @@ impl Light {
                 }
             }
             _ => 0.0,
-        }
+        })
     }
 
     /// Emitted radiance of an area light at a point with geometric normal `n` towards `w` (zero for other lights).
@@ -493,10 +494,10 @@ impl Light {
 
     /// Radiance of infinite lights along an escaping ray (zero for other lights).
     pub fn le(&self, ray: &Ray) -> Rgb {
-        match self {
+        crate::phase::timed(Phase::LightSampling, || match self {
             Light::Infinite(l) => l.lookup_dir(ray.d),
             _ => Rgb::ZERO,
-        }
+        })
     }
 
     pub fn is_delta(&self) -> bool {

@@ -11,6 +11,7 @@ use crate::interaction::{SceneObject, SurfaceInteraction};
 use crate::light::{Light, Lights};
 use crate::material::{BsdfOptions, Material, Materials, ShadingGeometry};
 use crate::mesh::{EdgeAdjacency, TriangleMesh};
+use crate::phase::Phase;
 use crate::sampler::Sampler;
 use crate::texture::{TextureEvalContext, Textures};
 use glam::Vec3;
@@ -139,7 +140,7 @@ impl Scene {
 
     /// Closest hit (requires `Requirements::accel`).
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.accel.as_ref().and_then(|a| a.intersect(ray))
+        crate::phase::closest_hit(|| self.accel.as_ref().and_then(|a| a.intersect(ray)))
     }
 
     /// The scene's lights (empty when they were not built).
@@ -184,7 +185,7 @@ impl Scene {
         let mut ray = *ray;
         for queries in 1..=65u64 {
             let hit = match (candidates, &self.accel) {
-                (Some(c), Some(a)) if queries == 1 => a.intersect_among(&ray, c),
+                (Some(c), Some(a)) if queries == 1 => crate::phase::closest_hit(|| a.intersect_among(&ray, c)),
                 _ => self.intersect(&ray),
             };
             let Some(hit) = hit else {
@@ -207,7 +208,7 @@ impl Scene {
 
     /// Whether anything blocks `ray` before `ray.t_max`.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        self.accel.as_ref().is_some_and(|a| a.occluded(ray))
+        crate::phase::timed(Phase::Shadow, || self.accel.as_ref().is_some_and(|a| a.occluded(ray)))
     }
 
     /// The BSDF at `si` (requires `Requirements::materials`); `None` when the object
@@ -220,14 +221,16 @@ impl Scene {
     pub fn bsdf_with(&self, si: &SurfaceInteraction, opts: BsdfOptions) -> Option<Bsdf> {
         let (mat, materials, textures) = self.material_of(si)?;
         let normals = self.meshes.get(si.mesh as usize).is_some_and(|m| m.normals.is_some());
-        Some(mat.compute_bsdf_ext(
-            si,
-            &TextureEvalContext::from_si(si),
-            &ShadingGeometry::of(si, normals),
-            opts,
-            materials,
-            textures,
-        ))
+        Some(crate::phase::timed(Phase::Shading, || {
+            mat.compute_bsdf_ext(
+                si,
+                &TextureEvalContext::from_si(si),
+                &ShadingGeometry::of(si, normals),
+                opts,
+                materials,
+                textures,
+            )
+        }))
     }
 
     /// The material at `si`, with the material and texture tables (`None` as for [`bsdf`](Self::bsdf)).
