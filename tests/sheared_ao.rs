@@ -71,13 +71,13 @@ fn all_brute_force_is_stratified_monte_carlo_and_matches_pbrt_v3() {
     }
 }
 
-/// At the defaults (4 camera samples × 8 rays): the image mean within 1 % of pbrt-v3's
+/// At the defaults (4 camera samples × 8 rays): the image mean within 0.4 % of pbrt-v3's
 /// reference, and the RMSE below that of `ambientocclusion` with the same pass-1 rays.
 #[test]
 fn defaults_match_pbrt_v3_mean_and_beat_equal_ray_monte_carlo() {
     for name in ["spheres-on-plane", "blinds"] {
         let reference = reference(&format!("ao/{name}.ambientocclusion.exr"));
-        let ours = ao_render(name, "sheared-ao", &["nsamples=8"], 4, None);
+        let ours = ao_render(name, "sheared-ao", &[], 4, None);
         let mc = ao_render(name, "ambientocclusion", &["nsamples=8"], 4, None);
         let rel = mean(&ours.image) / mean(&reference) - 1.0;
         let (e_ours, e_mc) = (rmse(&ours.image, &reference), rmse(&mc.image, &reference));
@@ -85,7 +85,8 @@ fn defaults_match_pbrt_v3_mean_and_beat_equal_ray_monte_carlo() {
             "{name}: mean {:+.3}% vs pbrt-v3; RMSE {e_ours:.4} (sheared-ao) vs {e_mc:.4} (ambientocclusion, same rays)",
             rel * 100.0
         );
-        assert!(rel.abs() < 0.01, "{name}: mean differs by {:.3}%", rel * 100.0);
+        // Measured +0.033 % (spheres-on-plane) and −0.097 % (blinds); the issue asks for 1 %.
+        assert!(rel.abs() < 0.004, "{name}: mean differs by {:.3}%", rel * 100.0);
         assert!(e_ours < e_mc, "{name}: RMSE {e_ours} not below equal-ray Monte Carlo's {e_mc}");
     }
 }
@@ -106,7 +107,7 @@ fn noise_falls_with_nsamples() {
     };
     let e: Vec<f64> = ["nsamples=1", "nsamples=4", "nsamples=16"].into_iter().map(noise).collect();
     eprintln!("noise with nsamples 1, 4, 16 (2 camera samples): {e:?}");
-    // Measured 0.0223, 0.0151, 0.0121: the floor is the camera samples' own noise (2 per pixel,
+    // Measured 0.0246, 0.0178, 0.0126: the floor is the camera samples' own noise (2 per pixel,
     // a new seed moves them) and the brute-forced cells' single rays, which nsamples does not cut.
     assert!(e[1] < e[0] && e[2] < e[1] && e[2] < 0.7 * e[0], "noise {e:?}");
 }
@@ -165,9 +166,11 @@ fn sh_matches_ambientocclusion() {
             let dm = (a.iter().sum::<f64>() - b.iter().sum::<f64>()) / n / m0;
             let e = (a.iter().zip(&b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / n).sqrt() / m0;
             eprintln!("{name} sh.{i}: mean difference {:+.4} % of sh.0, RMSE {:.4} of sh.0", dm * 100.0, e);
-            // Measured (32², 4 spp against 16 × 256 rays): at most 0.38 % and 0.041 on
-            // spheres-on-plane, 2.19 % (sh.5) and 0.106 on blinds, whose AO mean is 0.64 % low
-            // at this resolution; ambientocclusion's own noise in these means is about 0.07 %.
+            // Measured (32², 4 spp against 16 × 256 rays): at most 0.29 % and 0.041 on
+            // spheres-on-plane, 2.27 % (sh.5) and 0.106 on blinds (sh.0: −0.02 %); ambientocclusion's
+            // own noise in these means is about 0.07 %. Blinds' sh.5 is partly the cells'
+            // piecewise-constant visibility against a Y varying across each cell: 1.28 % with
+            // `cells` 16.
             let (max_dm, max_e) = if name == "blinds" { (0.03, 0.12) } else { (0.006, 0.05) };
             assert!(dm.abs() < max_dm && e < max_e, "{name} sh.{i}: mean difference {dm:.4}, RMSE {e:.4}");
         }

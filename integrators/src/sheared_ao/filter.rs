@@ -16,6 +16,8 @@ use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
 pub struct CachedRay {
     pub d: DVec3,
     pub t: f64,
+    /// The geometric normal at the hit (any sign; unused for a miss).
+    pub n_hit: DVec3,
 }
 
 /// A shading point of pass 1 with its occlusion rays.
@@ -64,11 +66,23 @@ pub struct FilterParams {
     pub max_distance: f64,
     /// `"string warp"`: `"sphere"` (default) or `"cell"` (the paper's).
     pub warp: Warp,
+    /// Weight occluded rays by the Jacobian of their warp ([`occluded_jacobian`], `"bool jacobian"`).
+    pub jacobian: bool,
 }
+
+/// The largest importance weight [`filter_receiver`] gives a warped ray (grazing targets).
+pub const JACOBIAN_CAP: f64 = 8.0;
 
 impl Default for FilterParams {
     fn default() -> Self {
-        FilterParams { cells: 8, omega_v: 2.0, min_weight: 2.0, max_distance: f64::INFINITY, warp: Warp::Sphere }
+        FilterParams {
+            cells: 8,
+            omega_v: 2.0,
+            min_weight: 2.0,
+            max_distance: f64::INFINITY,
+            warp: Warp::Sphere,
+            jacobian: true,
+        }
     }
 }
 
@@ -227,6 +241,25 @@ pub struct Scratch {
     centers: Vec<DVec3>,
 }
 
+/// The importance weight of an occluded neighbour ray warped to the receiver: the receiver's
+/// cosine density at its effective direction `v` over the density the warp gives there. The
+/// neighbour draws `d` with density `cos_q / π`; through the hit surface (normal `m`) a solid
+/// angle dω_q from the neighbour is dω_p = dω_q · |m·v| |H−q|² / (|m·d| |H−p|²) from the receiver,
+/// so the weight is `cos_p / cos_q · |m·v| |H−q|² / (|m·d| |H−p|²)` (1 for the receiver's own
+/// rays), capped at [`JACOBIAN_CAP`] for grazing hits. Unoccluded rays keep weight 1: their
+/// targets are not on a real surface, and directions to the sky at infinity have the same
+/// density from every neighbour of a flat neighbourhood.
+pub fn occluded_jacobian(r: &CachedRay, n_q: DVec3, n_p: DVec3, v: DVec3, dist_p: f64) -> f64 {
+    let cos_q = r.d.dot(n_q);
+    let m = r.n_hit;
+    let j = v.dot(n_p) / cos_q * m.dot(v).abs() * r.t * r.t / (m.dot(r.d).abs() * dist_p * dist_p);
+    if j.is_finite() && cos_q > 0.0 {
+        j.clamp(0.0, JACOBIAN_CAP)
+    } else {
+        0.0
+    }
+}
+
 /// The neighbour guard: cache point `q` may lend its rays to receiver `(p, n)` when its normal
 /// is within ~26° of the receiver's and it lies near the receiver's tangent plane (slope ≤ 0.25
 /// plus one footprint). Rejects other surfaces at silhouettes and points behind the receiver.
@@ -370,14 +403,21 @@ pub fn filter_receiver<'a>(
             }
             // Tangent offset: the sample ray meets the plane through p perpendicular to v at p + x.
             let x = o + (-v.dot(o) / vd) * r.d;
-            let w = if b.radius.is_finite() { kernel(x.length() / b.radius) } else { 1.0 };
+            let mut w = if b.radius.is_finite() { kernel(x.length() / b.radius) } else { 1.0 };
+            // (The receiver's own rays weigh exactly 1: their Jacobian is 1 up to rounding, and a
+            // weight sum a rounding below `minweight` would flip the cell to brute force.)
+            if params.jacobian && visible == 0.0 && o != DVec3::ZERO {
+                w *= occluded_jacobian(r, q.n, n, v, len);
+            }
             scratch.w[c] += w;
             scratch.wv[c] += w * visible;
         }
     }
     out.clear();
     out.extend((0..nc).map(|c| {
-        if scratch.bounds[c].brute || !(scratch.w[c] >= params.min_weight) {
+        // A relative slack, so that weights summing to `minweight` up to rounding pass alike
+        // at every scene scale.
+        if scratch.bounds[c].brute || !(scratch.w[c] >= params.min_weight * (1.0 - 1e-9)) {
             CellValue::Brute
         } else {
             CellValue::Filtered((scratch.wv[c] / scratch.w[c]).clamp(0.0, 1.0))

@@ -40,12 +40,25 @@
 //! * Ω_pix^max = 0.5 / footprint, footprint = the larger side of the pixel's footprint on the
 //!   receiver's tangent plane (camera rays one pixel over); with Eq. 8 the spatial radius is
 //!   `z_min z_max / (Ω_v (z_max − z_min))` and the contact test `z_min < 2 Ω_v · footprint`;
+//! * `nsamples` 8 by measurement (README table, `tools/sheared_ao_table.py`): per ray within
+//!   10–20 % of the most efficient of 4/8/16/32 and the smallest bias of the four; the error
+//!   floor is the brute-forced cells' single rays, which more pass-1 rays do not cut;
 //! * the depth bounds count open sky: a cell where some neighbour ray (unwarped direction)
 //!   escaped has `z_max = ∞`, so radius `z_min / Ω_v` — its visibility has an edge between an
 //!   occluder and infinity, and the occluders alone (one depth: an infinite radius)
 //!   understate its bandwidth. Bias against `ambientocclusion` at 1024 rays on the same camera
 //!   samples (64², 4 spp, `nsamples` 8): blinds −0.30 % → −0.21 %, spheres-on-plane −0.064 % →
 //!   −0.044 %, same rays; RMSE 0.0449 → 0.0406, 0.0115 → 0.0113;
+//! * occluded neighbour rays are weighted by the Jacobian of their warp through the hit
+//!   surface ([`filter::occluded_jacobian`]), so that they arrive with the receiver's cosine
+//!   density: without it they are over-represented where the warp compresses directions, and
+//!   the image darkens. Same measurement, on top of the line above: blinds −0.21 % → −0.02 %,
+//!   RMSE 0.0406 → 0.0371; spheres-on-plane −0.044 % → +0.041 %, 0.0113 → 0.0115. Weighting
+//!   unoccluded rays through the sphere too overcorrects (blinds +0.44 %): their targets lie on
+//!   no real surface;
+//! * the bias floor that remains is a few tenths of a percent of either sign (README: +0.32 %
+//!   at 32², −0.07 % at 1 spp on blinds); it comes from the reprojection (it grows with the
+//!   neighbourhood, `maxpoints` 1024: −0.30 %) and does not fall with `nsamples`;
 //! * a cell with no occluded neighbour ray is not brute-forced: its depth is taken as
 //!   infinite (no warp, infinite radius: every ray weighs 1); only a cell whose weight stays
 //!   below `minweight` is;
@@ -55,7 +68,8 @@
 //!   ([`filter::Warp::Sphere`]) rather than the paper's per-cell plane, whose discontinuity at
 //!   cell edges darkens: image means −0.65 % / −1.36 % (`cell`) against −0.07 % / −0.38 %
 //!   (`sphere`) of pbrt-v3's references on `suite/ao/spheres-on-plane` / `blinds` (64², 4 spp,
-//!   `nsamples` 8, `tests/sheared_ao.rs`);
+//!   `nsamples` 8, `tests/sheared_ao.rs`; before the two changes above; with them blinds is
+//!   −0.91 % (`cell`) against −0.02 % against same-sample MC);
 //! * `maxdistance`: a hit farther than it from the *receiver* counts as a miss;
 //! * neighbours: normal within ~26° and within a slope of 0.25 (+ one footprint) of the
 //!   receiver's tangent plane; grazing warps (cos < 1e-3) are rejected.
@@ -98,7 +112,7 @@ pub struct ShearedAo {
 
 /// The parameters `sheared-ao` reads.
 pub const PARAMS: &[ParamSpec] = &[
-    ParamSpec::int("nsamples", 12, "occlusion rays per camera sample, cached in image space (rounded by the sampler)")
+    ParamSpec::int("nsamples", 8, "occlusion rays per camera sample, cached in image space (rounded by the sampler)")
         .range(1, 1024),
     ParamSpec::int("screenradius", 8, "receivers borrow the cached rays of points within this many pixels")
         .range(0, 64),
@@ -116,6 +130,11 @@ pub const PARAMS: &[ParamSpec] = &[
         "warp",
         &["sphere", "cell"],
         "unoccluded rays warped through the sphere of the harmonic mid depth, or the paper's per-cell plane",
+    ),
+    ParamSpec::bool(
+        "jacobian",
+        true,
+        "occluded neighbour rays weighted by the Jacobian of their warp through the hit surface",
     ),
     SH_TRANSFER,
     SH_ORDER,
@@ -141,6 +160,7 @@ impl ShearedAo {
                 min_weight: p.float("minweight")? as f64,
                 max_distance: p.float("maxdistance")? as f64,
                 warp: p.choice("warp", [Warp::Sphere, Warp::Cell])?,
+                jacobian: p.bool("jacobian")?,
             },
         }))
     }
@@ -210,11 +230,14 @@ impl ShearedAo {
                 let r = si.spawn_ray(wi);
                 rays.occlusion += 1;
                 let d = wi.as_dvec3().normalize();
-                let t = match scene.intersect(&r) {
-                    Some(h) => (r.o.as_dvec3() + h.t as f64 * r.d.as_dvec3() - pd).dot(d).max(0.0),
-                    None => f64::INFINITY,
+                let (t, n_hit) = match scene.intersect(&r) {
+                    Some(h) => (
+                        (r.o.as_dvec3() + h.t as f64 * r.d.as_dvec3() - pd).dot(d).max(0.0),
+                        scene.interaction(&r, &h).n.as_dvec3(),
+                    ),
+                    None => (f64::INFINITY, glam::DVec3::ZERO),
                 };
-                cached.push(CachedRay { d, t });
+                cached.push(CachedRay { d, t, n_hit });
             }
             return Some(Shading {
                 point: CachePoint { p: pd, n: n.as_dvec3(), footprint, rays: cached },

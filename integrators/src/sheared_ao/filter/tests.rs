@@ -19,7 +19,7 @@ fn plane_cache(k: i32, h: f64, rays: usize, hit: impl Fn(DVec3, DVec3) -> f64) -
                 .map(|_| {
                     let u = glam::Vec2::new(rng.uniform_f32(), rng.uniform_f32());
                     let d = cosine_sample_hemisphere(u).as_dvec3().normalize();
-                    CachedRay { d, t: hit(p, d) }
+                    CachedRay { d, t: hit(p, d), n_hit: DVec3::Z }
                 })
                 .collect();
             out.push(CachePoint { p, n: DVec3::Z, footprint: h, rays });
@@ -92,7 +92,7 @@ fn plane_under_a_disk_matches_the_closed_form() {
     // A 33×33 window of spacing 0.02 (±0.16): the disk is at one depth per direction cone.
     let cache = plane_cache(8, 0.02, 64, disk_hit(rho, h));
     let (mut s, mut out) = (Scratch::default(), Vec::new());
-    // Measured (64 rays per point): 1.5693 / 1.7757 / 2.2818 against 1.5708 / 1.7656 / 2.2733.
+    // Measured (64 rays per point): 1.5720 / 1.7777 / 2.2832 against 1.5708 / 1.7656 / 2.2733.
     for a in [0.0, 0.5, 1.0] {
         let p = DVec3::new(a, 0.0, 0.0);
         let shifted: Vec<CachePoint> = cache
@@ -134,5 +134,25 @@ fn cell_transfer_sums_to_the_clamped_cosine() {
     }
     for row in table.chunks_exact(k) {
         assert!((row[0] - y[0] * pi / (cells * cells) as f64).abs() < 1e-14);
+    }
+}
+
+/// Through a plane parallel to the receiver the warp's Jacobian is `cos³θ_p / cos³θ_q`, so the
+/// weight is `cos⁴θ_p / cos⁴θ_q`; a receiver's own ray weighs 1.
+#[test]
+fn occluded_jacobian_through_a_parallel_plane() {
+    let h = 0.7;
+    let q = DVec3::new(0.3, -0.2, 0.0);
+    for d in [DVec3::new(0.2, 0.1, 1.0), DVec3::new(-0.6, 0.4, 0.5), DVec3::new(0.9, -0.3, 0.2)] {
+        let d = d.normalize();
+        let t = h / d.z;
+        let r = CachedRay { d, t, n_hit: -DVec3::Z };
+        let hit = q + t * d;
+        let v = hit.normalize();
+        let want = (v.z / d.z).powi(4).min(JACOBIAN_CAP);
+        let got = occluded_jacobian(&r, DVec3::Z, DVec3::Z, v, hit.length());
+        assert!((got - want).abs() < 1e-12 * want, "{got} vs {want}");
+        let own = occluded_jacobian(&r, DVec3::Z, DVec3::Z, d, t);
+        assert!((own - 1.0).abs() < 1e-12);
     }
 }
