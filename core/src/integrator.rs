@@ -122,10 +122,16 @@ pub trait PixelEstimator: Send + Sync {
     /// The driver has counted the camera ray (see [`ThreadStats`]).
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb;
     /// Work shared by all samples of one pixel (e.g. `ltc` shading each surface seen in the
-    /// pixel once): called with the pixel's camera rays, in sample order, before any of its
-    /// samples is estimated. `Some` makes the driver call [`li_shared`](Self::li_shared)
+    /// pixel once): called with the pixel's camera samples and their rays, in sample order,
+    /// before any of its samples is estimated. `Some` makes the driver call [`li_shared`](Self::li_shared)
     /// instead of `li` for that pixel. Only called when [`shares_pixel_work`](Self::shares_pixel_work).
-    fn begin_pixel(&self, _rays: &[Ray], _scene: &Scene, _stats: &mut ThreadStats) -> Option<Self::Shared> {
+    fn begin_pixel(
+        &self,
+        _rays: &[Ray],
+        _samples: &[CameraSample],
+        _scene: &Scene,
+        _stats: &mut ThreadStats,
+    ) -> Option<Self::Shared> {
         None
     }
     /// Whether [`begin_pixel`](Self::begin_pixel) should be called (the pixel's camera rays are
@@ -391,7 +397,7 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
             scratch.cams.push(cs);
         }
         crate::phase::camera_ray_given(true);
-        let shared = self.est.begin_pixel(&scratch.rays, self.scene, stats);
+        let shared = self.est.begin_pixel(&scratch.rays, &scratch.cams, self.scene, stats);
         crate::phase::camera_ray_given(false);
         shared
     }

@@ -5,7 +5,8 @@
 //! integrator's (`T`).
 
 use super::params::{ParamSpec, Params};
-use glam::DVec3;
+use glam::{DVec2, DVec3};
+use penumbra_core::camera::CameraSample;
 use penumbra_core::geometry::Ray;
 use penumbra_core::integrator::ThreadStats;
 use penumbra_core::scene::{Scene, SurfacePoint};
@@ -37,9 +38,11 @@ pub struct SharedPixel<T> {
 
 impl<T: Copy> SharedPixel<T> {
     /// Traces the pixel's camera `rays` (one traversal for the bundle when it meets few
-    /// triangles) and shades each cluster once with `shade` ([`shade_clusters`]).
+    /// triangles) and shades each cluster once with `shade` ([`shade_clusters`]); `samples`
+    /// are the rays' camera samples.
     pub fn trace(
         rays: &[Ray],
+        samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
         light_distance: impl Fn(DVec3) -> f64,
@@ -54,7 +57,7 @@ impl<T: Copy> SharedPixel<T> {
             stats.add_continued(queries);
             hits.push(first);
         }
-        let shaded = shade_clusters(rays, &hits, light_distance, shade);
+        let shaded = shade_clusters(rays, samples, &hits, light_distance, shade);
         SharedPixel { hits, shaded }
     }
 
@@ -76,29 +79,30 @@ struct Cluster {
     mesh: u32,
     n: Vec3,
     depth: f32,
-    dir_sum: Vec3,
+    /// The sum of the members' film positions.
+    film_sum: DVec2,
 }
 
 /// Each hit's cluster (same mesh, shading normals within ~11°, depths within 5 %;
 /// `usize::MAX`: none, the ray escaped) and the clusters.
-fn clusters_of(rays: &[Ray], hits: &[FirstSurface], dirs: &[Vec3]) -> (Vec<usize>, Vec<Cluster>) {
+fn clusters_of(rays: &[Ray], samples: &[CameraSample], hits: &[FirstSurface]) -> (Vec<usize>, Vec<Cluster>) {
     let mut clusters: Vec<Cluster> = Vec::new();
     let mut cluster = vec![usize::MAX; hits.len()];
     for (i, h) in hits.iter().enumerate() {
         let Ok(h) = h else { continue };
         let n = h.si.shading.z;
         let depth = (h.si.p - rays[i].o).length();
-        let d = dirs[i];
+        let f = samples[i].p_film.as_dvec2();
         match clusters.iter().position(|c| {
             c.mesh == h.si.mesh && c.n.dot(n) > 0.98 && (c.depth - depth).abs() <= 0.05 * c.depth.max(depth)
         }) {
             Some(k) => {
                 cluster[i] = k;
-                clusters[k].dir_sum += d;
+                clusters[k].film_sum += f;
             }
             None => {
                 cluster[i] = clusters.len();
-                clusters.push(Cluster { mesh: h.si.mesh, n, depth, dir_sum: d });
+                clusters.push(Cluster { mesh: h.si.mesh, n, depth, film_sum: f });
             }
         }
     }
@@ -106,26 +110,32 @@ fn clusters_of(rays: &[Ray], hits: &[FirstSurface], dirs: &[Vec3]) -> (Vec<usize
 }
 
 /// Groups the pixel's hits into clusters and shades each cluster once, at the member whose
-/// ray is closest to the cluster's mean direction — every member when the cluster's extent
-/// is not small against `light_distance` of that point (the lighting varies across the
-/// pixel: a light grazing the floor).
+/// camera sample lies closest to the members' mean film position (the first such member on a
+/// tie) — every member when the cluster's extent is not small against `light_distance` of that
+/// point (the lighting varies across the pixel: a light grazing the floor). The choice is made
+/// on the film, not on the rays' world directions, so that it is the same for the scene
+/// rotated, scaled or moved (`penumbra stability`): near-ties between world-space dot products
+/// fell either way with rounding and picked another shading point.
 pub fn shade_clusters<T: Copy>(
     rays: &[Ray],
+    samples: &[CameraSample],
     hits: &[FirstSurface],
     light_distance: impl Fn(DVec3) -> f64,
     mut shade: impl FnMut(&SurfacePoint) -> Option<T>,
 ) -> Vec<Option<T>> {
-    let dirs: Vec<Vec3> = rays.iter().map(|r| r.d.normalize_or_zero()).collect();
-    let (cluster, clusters) = clusters_of(rays, hits, &dirs);
+    let (cluster, clusters) = clusters_of(rays, samples, hits);
     let mut shaded = vec![None; hits.len()];
     let mut shade_one = |i: usize| -> Option<T> { shade(hits[i].as_ref().ok()?) };
-    let dir = |i: usize| dirs[i];
+    let film = |i: usize| samples[i].p_film.as_dvec2();
     let pos = |i: usize| hits[i].as_ref().map(|h| h.si.p.as_dvec3()).unwrap_or(DVec3::ZERO);
     let cluster = &cluster[..];
     for (k, c) in clusters.iter().enumerate() {
         let members = || (0..hits.len()).filter(move |&m| cluster[m] == k);
-        let mean = c.dir_sum.normalize_or_zero();
-        let Some(rep) = members().max_by(|a, b| dir(*a).dot(mean).total_cmp(&dir(*b).dot(mean))) else {
+        let count = members().count() as f64;
+        let mean = c.film_sum / count;
+        let Some(rep) =
+            members().min_by(|a, b| (film(*a) - mean).length_squared().total_cmp(&(film(*b) - mean).length_squared()))
+        else {
             continue;
         };
         let extent = members().map(|m| (pos(m) - pos(rep)).length()).fold(0.0, f64::max);

@@ -54,6 +54,7 @@ use crate::common::params::{ParamSpec, Params};
 use crate::common::pixel_shading::{parse_shading, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param};
 use penumbra_core::bxdf::BxdfFlags;
+use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::Ray;
 use penumbra_core::integrator::{
@@ -148,6 +149,7 @@ impl LtcShader<'_> {
     pub(crate) fn trace_pixel(
         &self,
         rays: &[Ray],
+        samples: &[CameraSample],
         scene: &Scene,
         shadows: bool,
         stats: &mut ThreadStats,
@@ -155,6 +157,7 @@ impl LtcShader<'_> {
         let mut scratch = Vec::new();
         SharedPixel::trace(
             rays,
+            samples,
             scene,
             stats,
             |p| self.nearest_light_distance(p),
@@ -240,8 +243,14 @@ impl PixelEstimator for Estimator<'_> {
         self.shader.ltc.pixel_shading
     }
 
-    fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<Self::Shared> {
-        Some(self.shader.trace_pixel(rays, scene, self.shader.ltc.shadows, stats))
+    fn begin_pixel(
+        &self,
+        rays: &[Ray],
+        samples: &[CameraSample],
+        scene: &Scene,
+        stats: &mut ThreadStats,
+    ) -> Option<Self::Shared> {
+        Some(self.shader.trace_pixel(rays, samples, scene, self.shader.ltc.shadows, stats))
     }
 
     fn li_shared(

@@ -129,7 +129,7 @@ impl LightShape {
 pub(crate) struct LightGroup {
     pub(crate) mesh: usize,
     pub(crate) tris: Vec<u32>,
-    /// Bounding sphere of the emitting triangles.
+    /// Bounding sphere of the emitting triangles (centred on their vertices' mean).
     pub(crate) center: DVec3,
     pub(crate) radius: f64,
     pub(crate) l: Rgb,
@@ -491,18 +491,17 @@ fn gather_lights(scene: &Scene) -> Vec<LightGroup> {
         }
     }
     for g in &mut groups {
+        // Centred on the vertices' mean, through the farthest vertex: a sphere that turns with
+        // the scene (an axis-aligned box's would grow when the scene is rotated, and move the
+        // pixel-shading near-field decision with it).
         let mesh = &scene.meshes[g.mesh];
-        let mut b = Bounds3::EMPTY;
-        for &t in &g.tris {
-            if (t as usize) < mesh.triangle_count() {
-                for v in mesh.vertices(t as usize) {
-                    b.extend(v);
-                }
-            }
-        }
-        if b.min.x <= b.max.x {
-            g.center = (d3(b.min) + d3(b.max)) * 0.5;
-            g.radius = (d3(b.max) - d3(b.min)).length() * 0.5;
+        let vertices = || {
+            g.tris.iter().filter(|&&t| (t as usize) < mesh.triangle_count()).flat_map(|&t| mesh.vertices(t as usize))
+        };
+        let (sum, count) = vertices().fold((DVec3::ZERO, 0usize), |(s, n), v| (s + d3(v), n + 1));
+        if count > 0 {
+            g.center = sum / count as f64;
+            g.radius = vertices().map(|v| (d3(v) - g.center).length()).fold(0.0, f64::max);
         }
     }
     groups

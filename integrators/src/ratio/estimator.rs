@@ -10,6 +10,7 @@ use crate::common::pixel_shading::SharedPixel;
 use crate::ltc::{fresnel_at, AreaLighting, LtcShader};
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
+use penumbra_core::camera::CameraSample;
 use penumbra_core::geometry::{gamma, Frame, Ray};
 use penumbra_core::integrator::{PixelEstimator, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
@@ -505,8 +506,14 @@ impl PixelEstimator for Estimator<'_> {
 
     /// `U` once per surface seen in the pixel (as `ltc`'s pixel shading, unshadowed); the
     /// stochastic `S_N`, `U_N` stay per camera sample.
-    fn begin_pixel(&self, rays: &[Ray], scene: &Scene, stats: &mut ThreadStats) -> Option<Self::Shared> {
-        Some(self.shader.trace_pixel(rays, scene, false, stats))
+    fn begin_pixel(
+        &self,
+        rays: &[Ray],
+        samples: &[CameraSample],
+        scene: &Scene,
+        stats: &mut ThreadStats,
+    ) -> Option<Self::Shared> {
+        Some(self.shader.trace_pixel(rays, samples, scene, false, stats))
     }
 
     fn li_shared(
