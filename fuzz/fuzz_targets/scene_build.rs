@@ -1,0 +1,50 @@
+#![no_main]
+//! `cargo +nightly fuzz run scene_build fuzz/corpus/scene_build`: a fuzzed scene and a fuzzed PLY file,
+//! parsed and built as `render` builds them (every requirement on: BVH, lights, materials and
+//! the textures they reference, adjacency, dual edges), so that vertex indices, PLY bytes,
+//! texture and light parameters — checked in the scene build, not the parser — are reached.
+//!
+//! Input: the scene text, then optionally a NUL byte and the bytes of `mesh.ply`, written to a
+//! temporary directory that is the scene's base directory (`fuzz/seed-build.py` makes seeds
+//! of this form from the suite scenes). Nothing else is written; the film is overridden to
+//! 8×8 at 1 spp so that a fuzzed resolution cannot exhaust memory.
+
+use libfuzzer_sys::fuzz_target;
+use penumbra_core::scene::{BuildOptions, Requirements, Scene};
+use penumbra_parser::DiagSink;
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+/// This process's temporary directory.
+fn dir() -> &'static PathBuf {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let d = std::env::temp_dir().join(format!("penumbra-fuzz-build-{}", std::process::id()));
+        std::fs::create_dir_all(&d).expect("create the fuzz directory");
+        d
+    })
+}
+
+fuzz_target!(|data: &[u8]| {
+    let (text, ply) = match data.iter().position(|&b| b == 0) {
+        Some(i) => (&data[..i], &data[i + 1..]),
+        None => (data, &[][..]),
+    };
+    let d = dir();
+    if std::fs::write(d.join("mesh.ply"), ply).is_err() {
+        return;
+    }
+    let text = String::from_utf8_lossy(text);
+    let Ok(parsed) = penumbra_parser::parse_str(&text, "fuzz.pbrt", Some(d)) else { return };
+    let req = Requirements {
+        accel: true,
+        lights: true,
+        materials: true,
+        adjacency: true,
+        dual_edges: true,
+        min_pixel_samples: None,
+        sphere_sets: None,
+    };
+    let opts = BuildOptions { spp: Some(1), seed: 0, crop: None, resolution: Some((8, 8)) };
+    let _ = Scene::build(&parsed.scene, req, &opts, &DiagSink::new());
+});
