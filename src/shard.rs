@@ -23,6 +23,7 @@ use crate::pipeline::{self, PipelineError, RenderOptions};
 use penumbra_core::film::{Film, FilmSpec, PixelSums};
 use penumbra_core::geometry::Bounds2i;
 use penumbra_core::sampler::OffsetSampler;
+use penumbra_core::scene::Scene;
 use penumbra_core::shard::{shard_rects, TileLayout};
 use penumbra_core::{IVec2, Vec2};
 use penumbra_parser::{DiagSink, SceneDescription};
@@ -179,18 +180,19 @@ pub fn render_shard(
         )));
     }
     let hash = scene_hash(desc).map_err(PipelineError::Invalid)?;
-    let (integrator, mut scene) = pipeline::prepare(desc, opts, warnings)?;
+    let integrator = pipeline::choose_integrator(desc, opts.integrator, opts.params, warnings)?;
+    if req.spp_offset.is_some() && !integrator.merges_sample_ranges() {
+        return Err(PipelineError::Invalid(format!(
+            "--spp-offset: {}'s estimate at a pixel depends on all of the pixel's samples (work shared \
+             between them, or an image-space pass), so renders of sample ranges would not add up to one \
+             render; render it at the full sample count (--tile still splits it)",
+            integrator.name()
+        )));
+    }
+    let mut scene = Scene::build(desc, integrator.requirements(), &opts.build, warnings)?;
     let build_seconds = scene.report.total_seconds();
     let sampler = scene.sampler.name().to_string();
     if let Some(k) = req.spp_offset {
-        if !integrator.merges_sample_ranges() {
-            return Err(PipelineError::Invalid(format!(
-                "--spp-offset: {}'s estimate at a pixel depends on all of the pixel's samples (work shared \
-                 between them, or an image-space pass), so renders of sample ranges would not add up to one \
-                 render; render it at the full sample count (--tile still splits it)",
-                integrator.name()
-            )));
-        }
         if !scene.sampler.samples_independent_of_count() {
             return Err(PipelineError::Invalid(format!(
                 "--spp-offset: sampler \"{sampler}\" lays one pattern over all of a pixel's samples, so the \
@@ -207,13 +209,14 @@ pub fn render_shard(
     let image = scene.film.pixel_bounds;
     let rects = shard_rects(image, req.index, req.count, req.layout);
     if rects.is_empty() {
+        let n = penumbra_core::integrator::tiles(image).len();
         warnings.warn(
             None,
             format!(
-                "--tile {}/{}: the image's {} tiles leave nothing to this shard (it is written, empty)",
+                "--tile {}/{}: the image has {n} tile{} of 16x16 pixels, none left for this shard (it is written, empty)",
                 req.index,
                 req.count,
-                penumbra_core::integrator::tiles(image).len()
+                if n == 1 { "" } else { "s" }
             ),
         );
     }

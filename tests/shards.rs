@@ -107,6 +107,21 @@ fn sample_ranges_add_up_to_the_single_render_where_allowed() {
     }
 }
 
+/// The environment-lit paths (silhouette's SH tables, shexp's sphere sets and split lights)
+/// keep sample ranges exact too.
+#[test]
+fn environment_lit_sample_ranges_add_up() {
+    let d = desc(&scene("suite/env/objects-studio.pbrt")); // halton, box filter
+    for name in ["silhouette", "shexp"] {
+        let one = single(&d, name, 3);
+        let parts: Vec<Shard> = [(0, 1), (1, 2)]
+            .iter()
+            .map(|&(k, n)| shard_of(&d, name, n, req(0, 1, TileLayout::Rows, Some(k))).unwrap())
+            .collect();
+        assert_same(&merged(parts).unwrap(), &one, &format!("{name} on objects-studio: ranges 0..1, 1..3"));
+    }
+}
+
 #[test]
 fn samplers_whose_pattern_depends_on_the_count_refuse_sample_ranges() {
     let mut d = desc(&scene("suite/ltc/two-lights-metal.pbrt"));
