@@ -254,7 +254,7 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
     penumbra_core::phase::set_enabled(args.phases);
     if let Some(req) = inputs.shard {
         let scene_name = scene_label(&args);
-        let result = shard::render_shard(&parsed.scene, &scene_name, &args.params, &opts, req, &warnings);
+        let result = shard::render_shard(&parsed.scene, &scene_name, &opts, req, &warnings);
         if let Some(b) = &bar {
             b.finish_and_clear();
         }

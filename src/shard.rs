@@ -26,7 +26,7 @@ use penumbra_core::sampler::OffsetSampler;
 use penumbra_core::scene::Scene;
 use penumbra_core::shard::{shard_rects, TileLayout};
 use penumbra_core::{IVec2, Vec2};
-use penumbra_parser::{DiagSink, SceneDescription};
+use penumbra_parser::{DiagSink, Param, ParamValue, SceneDescription};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -164,11 +164,18 @@ pub fn machine() -> serde_json::Value {
     })
 }
 
-/// Renders the shard `req` asks for. `scene_name` and `param_strings` are recorded as given.
+/// The command-line parameters as an identity: `name=value` by name (the last of a repeated
+/// name, as the integrator reads them), so `maxdistance=1` and `maxdistance=1.0` agree once
+/// typed.
+fn param_identity(params: &[Param]) -> Vec<String> {
+    let by_name: BTreeMap<&str, &ParamValue> = params.iter().map(|p| (p.name.as_str(), &p.value)).collect();
+    by_name.into_iter().map(|(n, v)| format!("{n}={v:?}")).collect()
+}
+
+/// Renders the shard `req` asks for (`scene_name` is recorded as given).
 pub fn render_shard(
     desc: &SceneDescription,
     scene_name: &str,
-    param_strings: &[String],
     opts: &RenderOptions,
     req: ShardRequest,
     warnings: &DiagSink,
@@ -227,7 +234,7 @@ pub fn render_shard(
             identity: Identity {
                 scene_hash: hash,
                 integrator: integrator.name().to_string(),
-                params: param_strings.to_vec(),
+                params: param_identity(opts.params),
                 seed: opts.build.seed,
                 sampler,
                 full_resolution: [scene.film.full_resolution.0, scene.film.full_resolution.1],

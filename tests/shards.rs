@@ -44,7 +44,7 @@ fn single(d: &SceneDescription, integrator: &str, spp: u32) -> Vec<f32> {
 }
 
 fn shard_of(d: &SceneDescription, integrator: &str, spp: u32, req: ShardRequest) -> Result<Shard, String> {
-    with_opts(integrator, spp, |o, w| shard::render_shard(d, "test", &[], o, req, w).map_err(|e| e.to_string()))
+    with_opts(integrator, spp, |o, w| shard::render_shard(d, "test", o, req, w).map_err(|e| e.to_string()))
 }
 
 fn req(index: u32, count: u32, layout: TileLayout, spp_offset: Option<u32>) -> ShardRequest {
@@ -160,10 +160,17 @@ fn missing_duplicated_and_foreign_shards_are_refused_by_name() {
     assert!(e.contains("b2.shard duplicates b.shard") || e.contains("b.shard duplicates b2.shard"), "{e}");
     let other_seed = with_opts("ambientocclusion", 1, |o, w| {
         let o = RenderOptions { build: BuildOptions { seed: 4, ..o.build }, ..*o };
-        shard::render_shard(&d, "test", &[], &o, req(1, 3, TileLayout::Rows, None), w).unwrap()
+        shard::render_shard(&d, "test", &o, req(1, 3, TileLayout::Rows, None), w).unwrap()
     });
     let e = err(&[("a.shard", &s[0]), ("x.shard", &other_seed), ("c.shard", &s[2])]);
     assert!(e.contains("x.shard is foreign") && e.contains("seed 4"), "{e}");
+    let nsamples = [penumbra::cli_params::parse_param("nsamples=3").unwrap()];
+    let other_params = with_opts("ambientocclusion", 1, |o, w| {
+        let o = RenderOptions { params: &nsamples, build: BuildOptions { ..o.build }, ..*o };
+        shard::render_shard(&d, "test", &o, req(1, 3, TileLayout::Rows, None), w).unwrap()
+    });
+    let e = err(&[("a.shard", &s[0]), ("p.shard", &other_params), ("c.shard", &s[2])]);
+    assert!(e.contains("p.shard is foreign") && e.contains("nsamples=Int([3])"), "{e}");
     let other_scene = desc(&scene("suite/ltc/quad-cube.pbrt"));
     let foreign = shard_of(&other_scene, "ambientocclusion", 1, req(1, 3, TileLayout::Rows, None)).unwrap();
     let e = err(&[("a.shard", &s[0]), ("y.shard", &foreign), ("c.shard", &s[2])]);
