@@ -10,8 +10,8 @@
 //! * **Pass 1** ([`sample_pass`]): every camera sample of every pixel in the film's sample
 //!   bounds *plus a margin of `screenradius` pixels* (clamped to the full image) is a shading
 //!   point; it shoots `nsamples` cosine-distributed occlusion rays (no distance cap) and keeps
-//!   them in an image-space cache (point, normal, pixel footprint, ray directions and hit
-//!   distances). The margin makes a crop or a tile see exactly the neighbours of the full image.
+//!   them in an image-space cache (point, normal, pixel footprint, ray directions, hit
+//!   distances and hit normals). The margin makes a crop or a tile see exactly the neighbours of the full image.
 //! * **Pass 2** ([`filter::filter_receiver`], per camera sample): the cached rays of every
 //!   point within `screenradius` pixels (a disk) on the same surface are warped to effective
 //!   rays from the receiver, binned into `cells × cells` hemisphere cells of equal projected
