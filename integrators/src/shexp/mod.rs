@@ -27,6 +27,8 @@
 //! - `"integer maxdepth"` 5: specular recursion depth, as `directlighting`.
 //! - `"integer brightlights"` 4: at most this many bright compact regions of each map become
 //!   directional lights with shadow rays ([`bright`]; 0: the whole map is projected to SH).
+//! - `"float brightratio"` 4, `"float brightradius"` 45: a region is split off while its peak
+//!   is at least this many times the map's mean luminance; its largest radius (degrees).
 //! - `"bool interreflect"` false: (not yet implemented) the thesis's one-bounce extension.
 
 pub mod bright;
@@ -63,7 +65,7 @@ pub struct Shexp {
     pub big_theta: f64,
     pub lh_resolution: usize,
     /// Bright regions split off each environment map as directional lights.
-    pub bright_lights: usize,
+    pub bright: bright::SplitRule,
     pub max_depth: u32,
     pub pixel_bounds: Option<Bounds2i>,
 }
@@ -84,6 +86,14 @@ pub const PARAMS: &[ParamSpec] = &[
         .range(1, 256),
     ParamSpec::int("brightlights", 4, "bright compact regions of each environment map split off as directional lights")
         .range(0, 64),
+    ParamSpec::float(
+        "brightratio",
+        4.0,
+        "a bright region is split off only if its peak is this many times the map's mean luminance",
+    )
+    .within(Range::PositiveFinite),
+    ParamSpec::float("brightradius", 45.0, "largest angular radius (degrees) of a split bright region")
+        .within(Range::LeftOpen(0.0, 90.0)),
     ParamSpec::bool("interreflect", false, "not implemented yet: warns, direct lighting only"),
     max_depth(1024),
     PIXEL_BOUNDS,
@@ -97,7 +107,11 @@ impl Shexp {
         let spheres = p.count("spheres")?;
         let big = p.float("bigblocker")?;
         let lh_resolution = p.count("lhresolution")? as usize;
-        let bright_lights = p.count("brightlights")? as usize;
+        let bright = bright::SplitRule {
+            max_lights: p.count("brightlights")? as usize,
+            peak_ratio: p.float("brightratio")? as f64,
+            max_radius: (p.float("brightradius")? as f64).to_radians(),
+        };
         if p.bool("interreflect")? {
             warnings.warn(
                 params.loc_of("interreflect").cloned(),
@@ -112,7 +126,7 @@ impl Shexp {
             spheres,
             big_theta: (big as f64).to_radians(),
             lh_resolution,
-            bright_lights,
+            bright,
             max_depth,
             pixel_bounds,
         }))
@@ -315,7 +329,7 @@ impl Integrator for Shexp {
             let mut sources = Vec::new();
             for &i in &infinite {
                 if let Light::Infinite(il) = &lights[i] {
-                    let (src, b) = bright::split(il, self.bright_lights);
+                    let (src, b) = bright::split(il, self.bright);
                     sources.push(src);
                     bright_lights.extend(b);
                 }
