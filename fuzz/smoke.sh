@@ -8,6 +8,7 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 SECONDS_PER_TARGET=${1:-60}; shift || true
+rm -rf corpus/scene_build
 python3 seed-build.py >/dev/null
 mkdir -p corpus/parse artifacts
 cp -n ../scenes/suite/*/*.pbrt corpus/parse/ 2>/dev/null || true
@@ -26,5 +27,5 @@ for t in parse scene_build; do
   build "$t"
   limit=()
   [[ "$SECONDS_PER_TARGET" != 0 ]] && limit=(-max_total_time="$SECONDS_PER_TARGET")
-  "$BIN/$t" "corpus/$t" -artifact_prefix=artifacts/ -rss_limit_mb=4096 -timeout=30 "${limit[@]}" "$@"
+  "$BIN/$t" "corpus/$t" -artifact_prefix=artifacts/ -rss_limit_mb=4096 -timeout=30 -max_len=65536 "${limit[@]}" "$@"
 done
