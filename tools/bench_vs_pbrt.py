@@ -187,10 +187,10 @@ def main():
                 for _ in range(args.runs):
                     times["pbrt-v3"].append(wall(pbrt))
                     times["penumbra"].append(wall(ours))
+                # One more penumbra run, untimed, recording where its time goes (--phases).
+                wall(ours + ["--phases"])
             finally:
                 os.remove(copy)
-            # One more penumbra run, untimed, recording where its time goes (--phases).
-            wall(ours + ["--phases"])
             stats = json.load(open(pe_img[: -len(".pfm")] + ".stats.json"))
             med = {k: statistics.median(v) for k, v in times.items()}
             row = {"name": name, "integrator": integ, "scene": rel, "spp": spp, "resolution": res, "times": times,
