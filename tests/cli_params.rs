@@ -1,23 +1,10 @@
 //! Strict `--param` (issue 20 item 5), command-line locations, and the integrator parameter
 //! lists of `render --help` and the README, generated from the registry (issue 14 item 5).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("penumbra-params-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn penumbra(cwd: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_penumbra")).current_dir(cwd).args(args).output().expect("run penumbra")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{cli_dir as dir, penumbra, stderr};
+use std::path::Path;
+use std::process::Output;
 
 /// An 8×8 scene with a quad light over a floor, written to `s.pbrt` in `d`.
 fn scene(d: &Path) {

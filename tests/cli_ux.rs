@@ -1,23 +1,10 @@
 //! What a new user trips over (issue 20): outputs checked before rendering, exit codes,
 //! strict command-line values, `info` as a scene check, exposure, parser messages.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("penumbra-ux-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn penumbra(cwd: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_penumbra")).current_dir(cwd).args(args).output().expect("run penumbra")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{cli_dir as dir, penumbra, stderr};
+use std::path::Path;
+use std::process::Command;
 
 /// A tiny scene: 8×8 film writing `filename`, a point light, one triangle with `indices`.
 fn scene(filename: &str, indices: &str) -> String {

@@ -336,3 +336,25 @@ pub fn skip_or_fail_in_ci(why: &str) {
     eprintln!("\n*** SKIPPED: {why} (this would fail in CI) ***\n");
     println!("SKIPPED: {why}");
 }
+
+/// A fresh temporary directory for one CLI test (`tag` names it; the process id keeps test
+/// binaries apart).
+pub fn cli_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("penumbra-cli-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs the `penumbra` binary in `cwd`.
+pub fn penumbra(cwd: &Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .current_dir(cwd)
+        .args(args)
+        .output()
+        .expect("run penumbra")
+}
+
+pub fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
