@@ -399,10 +399,8 @@ fn identity_differences(a: &Identity, b: &Identity) -> Vec<String> {
         .collect()
 }
 
-/// Checks that the named shards belong together and cover the image exactly once (every
-/// tile, each with the same sample ranges, contiguous from 0 and not overlapping), and adds
-/// them up. Errors name the foreign, duplicated or missing shard.
-pub fn merge(shards: &[(String, Shard)]) -> Result<Merged, String> {
+/// The identity most shards share (the image's); an error naming every shard that differs.
+fn common_identity(shards: &[(String, Shard)]) -> Result<Identity, String> {
     let Some((first_name, first)) = shards.first() else { return Err("no shards to merge".into()) };
     // The identity most shards share is the image's; the others are foreign.
     let mut votes: Vec<(&Identity, usize)> = Vec::new();
@@ -423,39 +421,15 @@ pub fn merge(shards: &[(String, Shard)]) -> Result<Merged, String> {
     if !foreign.is_empty() {
         return Err(format!("{} (the other shards, e.g. {reference}, agree)", foreign.join("; ")));
     }
-    // Group by tile; each tile's sample ranges in order.
-    let mut by_tile: BTreeMap<u32, Vec<(&String, &Shard)>> = BTreeMap::new();
-    let image = array_bounds(id.image_bounds);
-    let layout = TileLayout::parse(&id.tile_layout).ok_or_else(|| format!("unknown tile layout {}", id.tile_layout))?;
-    for (n, s) in shards {
-        let h = &s.header;
-        if h.tile_index >= id.tile_count {
-            return Err(format!("{n}: tile {}/{} does not exist", h.tile_index, id.tile_count));
-        }
-        let expected: Vec<[i32; 4]> =
-            shard_rects(image, h.tile_index, id.tile_count, layout).into_iter().map(bounds_array).collect();
-        if h.rects != expected {
-            return Err(format!(
-                "{n}: its pixels {:?} are not those of tile {}/{} ({expected:?}): made by another penumbra?",
-                h.rects, h.tile_index, id.tile_count
-            ));
-        }
-        by_tile.entry(h.tile_index).or_default().push((n, s));
-    }
-    let missing: Vec<String> = (0..id.tile_count)
-        .filter(|i| !by_tile.contains_key(i))
-        .map(|i| {
-            let rects = shard_rects(image, i, id.tile_count, layout);
-            format!(
-                "tile {i}/{} (pixels {:?}) is missing",
-                id.tile_count,
-                rects.iter().map(|r| bounds_array(*r)).collect::<Vec<_>>()
-            )
-        })
-        .collect();
-    if !missing.is_empty() {
-        return Err(missing.join("; "));
-    }
+    Ok(id)
+}
+
+/// Sorts each tile's shards by sample offset and checks that their ranges are contiguous from
+/// 0, do not overlap and are the same for every tile; returns those (offset, spp) ranges.
+fn tile_sample_ranges(
+    by_tile: &mut BTreeMap<u32, Vec<(&String, &Shard)>>,
+    id: &Identity,
+) -> Result<Vec<(u32, u32)>, String> {
     let mut ranges_of_first: Option<(u32, Vec<(u32, u32)>)> = None;
     for (tile, list) in by_tile.iter_mut() {
         list.sort_by_key(|(_, s)| s.header.spp_offset);
@@ -500,7 +474,48 @@ pub fn merge(shards: &[(String, Shard)]) -> Result<Merged, String> {
             _ => {}
         }
     }
-    let ranges = ranges_of_first.map(|r| r.1).unwrap_or_default();
+    Ok(ranges_of_first.map(|r| r.1).unwrap_or_default())
+}
+
+/// Checks that the named shards belong together and cover the image exactly once (every
+/// tile, each with the same sample ranges, contiguous from 0 and not overlapping), and adds
+/// them up. Errors name the foreign, duplicated or missing shard.
+pub fn merge(shards: &[(String, Shard)]) -> Result<Merged, String> {
+    let id = common_identity(shards)?;
+    // Group by tile; each tile's sample ranges in order.
+    let mut by_tile: BTreeMap<u32, Vec<(&String, &Shard)>> = BTreeMap::new();
+    let image = array_bounds(id.image_bounds);
+    let layout = TileLayout::parse(&id.tile_layout).ok_or_else(|| format!("unknown tile layout {}", id.tile_layout))?;
+    for (n, s) in shards {
+        let h = &s.header;
+        if h.tile_index >= id.tile_count {
+            return Err(format!("{n}: tile {}/{} does not exist", h.tile_index, id.tile_count));
+        }
+        let expected: Vec<[i32; 4]> =
+            shard_rects(image, h.tile_index, id.tile_count, layout).into_iter().map(bounds_array).collect();
+        if h.rects != expected {
+            return Err(format!(
+                "{n}: its pixels {:?} are not those of tile {}/{} ({expected:?}): made by another penumbra?",
+                h.rects, h.tile_index, id.tile_count
+            ));
+        }
+        by_tile.entry(h.tile_index).or_default().push((n, s));
+    }
+    let missing: Vec<String> = (0..id.tile_count)
+        .filter(|i| !by_tile.contains_key(i))
+        .map(|i| {
+            let rects = shard_rects(image, i, id.tile_count, layout);
+            format!(
+                "tile {i}/{} (pixels {:?}) is missing",
+                id.tile_count,
+                rects.iter().map(|r| bounds_array(*r)).collect::<Vec<_>>()
+            )
+        })
+        .collect();
+    if !missing.is_empty() {
+        return Err(missing.join("; "));
+    }
+    let ranges = tile_sample_ranges(&mut by_tile, &id)?;
     let spp_total: u64 = ranges.iter().map(|r| r.1 as u64).sum();
     let spp = u32::try_from(spp_total).map_err(|_| format!("{spp_total} samples per pixel in all"))?;
 
