@@ -269,6 +269,61 @@ pub fn same_surface(recv: &Receiver, q: &CachePoint) -> bool {
     q.n.dot(n) >= 0.9 && n.dot(off).abs() <= 0.25 * off.length() + recv.footprint
 }
 
+/// The point a cached ray hit, when it is an occluder within `max_distance` of `p`.
+fn occluder_hit(r: &CachedRay, q: &CachePoint, p: DVec3, max_distance: f64) -> Option<DVec3> {
+    if r.t.is_finite() {
+        let hit = q.p + r.t * r.d;
+        ((hit - p).length() <= max_distance).then_some(hit)
+    } else {
+        None
+    }
+}
+
+/// Pass 2's first loop: each cell's occluder depth bounds (cells binned by the direction from
+/// the receiver to the hit), whether a ray of the cell escaped, the contact test, the filter's
+/// radius (Eq. 8) and the harmonic mid depth.
+fn cell_depth_bounds<'a>(
+    recv: &Receiver,
+    neighbours: impl Iterator<Item = &'a CachePoint>,
+    params: &FilterParams,
+    bounds: &mut [Bounds],
+) {
+    let (n, p, inf) = (recv.frame.z, recv.p, f64::INFINITY);
+    // Loop 1: occluder depth bounds per cell, cells binned by the effective direction.
+    for q in neighbours {
+        for r in &q.rays {
+            let Some(hit) = occluder_hit(r, q, p, params.max_distance) else {
+                bounds[cell_of(recv.frame.to_local(r.d), params.cells)].miss = true;
+                continue;
+            };
+            let u = hit - p;
+            let z = u.length();
+            if !(u.dot(n) > 1e-9 * z) {
+                continue;
+            }
+            let b = &mut bounds[cell_of(recv.frame.to_local(u / z), params.cells)];
+            b.z_min = b.z_min.min(z);
+            b.z_max = b.z_max.max(z);
+        }
+    }
+    let contact = 2.0 * params.omega_v * recv.footprint;
+    for b in bounds.iter_mut() {
+        if b.z_max == 0.0 {
+            continue; // no occluder: radius and mid depth stay infinite
+        }
+        b.mid = 2.0 / (1.0 / b.z_min + 1.0 / b.z_max);
+        // Contact test Ω_v / z_min > Ω_pix = 0.5 / footprint.
+        b.brute = b.z_min < contact;
+        b.radius = if b.miss {
+            b.z_min / params.omega_v
+        } else if b.z_max > b.z_min {
+            b.z_min * b.z_max / (params.omega_v * (b.z_max - b.z_min))
+        } else {
+            inf
+        };
+    }
+}
+
 /// Per-cell filtered visibility at `recv` from the rays of `neighbours` (the receiver's own
 /// point included; [`same_surface`] is applied here). `out` gets `cells²` values.
 pub fn filter_receiver<'a>(
@@ -291,48 +346,9 @@ pub fn filter_receiver<'a>(
             *v = recv.frame.from_local(cell_center(c, params.cells));
         }
     }
-    let occluding = |r: &CachedRay, q: &CachePoint| -> Option<DVec3> {
-        if r.t.is_finite() {
-            let hit = q.p + r.t * r.d;
-            ((hit - p).length() <= params.max_distance).then_some(hit)
-        } else {
-            None
-        }
-    };
+    let occluding = |r: &CachedRay, q: &CachePoint| occluder_hit(r, q, p, params.max_distance);
     let neighbours = neighbours.filter(|q| same_surface(recv, q));
-    // Loop 1: occluder depth bounds per cell, cells binned by the effective direction.
-    for q in neighbours.clone() {
-        for r in &q.rays {
-            let Some(hit) = occluding(r, q) else {
-                scratch.bounds[cell_of(recv.frame.to_local(r.d), params.cells)].miss = true;
-                continue;
-            };
-            let u = hit - p;
-            let z = u.length();
-            if !(u.dot(n) > 1e-9 * z) {
-                continue;
-            }
-            let b = &mut scratch.bounds[cell_of(recv.frame.to_local(u / z), params.cells)];
-            b.z_min = b.z_min.min(z);
-            b.z_max = b.z_max.max(z);
-        }
-    }
-    let contact = 2.0 * params.omega_v * recv.footprint;
-    for b in scratch.bounds.iter_mut() {
-        if b.z_max == 0.0 {
-            continue; // no occluder: radius and mid depth stay infinite
-        }
-        b.mid = 2.0 / (1.0 / b.z_min + 1.0 / b.z_max);
-        // Contact test Ω_v / z_min > Ω_pix = 0.5 / footprint.
-        b.brute = b.z_min < contact;
-        b.radius = if b.miss {
-            b.z_min / params.omega_v
-        } else if b.z_max > b.z_min {
-            b.z_min * b.z_max / (params.omega_v * (b.z_max - b.z_min))
-        } else {
-            inf
-        };
-    }
+    cell_depth_bounds(recv, neighbours.clone(), params, &mut scratch.bounds);
     // The receiver's mid depth over all cells, for `Warp::Sphere`.
     let (gmin, gmax) = scratch
         .bounds
