@@ -8,12 +8,12 @@
 //! from the other end, as [`super::MomentTable`] does. Stored in f32 (a 128-meridian table
 //! at order 12 is 85 MB); accumulated in f64.
 
-use super::param::{Meridians, PoleFrame};
+use super::param::{CellNodes, Meridians, PoleFrame};
 use crate::sh::{basis, ShOrder, MAX_ORDER};
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// Sub-cells per cell (in `v`, and sub-wedges in `φ`) at which the radiance is sampled.
+/// The fewest sub-cells per cell (in `v`, and sub-wedges in `φ`) at which the radiance is sampled.
 const SUPER: usize = 3;
 
 #[derive(Clone, Debug)]
@@ -32,8 +32,15 @@ impl ShTable {
     }
 
     /// Tables for `meridians` with `cells` cells in `v` per meridian, of radiance `le`, up to
-    /// SH order `order`.
-    pub fn build(m: &Meridians, cells: usize, order: ShOrder, le: impl Fn(DVec3) -> [f64; 3] + Sync) -> ShTable {
+    /// SH order `order`, the radiance sampled no more than `spacing` radians apart in each
+    /// cell ([`CellNodes`]).
+    pub fn build(
+        m: &Meridians,
+        cells: usize,
+        order: ShOrder,
+        spacing: f64,
+        le: impl Fn(DVec3) -> [f64; 3] + Sync,
+    ) -> ShTable {
         let cells = cells.max(1);
         let k = order.coeffs();
         let stride = (cells + 1) * 3 * k;
@@ -44,19 +51,19 @@ impl ShTable {
             let dv = 2.0 / cells as f64;
             let mut acc = vec![0.0f64; 3 * k];
             let mut y = [0.0f64; MAX_ORDER * MAX_ORDER];
+            let mut nodes = CellNodes::default();
             for j in 0..cells {
-                for b in 0..SUPER {
-                    let v = -1.0 + dv * (j as f64 + (b as f64 + 0.5) / SUPER as f64);
+                let v0 = -1.0 + dv * j as f64;
+                nodes.sample(&frame, m, i, (v0, v0 + dv), spacing, SUPER, &le);
+                let inv_phi = 1.0 / nodes.phi.len() as f64;
+                for (&(v, w), row) in nodes.v.iter().zip(nodes.radiance.chunks(nodes.phi.len())) {
                     let mut l = [0.0f64; 3];
-                    for a in 0..SUPER {
-                        let phi = (i as f64 + (a as f64 + 0.5) / SUPER as f64) * m.dphi;
-                        let x = le(frame.direction(phi.cos(), phi.sin(), v));
+                    for x in row {
                         for ch in 0..3 {
-                            l[ch] += x[ch] / SUPER as f64;
+                            l[ch] += x[ch] * inv_phi;
                         }
                     }
                     basis::eval(order, frame.direction(m.cos[i], m.sin[i], v), &mut y[..k]);
-                    let w = dv / SUPER as f64;
                     for ch in 0..3 {
                         let lw = l[ch] * w;
                         for (a, yk) in acc[ch * k..(ch + 1) * k].iter_mut().zip(&y[..k]) {
@@ -120,7 +127,7 @@ mod tests {
         let k = order.coeffs();
         let le = |w: DVec3| [1.0 + 0.5 * w.x, 2.0 + w.z * w.y, (3.0 * w.z).exp()];
         let m = Meridians::new(64);
-        let t = ShTable::build(&m, 64, order, le);
+        let t = ShTable::build(&m, 64, order, 1.0, le);
         let q = SphereQuadrature::product(40, 80);
         let mut y = vec![0.0; k];
         let mut exact = vec![0.0; 3 * k];
@@ -146,7 +153,7 @@ mod tests {
                 assert!((o - e).abs() < 2e-3 * scale, "axis {axis} {sign} coefficient {c}: {o} vs {e}");
             }
         }
-        let t = ShTable::build(&m, 16, order, |_| [1.0, 1.0, 1.0]);
+        let t = ShTable::build(&m, 16, order, 1.0, |_| [1.0, 1.0, 1.0]);
         let mut out = vec![0.0; 3 * k];
         for i in 0..m.n {
             t.add(&PoleFrame::new(2, -1.0), i, -1.0, 1.0, order, &mut out);

@@ -143,15 +143,31 @@ struct Counters {
     glossy_points: AtomicU64,
 }
 
-/// Rays per side of the stratified grid of the Monte Carlo fallback.
+/// The finest texel among the infinite lights' maps, at most 1/2048 of π (a 4096 × 2048 map;
+/// finer maps are sampled at that spacing, which bounds the tables' build cost), halved: the
+/// spacing at which the radiance tables sample each cell, so every texel is sampled about four
+/// times and a sun a few texels wide keeps its power in every axis frame ([`CellNodes`]).
+/// A constant light (a 1 × 1 map) needs only the tables' fixed 3 × 3 nodes per cell.
+///
+/// [`CellNodes`]: penumbra_core::silhouette::param::CellNodes
+fn table_spacing(infinite: &[&Light]) -> f64 {
+    let texel = infinite
+        .iter()
+        .filter_map(|l| match l {
+            Light::Infinite(l) if l.map.width * l.map.height > 1 => {
+                Some((std::f64::consts::TAU / l.map.width as f64).min(std::f64::consts::PI / l.map.height as f64))
+            }
+            _ => None,
+        })
+        .fold(std::f64::consts::PI, f64::min);
+    0.5 * texel.max(std::f64::consts::PI / 2048.0)
+}
+
+/// Rays per side of the stratified grid of the AO modes' Monte Carlo fallback.
 const FALLBACK_RAYS: usize = 16;
 
-/// A piece of the visible hemisphere: an interval of a meridian, or (Monte Carlo fallback) an
-/// unoccluded direction and its solid angle.
-enum Piece<'a> {
-    Interval(&'a PoleFrame, &'a Interval),
-    Ray(glam::DVec3, f64),
-}
+/// Samples per side of the stratified grid of `shade`'s estimator fallback.
+const FALLBACK_SAMPLES: usize = 8;
 
 struct Estimator<'a> {
     mode: Mode,
@@ -166,24 +182,27 @@ struct Estimator<'a> {
     /// (built when a glossy lobe first needs it).
     infinite: Vec<&'a Light>,
     glossy_order: ShOrder,
+    /// How far apart (radians) the tables sample the radiance: [`table_spacing`].
+    table_spacing: f64,
     sh_table: OnceLock<ShTable>,
     counters: Counters,
 }
 
 impl Estimator<'_> {
     /// Calls `f` with every visible interval of the hemisphere of `n` (unit, world) at `si`
-    /// (none when the point sees nothing). When the traversal's horizon check finds a missed
-    /// crossing, calls `g` instead with the unoccluded directions of a stratified
-    /// `FALLBACK_RAYS`² uniform sampling of the hemisphere and their solid angle (counted as
-    /// `silhouette.fallbacks`).
+    /// (none when the point sees nothing) and returns `true`; returns `false` without calling
+    /// `f` when the traversal's horizon check finds a missed crossing (counted as
+    /// `silhouette.fallbacks`): the caller then estimates the point another way
+    /// ([`Self::fallback_rays`] for the bounded AO integrands, [`Self::fallback_estimator`]
+    /// for the environment's radiance).
     fn visible(
         &self,
         scene: &Scene,
         si: &SurfaceInteraction,
         n: Vec3,
         stats: &mut ThreadStats,
-        mut f: impl FnMut(Piece),
-    ) {
+        mut f: impl FnMut(&PoleFrame, &Interval),
+    ) -> bool {
         let dual = self.dual;
         // Offset off the surface by its error bound, as rays are: the surface itself and its
         // coplanar neighbours are then strictly behind the tangent plane, never contours.
@@ -199,20 +218,7 @@ impl Estimator<'_> {
             self.counters.crossings.fetch_add(vis.crossings as u64, Ordering::Relaxed);
             if vis.mismatches > 0 {
                 self.counters.fallbacks.fetch_add(1, Ordering::Relaxed);
-                let frame = Frame::from_z(n);
-                let k = FALLBACK_RAYS;
-                let w = std::f64::consts::TAU / (k * k) as f64;
-                for a in 0..k {
-                    for b in 0..k {
-                        let u = Vec2::new((a as f32 + 0.5) / k as f32, (b as f32 + 0.5) / k as f32);
-                        let d = frame.from_local(uniform_sample_hemisphere(u));
-                        stats.shadow_rays += 1;
-                        if !scene.occluded(&si.spawn_ray(d)) {
-                            f(Piece::Ray(d.as_dvec3(), w));
-                        }
-                    }
-                }
-                return;
+                return false;
             }
             // The intervals of minimal relative W are the visible ones iff one ray through the
             // longest of them escapes (inside a closed box no edge is a contour, W is 1
@@ -220,12 +226,70 @@ impl Estimator<'_> {
             stats.shadow_rays += 1;
             if scene.occluded(&si.spawn_ray(vis.probe.as_vec3())) {
                 self.counters.occluded_points.fetch_add(1, Ordering::Relaxed);
-                return;
+                return true;
             }
             for iv in s.traversal.with_w(vis.min_w) {
-                f(Piece::Interval(&frame, iv));
+                f(&frame, iv);
             }
+            true
         })
+    }
+
+    /// The Monte Carlo fallback of the AO integrands (cosine, SH × cosine: bounded): calls `f`
+    /// with the unoccluded directions of a stratified `FALLBACK_RAYS`² uniform sampling of
+    /// the hemisphere of `n` and their solid angle.
+    fn fallback_rays(
+        scene: &Scene,
+        si: &SurfaceInteraction,
+        n: Vec3,
+        stats: &mut ThreadStats,
+        mut f: impl FnMut(glam::DVec3, f64),
+    ) {
+        let frame = Frame::from_z(n);
+        let k = FALLBACK_RAYS;
+        let w = std::f64::consts::TAU / (k * k) as f64;
+        for a in 0..k {
+            for b in 0..k {
+                let u = Vec2::new((a as f32 + 0.5) / k as f32, (b as f32 + 0.5) / k as f32);
+                let d = frame.from_local(uniform_sample_hemisphere(u));
+                stats.shadow_rays += 1;
+                if !scene.occluded(&si.spawn_ray(d)) {
+                    f(d.as_dvec3(), w);
+                }
+            }
+        }
+    }
+
+    /// The fallback of `shade`: the infinite lights' direct lighting at a point whose
+    /// traversal failed, by `directlighting`'s estimator (light and BSDF sampling, power
+    /// heuristic) averaged over a `FALLBACK_SAMPLES`² stratified grid shifted by one sampler
+    /// value. Uniform directions would be unbounded here: a ray that happens to hit a small
+    /// sun carries its radiance over `2π/256` sr, and such pixels came out ten times too bright.
+    fn fallback_estimator(
+        &self,
+        si: &SurfaceInteraction,
+        bsdf: &penumbra_core::bxdf::Bsdf,
+        sampler: &mut dyn Sampler,
+        scene: &Scene,
+        stats: &mut ThreadStats,
+    ) -> Rgb {
+        let (shift_l, shift_s) = (sampler.get_2d(), sampler.get_2d());
+        let k = FALLBACK_SAMPLES;
+        let grid = |a: usize, b: usize, shift: Vec2| {
+            let u = Vec2::new((a as f32 + shift.x) / k as f32, (b as f32 + shift.y) / k as f32);
+            u.min(Vec2::splat(1.0 - f32::EPSILON / 2.0))
+        };
+        let mut l = Rgb::ZERO;
+        for (index, light) in scene.light_list().iter().enumerate().filter(|(_, l)| l.is_infinite()) {
+            for a in 0..k {
+                for b in 0..k {
+                    // The BSDF's grid transposed, so the two are not sampled in lockstep.
+                    let (u_light, u_scatter) = (grid(a, b, shift_l), grid(b, a, shift_s));
+                    l += estimate_direct(si, bsdf, u_scatter, index, light, u_light, scene, stats);
+                }
+            }
+        }
+        l / (k * k) as f32
     }
 
     /// The first surface with a material along `ray` (pbrt-v3's AO passes through the others).
@@ -257,32 +321,32 @@ impl Estimator<'_> {
         };
         let ns = face_forward(ns, n).as_dvec3();
         let (mut transfer, mut y) = ([0.0f64; MAX_ORDER * MAX_ORDER], [0.0f64; MAX_ORDER * MAX_ORDER]);
-        self.visible(scene, &si, n, stats, |piece| match piece {
-            Piece::Interval(frame, iv) => {
-                let i = iv.meridian as usize;
-                sum += moment(frame, m, i, iv.lo, iv.hi);
-                if let Some((order, x, w)) = &self.sh {
-                    // ∫ Y(ω) n·ω dv = ∫ Y n·ω sin θ dθ, Gauss–Legendre in θ.
-                    let (t0, t1) = (iv.hi.clamp(-1.0, 1.0).acos(), iv.lo.clamp(-1.0, 1.0).acos());
-                    let (mid, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0));
-                    for (xj, wj) in x.iter().zip(w) {
-                        let t = mid + half * xj;
-                        let d = frame.direction(m.cos[i], m.sin[i], t.cos());
-                        basis::eval(*order, d, &mut y[..k]);
-                        let weight = wj * half * t.sin() * ns.dot(d).max(0.0) * m.dphi;
-                        transfer[..k].iter_mut().zip(&y[..k]).for_each(|(tr, yi)| *tr += weight * yi);
-                    }
+        let traversed = self.visible(scene, &si, n, stats, |frame, iv| {
+            let i = iv.meridian as usize;
+            sum += moment(frame, m, i, iv.lo, iv.hi);
+            if let Some((order, x, w)) = &self.sh {
+                // ∫ Y(ω) n·ω dv = ∫ Y n·ω sin θ dθ, Gauss–Legendre in θ.
+                let (t0, t1) = (iv.hi.clamp(-1.0, 1.0).acos(), iv.lo.clamp(-1.0, 1.0).acos());
+                let (mid, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0));
+                for (xj, wj) in x.iter().zip(w) {
+                    let t = mid + half * xj;
+                    let d = frame.direction(m.cos[i], m.sin[i], t.cos());
+                    basis::eval(*order, d, &mut y[..k]);
+                    let weight = wj * half * t.sin() * ns.dot(d).max(0.0) * m.dphi;
+                    transfer[..k].iter_mut().zip(&y[..k]).for_each(|(tr, yi)| *tr += weight * yi);
                 }
             }
-            Piece::Ray(d, w) => {
+        });
+        if !traversed {
+            Self::fallback_rays(scene, &si, n, stats, |d, w| {
                 sum_mc += d * w;
                 if let Some((order, ..)) = &self.sh {
                     basis::eval(*order, d, &mut y[..k]);
                     let weight = w * ns.dot(d).max(0.0);
                     transfer[..k].iter_mut().zip(&y[..k]).for_each(|(tr, yi)| *tr += weight * yi);
                 }
-            }
-        });
+            });
+        }
         if let Some((order, ..)) = &self.sh {
             TransferChannels::new(*order, 0).write(
                 aov,
@@ -323,28 +387,25 @@ impl Estimator<'_> {
         }
         if let (Some(d), Some(table)) = (lambertian, &self.table) {
             let ng = face_forward(si.n, si.wo);
-            let (mut v, mut v_mc) = ([glam::DVec3::ZERO; 3], [glam::DVec3::ZERO; 3]);
+            let mut v = [glam::DVec3::ZERO; 3];
             let m = &self.meridians;
-            self.visible(scene, si, ng, stats, |piece| match piece {
-                Piece::Interval(frame, iv) => table.add(frame, m, iv.meridian as usize, iv.lo, iv.hi, &mut v),
-                Piece::Ray(dir, w) => {
-                    let ray = Ray::new(Vec3::ZERO, dir.as_vec3(), f32::INFINITY);
-                    let l: Rgb = scene.light_list().iter().filter(|l| l.is_infinite()).map(|l| l.le(&ray)).sum();
-                    for (c, vc) in v_mc.iter_mut().enumerate() {
-                        *vc += dir * (w * l[c] as f64);
-                    }
-                }
-            });
-            for (vc, mc) in v.iter_mut().zip(&v_mc) {
-                *vc = *vc * m.dphi + *mc;
+            if self.visible(scene, si, ng, stats, |frame, iv| {
+                table.add(frame, m, iv.meridian as usize, iv.lo, iv.hi, &mut v)
+            }) {
+                // pbrt-v3's |cos| with the shading normal: on the visible side.
+                let ns = face_forward(d.n, ng).as_dvec3();
+                let e =
+                    Rgb::new(ns.dot(v[0] * m.dphi) as f32, ns.dot(v[1] * m.dphi) as f32, ns.dot(v[2] * m.dphi) as f32);
+                l += d.diffuse * e.max(Rgb::ZERO) * std::f32::consts::FRAC_1_PI;
+            } else {
+                l += self.fallback_estimator(si, bsdf, sampler, scene, stats);
             }
-            // pbrt-v3's |cos| with the shading normal: on the visible side.
-            let ns = face_forward(d.n, ng).as_dvec3();
-            let e = Rgb::new(ns.dot(v[0]) as f32, ns.dot(v[1]) as f32, ns.dot(v[2]) as f32);
-            l += d.diffuse * e.max(Rgb::ZERO) * std::f32::consts::FRAC_1_PI;
         }
         if let (Some(split), Some(table)) = (split, &self.table) {
-            l += self.shade_split(&split, si, bsdf, table, scene, stats);
+            l += match self.shade_split(&split, si, bsdf, table, scene, stats) {
+                Some(c) => c,
+                None => self.fallback_estimator(si, bsdf, sampler, scene, stats),
+            };
         }
         if depth + 1 < self.max_depth {
             for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
@@ -360,7 +421,7 @@ impl Estimator<'_> {
 impl Estimator<'_> {
     /// A surface with non-Lambertian lobes under the infinite lights: its Lambertian lobes by
     /// the vector irradiance, the others by SH projection of the visible environment and of
-    /// the lobes ([`glossy`]).
+    /// the lobes ([`glossy`]); `None` when the traversal failed.
     fn shade_split(
         &self,
         split: &glossy::Split,
@@ -369,10 +430,11 @@ impl Estimator<'_> {
         table: &MomentTable,
         scene: &Scene,
         stats: &mut ThreadStats,
-    ) -> Rgb {
+    ) -> Option<Rgb> {
         self.counters.glossy_points.fetch_add(1, Ordering::Relaxed);
         let sh_table = self.sh_table.get_or_init(|| {
-            ShTable::build(&self.meridians, self.meridians.n.min(glossy::TABLE_CELLS), self.glossy_order, |w| {
+            let cells = self.meridians.n.min(glossy::TABLE_CELLS);
+            ShTable::build(&self.meridians, cells, self.glossy_order, self.table_spacing, |w| {
                 let l = self.radiance(w);
                 [l.x as f64, l.y as f64, l.z as f64]
             })
@@ -380,39 +442,27 @@ impl Estimator<'_> {
         let order = split.order;
         let k = order.coeffs();
         let ng = face_forward(si.n, si.wo);
-        let (mut v, mut v_mc) = ([glam::DVec3::ZERO; 3], [glam::DVec3::ZERO; 3]);
-        let (mut lsh, mut lsh_mc) = ([0.0f64; 3 * glossy::MAX_COEFFS], [0.0f64; 3 * glossy::MAX_COEFFS]);
-        let mut y = [0.0f64; glossy::MAX_COEFFS];
+        let mut v = [glam::DVec3::ZERO; 3];
+        let mut lsh = [0.0f64; 3 * glossy::MAX_COEFFS];
         let m = &self.meridians;
-        self.visible(scene, si, ng, stats, |piece| match piece {
-            Piece::Interval(frame, iv) => {
-                let i = iv.meridian as usize;
-                table.add(frame, m, i, iv.lo, iv.hi, &mut v);
-                sh_table.add(frame, i, iv.lo, iv.hi, order, &mut lsh[..3 * k]);
-            }
-            Piece::Ray(dir, w) => {
-                let l = self.radiance(dir);
-                basis::eval(order, dir, &mut y[..k]);
-                for c in 0..3 {
-                    v_mc[c] += dir * (w * l[c] as f64);
-                    for j in 0..k {
-                        lsh_mc[c * k + j] += w * l[c] as f64 * y[j];
-                    }
-                }
-            }
+        let traversed = self.visible(scene, si, ng, stats, |frame, iv| {
+            let i = iv.meridian as usize;
+            table.add(frame, m, i, iv.lo, iv.hi, &mut v);
+            sh_table.add(frame, i, iv.lo, iv.hi, order, &mut lsh[..3 * k]);
         });
+        if !traversed {
+            return None;
+        }
         let mut out = Rgb::ZERO;
         if split.diffuse != Rgb::ZERO {
             let ns = face_forward(bsdf.shading_normal(), ng).as_dvec3();
-            let e: [f64; 3] = std::array::from_fn(|c| ns.dot(v[c] * m.dphi + v_mc[c]));
+            let e: [f64; 3] = std::array::from_fn(|c| ns.dot(v[c] * m.dphi));
             out += split.diffuse
                 * Rgb::new(e[0] as f32, e[1] as f32, e[2] as f32).max(Rgb::ZERO)
                 * std::f32::consts::FRAC_1_PI;
         }
-        for (a, b) in lsh[..3 * k].iter_mut().zip(&lsh_mc[..3 * k]) {
-            *a = *a * m.dphi + b;
-        }
-        out + glossy::shade(split, bsdf, si.wo, ng, &lsh[..3 * k])
+        lsh[..3 * k].iter_mut().for_each(|a| *a *= m.dphi);
+        Some(out + glossy::shade(split, bsdf, si.wo, ng, &lsh[..3 * k]))
     }
 
     /// The infinite lights' radiance from direction `w` (world).
@@ -456,8 +506,9 @@ impl Integrator for Silhouette {
         let infinite: Vec<&Light> = scene.light_list().iter().filter(|l| l.is_infinite()).collect();
         let mode = self.mode.unwrap_or(if infinite.is_empty() { Mode::Ao } else { Mode::Shade });
         let meridians = Meridians::new(self.resolution);
+        let table_spacing = table_spacing(&infinite);
         let table = (mode == Mode::Shade && !infinite.is_empty()).then(|| {
-            MomentTable::build(&meridians, self.resolution, |w| {
+            MomentTable::build(&meridians, self.resolution, table_spacing, |w| {
                 let ray = Ray::new(Vec3::ZERO, w.as_vec3(), f32::INFINITY);
                 let l: Rgb = infinite.iter().map(|l| l.le(&ray)).sum();
                 [l.x as f64, l.y as f64, l.z as f64]
@@ -479,6 +530,7 @@ impl Integrator for Silhouette {
             sh,
             infinite,
             glossy_order: self.glossy_order,
+            table_spacing,
             sh_table: OnceLock::new(),
             counters: Counters::default(),
         };
