@@ -12,12 +12,17 @@
 //!   point; it shoots `nsamples` cosine-distributed occlusion rays (no distance cap) and keeps
 //!   them in an image-space cache (point, normal, pixel footprint, ray directions, hit
 //!   distances and hit normals). The margin makes a crop or a tile see exactly the neighbours of the full image.
-//! * **Pass 2** ([`filter::filter_receiver`], per camera sample): the cached rays of every
-//!   point within `screenradius` pixels (a disk) on the same surface are warped to effective
-//!   rays from the receiver, binned into `cells × cells` hemisphere cells of equal projected
-//!   area, weighted by the sheared filter and normalised per cell; cells with too little weight
-//!   or too close occluders take `brutesamples` fresh rays each, stratified in the cell.
-//!   AO = (π / cells²) Σ_c V̄_c.
+//! * **Pass 2** ([`filter::filter_receiver`]): the cached rays of every point within
+//!   `screenradius` pixels (a disk) on the same surface are warped to effective rays from the
+//!   receiver, binned into `cells × cells` hemisphere cells of equal projected area, weighted by
+//!   the sheared filter and normalised per cell; cells with too little weight or too close
+//!   occluders take `brutesamples` fresh rays each, stratified in the cell (2D samples hashed
+//!   from a per-sample seed, [`brute_sample`], so only the cells brute-forced cost anything).
+//!   AO = (π / cells²) Σ_c V̄_c. With `"string shading" "pixel"` (default) the receiver is
+//!   one camera sample per surface a pixel sees ([`pixel_clusters`]: the member nearest the
+//!   cluster's mean film position), whose filtered cells every member shares; each member still
+//!   brute-forces its own contact cells from its own point. With `"sample"` every camera sample
+//!   is a receiver (the paper's per-shading-point filter).
 //! * **SH** (`"bool sh" "true"`, order `"integer shorder"`, 3): the transfer
 //!   `Σ_c V̄_c K_c`, `K_c = ∫_c max(0, n·ω) Y(ω) dω` per cell ([`filter::cell_transfer`], exact
 //!   to rounding), turned from the receiver's frame to world space, in channels `sh.*` with the
@@ -36,13 +41,25 @@
 //! per receiver, nearest pixels first; `warp`: see [`filter::Warp`]).
 //!
 //! Choices the paper leaves open (see also [`filter`]):
-//! * kernel: a Gaussian exp(−2t²) of t = |x| / r, truncated at t = 1.5;
+//! * kernel: `(1 − t²/1.5²)⁴` of t = |x| / r, within 0.044 of the Gaussian exp(−2t²) truncated
+//!   at 1.5 used before (same bias and RMSE to the table's precision) without a square root or
+//!   an exponential;
+//! * pixel shading (measured below and in the README): the filter, not the rays, is the cost
+//!   (80 % of the instructions), and a pixel's camera samples see nearly the same neighbourhood,
+//!   so sharing one filtered result per surface and pixel cuts pass 2 by the spp; contact cells
+//!   stay per sample, where sub-pixel changes of the visibility are largest;
 //! * Ω_pix^max = 0.5 / footprint, footprint = the larger side of the pixel's footprint on the
 //!   receiver's tangent plane (camera rays one pixel over); with Eq. 8 the spatial radius is
 //!   `z_min z_max / (Ω_v (z_max − z_min))` and the contact test `z_min < 2 Ω_v · footprint`;
 //! * `nsamples` 8 by measurement (README table, `tools/sheared_ao_table.py`): per ray within
 //!   10–20 % of the most efficient of 4/8/16/32 and the smallest bias of the four; the error
 //!   floor is the brute-forced cells' single rays, which more pass-1 rays do not cut;
+//! * `maxpoints` 64 by measurement (64², 4 spp, against `ambientocclusion` at 1024 rays on the
+//!   same camera samples; callgrind instructions of the render): RMSE² × instructions, lower is
+//!   better, spheres-on-plane / blinds: 256 points 7.3e-4 / 3.9e-3, 128 points 5.2e-4 / 1.8e-3,
+//!   64 points 4.4e-4 / 1.15e-3, 32 points 5.0e-4 / 1.2e-3 (more cells brute-forced) — a wider
+//!   neighbourhood lowers the noise less than it costs, and adds reprojection bias (blinds
+//!   +0.27 % at 64 points);
 //! * the depth bounds count open sky: a cell where some neighbour ray (unwarped direction)
 //!   escaped has `z_max = ∞`, so radius `z_min / Ω_v` — its visibility has an edge between an
 //!   occluder and infinity, and the occluders alone (one depth: an infinite radius)
@@ -78,6 +95,7 @@ pub mod filter;
 
 use crate::common::image_pass::ImageBuffer;
 use crate::common::params::{ParamSpec, Params, Range};
+use crate::common::pixel_shading::{parse_shading, SHADING};
 use crate::common::{SH_ORDER, SH_TRANSFER};
 use filter::{CachePoint, CachedRay, CellValue, FilterParams, Receiver, Scratch, Warp};
 use glam::{IVec2, Vec2};
@@ -87,6 +105,7 @@ use penumbra_core::geometry::{face_forward, offset_ray_origin, Bounds2i, Frame, 
 use penumbra_core::integrator::{
     draw_camera_sample, tiles, with_threads, Integrator, RenderContext, RenderError, RenderStats,
 };
+use penumbra_core::rng::hash_words;
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::cosine_sample_hemisphere;
 use penumbra_core::scene::{Requirements, Scene};
@@ -108,6 +127,8 @@ pub struct ShearedAo {
     pub filter: FilterParams,
     /// The order of the SH transfer channels, when they are written (`"bool sh"`).
     pub sh: Option<ShOrder>,
+    /// `"string shading" "pixel"`: one receiver per surface seen in a pixel.
+    pub pixel_shading: bool,
 }
 
 /// The parameters `sheared-ao` reads.
@@ -122,7 +143,7 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec::float("minweight", 2.0, "a cell whose filter weight stays below this takes fresh rays")
         .within(Range::Positive),
     ParamSpec::int("brutesamples", 1, "fresh rays per brute-forced cell, stratified in the cell").range(1, 64),
-    ParamSpec::int("maxpoints", 256, "at most this many cache points (nearest pixels first) per receiver")
+    ParamSpec::int("maxpoints", 64, "at most this many cache points (nearest pixels first) per receiver")
         .range(1, 1 << 20),
     ParamSpec::float("maxdistance", f32::INFINITY, "occluders farther than this are ignored (as ambientocclusion)")
         .within(Range::Positive),
@@ -138,6 +159,7 @@ pub const PARAMS: &[ParamSpec] = &[
     ),
     SH_TRANSFER,
     SH_ORDER,
+    SHADING,
 ];
 
 impl ShearedAo {
@@ -150,6 +172,7 @@ impl ShearedAo {
         };
         Ok(Box::new(ShearedAo {
             sh,
+            pixel_shading: parse_shading(&p)?,
             nsamples: p.count("nsamples")?,
             screen_radius: p.count("screenradius")?,
             brute_samples: p.count("brutesamples")?,
@@ -176,6 +199,25 @@ pub struct Shading {
     frame: Frame,
     /// The diffuse albedo (only with `"bool sh"`).
     albedo: Rgb,
+}
+
+/// One camera sample of pass 1: where it lands on the film, the seed of its brute-force rays,
+/// and its shading point (`None`: the camera ray escaped).
+#[derive(Clone, Debug)]
+pub struct CacheSample {
+    p_film: Vec2,
+    brute_seed: u64,
+    shading: Option<Shading>,
+}
+
+/// The 2D sample of brute-force ray `k` of cell `cell` of a receiver whose seed is `seed`: a
+/// hash, so that only the cells pass 2 brute-forces cost anything (from the sampler, all
+/// `cells² × brutesamples` of them were drawn for every camera sample, twice: 14 % of the
+/// instructions of a render). With `m` rays per cell they are stratified in `x`.
+fn brute_sample(seed: u64, cell: usize, k: usize, m: usize) -> Vec2 {
+    let h = hash_words(&[seed, cell as u64, k as u64]);
+    let unit = |bits: u64| (bits >> 40) as f32 * (1.0 / (1u64 << 24) as f32);
+    Vec2::new((k as f32 + unit(h)) / m as f32, unit(h << 24)).min(Vec2::splat(1.0 - f32::EPSILON / 2.0))
 }
 
 /// Rays traced: camera rays with their pass-throughs (queries of the closest hit along the camera
@@ -251,26 +293,32 @@ impl ShearedAo {
         None
     }
 
-    /// Pass 2 for one receiver: the mean visibility of every cell into `vbar` (filtered, or
-    /// from the brute-force rays), and the number of brute-forced cells. `brute_us` are the 2D
-    /// samples of the brute-force rays (`cells² × brutesamples`, cell-major).
-    fn resolve(
-        &self,
-        scene: &Scene,
-        recv: &Shading,
-        neighbours: &[&CachePoint],
-        brute_us: &[Vec2],
-        scratch: &mut PassScratch,
-        rays: &mut RayCount,
-    ) -> usize {
+    /// Pass 2's filter for one receiver: every cell's filtered visibility, or
+    /// [`CellValue::Brute`], into `scratch.cells`.
+    fn filter(&self, recv: &Shading, neighbours: &[&CachePoint], scratch: &mut PassScratch) {
         let f = &recv.point;
         let frame = Frame { x: recv.frame.x.as_dvec3(), y: recv.frame.y.as_dvec3(), z: f.n };
         let receiver = Receiver { p: f.p, frame, footprint: f.footprint };
-        let PassScratch { filter: fs, cells, vbar, .. } = scratch;
+        let PassScratch { filter: fs, cells, .. } = scratch;
         filter::filter_receiver(&receiver, neighbours.iter().copied(), &self.filter, fs, cells);
+    }
+
+    /// The mean visibility of every cell at shading point `at` into `scratch.vbar`: the
+    /// filtered value of `scratch.cells`, or for a cell the filter left to brute force the
+    /// fraction of `brutesamples` fresh rays from `at` (stratified in the cell, seeded by
+    /// `brute_seed`, [`brute_sample`]) that escape. Returns the number of brute-forced cells.
+    fn resolve(
+        &self,
+        scene: &Scene,
+        at: &Shading,
+        brute_seed: u64,
+        scratch: &mut PassScratch,
+        rays: &mut RayCount,
+    ) -> usize {
         let nside = self.filter.cells;
         let m = self.brute_samples as usize;
         let mut brute = 0usize;
+        let PassScratch { cells, vbar, .. } = scratch;
         vbar.clear();
         for (c, v) in cells.iter().enumerate() {
             vbar.push(match *v {
@@ -279,14 +327,14 @@ impl ShearedAo {
                     brute += 1;
                     let mut unoccluded = 0usize;
                     for k in 0..m {
-                        let xi = brute_us.get((c * m + k) % brute_us.len().max(1)).copied().unwrap_or(Vec2::splat(0.5));
+                        let xi = brute_sample(brute_seed, c, k, m);
                         let u = Vec2::new(
                             ((c % nside) as f32 + xi.x) / nside as f32,
                             ((c / nside) as f32 + xi.y) / nside as f32,
                         );
-                        let wi = recv.frame.from_local(cosine_sample_hemisphere(open_square(u)));
+                        let wi = at.frame.from_local(cosine_sample_hemisphere(open_square(u)));
                         let r = Ray::new(
-                            offset_ray_origin(recv.p, recv.p_error, recv.n, wi),
+                            offset_ray_origin(at.p, at.p_error, at.n, wi),
                             wi,
                             self.filter.max_distance as f32,
                         );
@@ -332,6 +380,89 @@ impl ShearedAo {
     }
 }
 
+impl ShearedAo {
+    /// Pass 2 for the camera samples `own` of one pixel, each added to the film with `add`
+    /// (film position, AO, extra channels). With pixel shading the samples that see the same
+    /// piece of surface ([`pixel_clusters`]) are filtered once, at the member closest to their
+    /// mean film position, and share its filtered cells; else every sample is a receiver.
+    /// Returns the receivers filtered, the samples resolved and their brute-forced cells.
+    #[allow(clippy::too_many_arguments)]
+    fn pass2_pixel(
+        &self,
+        scene: &Scene,
+        own: &[CacheSample],
+        neigh: &[&CachePoint],
+        table: &[f64],
+        scratch: &mut PassScratch,
+        aov: &mut [f32],
+        count: &mut RayCount,
+        add: &mut impl FnMut(Vec2, f32, &[f32]),
+    ) -> [u64; 3] {
+        let (mut receivers, mut points, mut brute_cells) = (0u64, 0u64, 0u64);
+        let clusters =
+            if self.pixel_shading { pixel_clusters(own) } else { (0..own.len()).map(|i| (i, vec![i])).collect() };
+        let mut done = vec![false; own.len()];
+        for (rep, members) in clusters {
+            let Some(recv) = &own[rep].shading else { continue };
+            receivers += 1;
+            self.filter(recv, neigh, scratch);
+            // The filtered cells are shared; brute-forced cells (contact occluders, where the
+            // visibility changes fastest) are estimated at every member's own point.
+            for m in members {
+                let Some(at) = &own[m].shading else { continue };
+                aov.iter_mut().for_each(|v| *v = 0.0);
+                let brute = self.resolve(scene, at, own[m].brute_seed, scratch, count);
+                brute_cells += brute as u64;
+                points += 1;
+                self.write_channels(at, brute, table, scratch, aov);
+                // Cells of equal projected solid angle π / cells².
+                let sum: f64 = scratch.vbar.iter().sum();
+                let ao = (std::f64::consts::PI * sum / scratch.vbar.len().max(1) as f64) as f32;
+                done[m] = true;
+                add(own[m].p_film, ao, aov);
+            }
+        }
+        // Samples whose camera ray escaped: black.
+        aov.iter_mut().for_each(|v| *v = 0.0);
+        for (sample, _) in own.iter().zip(&done).filter(|(_, d)| !**d) {
+            add(sample.p_film, 0.0, aov);
+        }
+        [receivers, points, brute_cells]
+    }
+}
+
+/// The camera samples of a pixel that see the same piece of surface (shading normals within
+/// ~11°, each within two pixel footprints of the first member's tangent plane), as
+/// `(representative, members)`: the representative is the member whose film position lies
+/// closest to the members' mean (the first on a tie), chosen on the film so that it is the same
+/// for the scene turned or moved. Samples whose camera ray escaped are in no cluster.
+fn pixel_clusters(own: &[CacheSample]) -> Vec<(usize, Vec<usize>)> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, s) in own.iter().enumerate() {
+        let Some(q) = &s.shading else { continue };
+        let q = &q.point;
+        let same = |g: &Vec<usize>| {
+            own[g[0]].shading.as_ref().is_some_and(|a| {
+                let a = &a.point;
+                a.n.dot(q.n) > 0.98 && a.n.dot(q.p - a.p).abs() <= 2.0 * a.footprint.max(q.footprint)
+            })
+        };
+        match groups.iter_mut().find(|g| same(g)) {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    groups
+        .into_iter()
+        .map(|g| {
+            let mean = g.iter().map(|&i| own[i].p_film.as_dvec2()).sum::<glam::DVec2>() / g.len() as f64;
+            let d = |i: usize| (own[i].p_film.as_dvec2() - mean).length_squared();
+            let rep = g.iter().copied().fold(g[0], |best, i| if d(i) < d(best) { i } else { best });
+            (rep, g)
+        })
+        .collect()
+}
+
 /// Pass 2's per-thread buffers.
 #[derive(Default)]
 struct PassScratch {
@@ -360,7 +491,7 @@ fn footprint(scene: &Scene, cs: &CameraSample, p: glam::DVec3, n: glam::DVec3) -
     side(Vec2::X).max(side(Vec2::Y))
 }
 
-/// Pass 1 over `region` (absolute pixels): per pixel its `spp` shading points.
+/// Pass 1 over `region` (absolute pixels): per pixel its `spp` camera samples and shading points.
 fn sample_pass(
     ao: &ShearedAo,
     scene: &Scene,
@@ -369,7 +500,7 @@ fn sample_pass(
     spp: u32,
     n: u32,
     rays: &Mutex<RayCount>,
-) -> ImageBuffer<Vec<Option<Shading>>> {
+) -> ImageBuffer<Vec<CacheSample>> {
     let (w, h) = (region.width().max(0) as usize, region.height().max(0) as usize);
     ImageBuffer::from_rows_par(w, h, |y| {
         let mut sampler = proto.clone_box();
@@ -382,7 +513,16 @@ fn sample_pass(
                         sampler.start_pixel_sample(p, s);
                         let cs = camera_sample(scene, sampler.as_mut(), p);
                         let us: Vec<Vec2> = sampler.get_2d_array(n).map(|a| a.to_vec()).unwrap_or_default();
-                        ao.shade(scene, &cs, &us, &mut count)
+                        // One more dimension, a function of (pixel, sample, seed) like every
+                        // other, seeds the brute-force rays.
+                        let u = sampler.get_1d();
+                        let brute_seed = hash_words(&[
+                            u.to_bits() as u64,
+                            p.x as u32 as u64 | ((p.y as u32 as u64) << 32),
+                            s as u64,
+                        ]);
+                        let shading = ao.shade(scene, &cs, &us, &mut count);
+                        CacheSample { p_film: cs.p_film, brute_seed, shading }
                     })
                     .collect()
             })
@@ -410,7 +550,6 @@ impl Integrator for ShearedAo {
             ctx.warnings.warn(None, format!("sheared-ao: taking {n} samples, not {} as specified", self.nsamples));
         }
         let nc = (self.filter.cells * self.filter.cells) as u32;
-        let nb = scene.sampler.round_count(nc * self.brute_samples);
         let full_res = IVec2::new(film.spec.full_resolution.0 as i32, film.spec.full_resolution.1 as i32);
         let full =
             penumbra_core::film::FilmSpec { pixel_bounds: Bounds2i::new(IVec2::ZERO, full_res), ..film.spec.clone() }
@@ -418,7 +557,6 @@ impl Integrator for ShearedAo {
         let mut proto = scene.sampler.clone_box();
         proto.set_sample_bounds(full.min, full.max);
         proto.request_2d_array(n);
-        proto.request_2d_array(nb);
         let spp = proto.samples_per_pixel();
         let sample_bounds = film.spec.sample_bounds(scene.filter.radius());
         // Pass 1 covers the sampled pixels plus the filter's screen radius (the margin), within
@@ -449,7 +587,7 @@ impl Integrator for ShearedAo {
             .collect();
         offsets.sort_by_key(|d| (d.length_squared(), d.y, d.x));
         let max_points = self.max_points as usize;
-        let (points, brute_cells) = (AtomicU64::new(0), AtomicU64::new(0));
+        let (receivers, points, brute_cells) = (AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0));
         let results = with_threads(ctx.threads, || {
             tile_list
                 .par_iter()
@@ -457,11 +595,10 @@ impl Integrator for ShearedAo {
                     if ctx.cancel.load(Ordering::Relaxed) {
                         return None;
                     }
-                    let mut sampler = proto_ref.clone_box();
                     let mut tile = film_ref.make_tile(*tb);
                     let (mut scratch, mut neigh) = (PassScratch::default(), Vec::new());
                     let mut aov = vec![0.0f32; n_aov];
-                    let (mut count, mut npoints, mut nbrute) = (RayCount::default(), 0u64, 0u64);
+                    let (mut count, mut counts) = (RayCount::default(), [0u64; 3]);
                     for p in tb.iter() {
                         neigh.clear();
                         for d in &offsets {
@@ -471,37 +608,27 @@ impl Integrator for ShearedAo {
                             }
                             if region.contains(q) {
                                 let l = q - region.min;
-                                let pts = cache.at(l.x as usize, l.y as usize).iter().flatten().map(|s| &s.point);
+                                let pts = cache
+                                    .at(l.x as usize, l.y as usize)
+                                    .iter()
+                                    .filter_map(|s| Some(&s.shading.as_ref()?.point));
                                 neigh.extend(pts.take(max_points - neigh.len()));
                             }
                         }
                         let l = p - region.min;
                         let own = cache.at(l.x as usize, l.y as usize);
-                        for s in 0..spp {
-                            sampler.start_pixel_sample(p, s);
-                            let cs = camera_sample(scene, sampler.as_mut(), p);
-                            let _ = sampler.get_2d_array(n);
-                            let brute_us: Vec<Vec2> = sampler.get_2d_array(nb).map(|a| a.to_vec()).unwrap_or_default();
-                            aov.iter_mut().for_each(|v| *v = 0.0);
-                            let ao = match own.get(s as usize).and_then(|o| o.as_ref()) {
-                                Some(recv) => {
-                                    npoints += 1;
-                                    let brute = self.resolve(scene, recv, &neigh, &brute_us, &mut scratch, &mut count);
-                                    nbrute += brute as u64;
-                                    self.write_channels(recv, brute, &table, &mut scratch, &mut aov);
-                                    // Cells of equal projected solid angle π / cells².
-                                    let sum: f64 = scratch.vbar.iter().sum();
-                                    (std::f64::consts::PI * sum / scratch.vbar.len().max(1) as f64) as f32
-                                }
-                                None => 0.0,
-                            };
+                        let mut add = |p_film: Vec2, ao: f32, aov: &[f32]| {
                             let ao = if ao.is_finite() { ao.max(0.0) } else { 0.0 };
-                            tile.add_sample(scene.filter.as_ref(), cs.p_film, Rgb::splat(ao), &aov);
-                        }
+                            tile.add_sample(scene.filter.as_ref(), p_film, Rgb::splat(ao), aov);
+                        };
+                        let c =
+                            self.pass2_pixel(scene, own, &neigh, &table, &mut scratch, &mut aov, &mut count, &mut add);
+                        counts.iter_mut().zip(c).for_each(|(a, b)| *a += b);
                     }
                     count.add_to(&pass2_rays);
-                    points.fetch_add(npoints, Ordering::Relaxed);
-                    brute_cells.fetch_add(nbrute, Ordering::Relaxed);
+                    receivers.fetch_add(counts[0], Ordering::Relaxed);
+                    points.fetch_add(counts[1], Ordering::Relaxed);
+                    brute_cells.fetch_add(counts[2], Ordering::Relaxed);
                     let d = done.fetch_add(1, Ordering::Relaxed) + 1;
                     if let Some(pr) = ctx.progress {
                         pr(d, total);
@@ -537,6 +664,7 @@ impl Integrator for ShearedAo {
         c.insert("pass1_points".into(), (region.area() as u64 * spp as u64) as f64);
         c.insert("pass1_rays_per_point".into(), r1 as f64 / (region.area().max(1) as f64 * spp as f64));
         c.insert("pass2_rays_per_point".into(), r2 as f64 / points);
+        c.insert("pass2_receivers_per_point".into(), receivers.load(Ordering::Relaxed) as f64 / points);
         c.insert("brute_cell_fraction".into(), brute_cells.load(Ordering::Relaxed) as f64 / (points * nc as f64));
         c.insert("pass1_seconds".into(), pass1_seconds);
         c.insert("pass2_seconds".into(), filter_seconds);
