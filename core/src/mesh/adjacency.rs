@@ -1,5 +1,6 @@
 //! Edge adjacency of a position-welded mesh (silhouettes, closedness, outlines).
 
+use super::hash::WordHash;
 use super::TriangleMesh;
 use glam::Vec3;
 use std::collections::HashMap;
@@ -55,7 +56,8 @@ impl TriangleMesh {
     /// Edge adjacency after welding vertices with bit-identical positions
     /// (so seams duplicated for texture coordinates do not count as boundaries).
     pub fn build_adjacency(&self) -> EdgeAdjacency {
-        let mut map: HashMap<[u32; 3], u32> = HashMap::with_capacity(self.positions.len());
+        let mut map: HashMap<[u32; 3], u32, WordHash> =
+            HashMap::with_capacity_and_hasher(self.positions.len(), WordHash::default());
         let weld: Vec<u32> = self
             .positions
             .iter()
@@ -66,7 +68,8 @@ impl TriangleMesh {
             .collect();
         let welded_count = map.len();
         let mut edges: Vec<Edge> = Vec::with_capacity(self.indices.len() * 3 / 2);
-        let mut lookup: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.indices.len() * 3 / 2);
+        let mut lookup: HashMap<(u32, u32), u32, WordHash> =
+            HashMap::with_capacity_and_hasher(self.indices.len() * 3 / 2, WordHash::default());
         let mut tri_edges = Vec::with_capacity(self.indices.len());
         for (t, tri) in self.indices.iter().enumerate() {
             let w = tri.map(|i| weld.get(i as usize).copied().unwrap_or(u32::MAX));

@@ -33,6 +33,7 @@
 use glam::{Vec2, Vec3};
 
 mod adjacency;
+pub mod hash;
 mod predicates;
 
 pub use adjacency::{Edge, EdgeAdjacency, BOUNDARY};

@@ -39,7 +39,8 @@ struct Topology {
 }
 
 fn topology(nv: usize, faces: &[[u32; 3]]) -> Result<Topology, String> {
-    let mut directed: HashMap<(u32, u32), (u32, u8)> = HashMap::with_capacity(faces.len() * 3);
+    let mut directed: HashMap<(u32, u32), (u32, u8), crate::mesh::hash::WordHash> =
+        HashMap::with_capacity_and_hasher(faces.len() * 3, Default::default());
     for (f, t) in faces.iter().enumerate() {
         if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
             return Err(format!("face {f} uses a vertex twice"));
