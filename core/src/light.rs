@@ -182,6 +182,15 @@ pub struct DiffuseAreaLight {
     pub n_samples: u32,
 }
 
+/// A point an area light's sample chose, with its normal and error bound: the part of
+/// [`Light::sample_li`] that does not depend on the receiving point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AreaLightPoint {
+    pub p: Vec3,
+    pub p_error: Vec3,
+    pub n: Vec3,
+}
+
 impl DiffuseAreaLight {
     /// One light over the triangles `tris` of mesh `mesh_index` (`mesh`) that have a positive,
     /// finite area, a triangle chosen for sampling in proportion to its area; `None` when no
@@ -210,6 +219,50 @@ impl DiffuseAreaLight {
             tri_dist,
             n_samples,
         })
+    }
+
+    /// The point `u` chooses (pbrt-v3's `Shape::Sample(u)`: a triangle in proportion to area,
+    /// then uniformly on it). `None` for a missing mesh or triangle.
+    pub fn sample_point(&self, u: Vec2, meshes: &[TriangleMesh]) -> Option<AreaLightPoint> {
+        let g = &self.geom;
+        let mesh = meshes.get(g.mesh as usize)?;
+        let (k, u0) = match &self.tri_dist {
+            Some(d) => {
+                let (i, _, r) = d.sample_discrete(u.x);
+                (i, r)
+            }
+            None => (0, u.x),
+        };
+        let tri = *g.tris.get(k)? as usize;
+        let pv = tri_vertices(mesh, tri)?;
+        let b = uniform_sample_triangle(Vec2::new(u0, u.y));
+        let b = [b.x, b.y, 1.0 - b.x - b.y];
+        let p = interpolate(pv, b);
+        let n = sampled_normal(mesh, tri, pv, b);
+        let p_error = gamma(6) * ((b[0] * pv[0]).abs() + (b[1] * pv[1]).abs() + (b[2] * pv[2]).abs());
+        Some(AreaLightPoint { p, p_error, n })
+    }
+
+    /// The incident radiance sample at `ctx` from the light's `point` (pbrt-v3's `Sample_Li`
+    /// after `Shape::Sample`): direction, solid-angle pdf, emitted radiance toward `ctx`.
+    fn sample_li_from(&self, ctx: &LightContext, point: &AreaLightPoint) -> Option<LightLiSample> {
+        let &AreaLightPoint { p, p_error, n } = point;
+        let g = &self.geom;
+        let d = p - ctx.p;
+        let d2 = d.length_squared();
+        if !(d2 > 0.0) || !d2.is_finite() {
+            return None;
+        }
+        let wi = d / d2.sqrt();
+        let pdf = d2 / (n.dot(wi).abs() * g.area);
+        if !(pdf.is_finite() && pdf > 0.0) {
+            return None;
+        }
+        let li = if g.two_sided || n.dot(-wi) > 0.0 { g.l } else { Rgb::ZERO };
+        if li == Rgb::ZERO {
+            return None;
+        }
+        Some(LightLiSample { li, wi, pdf, p_light: p, p_light_error: p_error, n_light: n, delta: false })
     }
 }
 
@@ -427,39 +480,16 @@ impl Light {
                     delta: false,
                 })
             }
-            Light::Area(a) => {
-                let g = &a.geom;
-                let mesh = meshes.get(g.mesh as usize)?;
-                let (k, u0) = match &a.tri_dist {
-                    Some(d) => {
-                        let (i, _, r) = d.sample_discrete(u.x);
-                        (i, r)
-                    }
-                    None => (0, u.x),
-                };
-                let tri = *g.tris.get(k)? as usize;
-                let pv = tri_vertices(mesh, tri)?;
-                let b = uniform_sample_triangle(Vec2::new(u0, u.y));
-                let b = [b.x, b.y, 1.0 - b.x - b.y];
-                let p = interpolate(pv, b);
-                let n = sampled_normal(mesh, tri, pv, b);
-                let p_err = gamma(6) * ((b[0] * pv[0]).abs() + (b[1] * pv[1]).abs() + (b[2] * pv[2]).abs());
-                let d = p - ctx.p;
-                let d2 = d.length_squared();
-                if !(d2 > 0.0) || !d2.is_finite() {
-                    return None;
-                }
-                let wi = d / d2.sqrt();
-                let pdf = d2 / (n.dot(wi).abs() * g.area);
-                if !(pdf.is_finite() && pdf > 0.0) {
-                    return None;
-                }
-                let li = self.l(n, -wi);
-                if li == Rgb::ZERO {
-                    return None;
-                }
-                Some(LightLiSample { li, wi, pdf, p_light: p, p_light_error: p_err, n_light: n, delta: false })
-            }
+            Light::Area(a) => a.sample_li_from(ctx, &a.sample_point(u, meshes)?),
+        })
+    }
+
+    /// [`Light::sample_li`] for an area light whose point [`DiffuseAreaLight::sample_point`]
+    /// already chose (it does not depend on `ctx`): the same sample. `None` for other lights.
+    pub fn sample_li_from(&self, ctx: &LightContext, point: &AreaLightPoint) -> Option<LightLiSample> {
+        crate::phase::timed(Phase::LightSampling, || match self {
+            Light::Area(a) => a.sample_li_from(ctx, point),
+            _ => None,
         })
     }
 
