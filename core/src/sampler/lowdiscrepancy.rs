@@ -15,7 +15,30 @@ pub const NUM_SOBOL_DIMENSIONS: u32 = 1024;
 /// Generator-matrix columns per dimension: indices below 2^52 are supported.
 pub const SOBOL_MATRIX_SIZE: usize = 52;
 
-static SOBOL_BYTES: &[u8] = include_bytes!("sobol_matrices.bin");
+const SOBOL_BYTES: &[u8] = include_bytes!("sobol_matrices.bin");
+
+/// Columns per dimension in [`SOBOL_MATRICES`]: the `SOBOL_MATRIX_SIZE` columns, then zeros,
+/// so that any index bit (0–63) addresses its column without a bounds check.
+const SOBOL_ROW: usize = 64;
+
+/// The generator matrices as words, dimension `d`'s column `j` at `d * SOBOL_ROW + j`.
+static SOBOL_MATRICES: [[u32; SOBOL_ROW]; NUM_SOBOL_DIMENSIONS as usize] = {
+    let mut out = [[0u32; SOBOL_ROW]; NUM_SOBOL_DIMENSIONS as usize];
+    let mut d = 0;
+    while d < NUM_SOBOL_DIMENSIONS as usize {
+        let mut j = 0;
+        while j < SOBOL_MATRIX_SIZE {
+            let k = 4 * (d * SOBOL_MATRIX_SIZE + j);
+            if k + 4 <= SOBOL_BYTES.len() {
+                let b = [SOBOL_BYTES[k], SOBOL_BYTES[k + 1], SOBOL_BYTES[k + 2], SOBOL_BYTES[k + 3]];
+                out[d][j] = u32::from_le_bytes(b);
+            }
+            j += 1;
+        }
+        d += 1;
+    }
+    out
+};
 
 /// Column `j` (contribution of index bit `j`, most significant output bit first) of dimension `dim`'s
 /// Sobol' generator matrix; 0 out of range.
@@ -23,24 +46,18 @@ pub fn sobol_column(dim: u32, j: usize) -> u32 {
     if dim >= NUM_SOBOL_DIMENSIONS || j >= SOBOL_MATRIX_SIZE {
         return 0;
     }
-    let k = 4 * (dim as usize * SOBOL_MATRIX_SIZE + j);
-    match SOBOL_BYTES.get(k..k + 4) {
-        Some(b) => u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-        None => 0,
-    }
+    SOBOL_MATRICES[dim as usize][j]
 }
 
-/// The 32-bit fixed-point Sobol' sample (numerator over 2^32) of `index` in `dim`.
+/// The 32-bit fixed-point Sobol' sample (numerator over 2^32) of `index` in `dim`: the XOR of
+/// the columns of the index's set bits (bits from `SOBOL_MATRIX_SIZE` on have zero columns).
+#[inline]
 pub fn sobol_sample_bits(index: u64, dim: u32) -> u32 {
-    let mut v = 0u32;
-    let mut a = index;
-    let mut j = 0;
-    while a != 0 && j < SOBOL_MATRIX_SIZE {
-        if a & 1 == 1 {
-            v ^= sobol_column(dim, j);
-        }
-        a >>= 1;
-        j += 1;
+    let Some(columns) = SOBOL_MATRICES.get(dim as usize) else { return 0 };
+    let (mut v, mut a) = (0u32, index);
+    while a != 0 {
+        v ^= columns[a.trailing_zeros() as usize & (SOBOL_ROW - 1)];
+        a &= a - 1;
     }
     v
 }
@@ -412,6 +429,32 @@ mod tests {
         assert!((scrambled_radical_inverse(1, 3, &p) as f64 - e).abs() < 1e-7);
         assert_eq!(inverse_radical_inverse(2, 0b0011, 4), 0b1100);
         assert_eq!(inverse_radical_inverse(3, 5, 3), 21);
+    }
+
+    #[test]
+    fn sobol_samples_are_the_matrix_product() {
+        // Bit by bit over the little-endian file, as the matrices are stored.
+        let by_bits = |index: u64, dim: u32| {
+            let mut v = 0u32;
+            for j in 0..SOBOL_MATRIX_SIZE {
+                let k = 4 * (dim as usize * SOBOL_MATRIX_SIZE + j);
+                if index >> j & 1 == 1 && dim < NUM_SOBOL_DIMENSIONS {
+                    v ^= u32::from_le_bytes(SOBOL_BYTES[k..k + 4].try_into().unwrap());
+                }
+            }
+            v
+        };
+        let mut rng = Rng::new(11);
+        for dim in [0u32, 1, 2, 3, 100, 1022, 1023, 1024, 5000] {
+            for index in [0u64, 1, 2, 3, 255, 1 << 51, (1 << 52) - 1, 1 << 52, u64::MAX] {
+                assert_eq!(sobol_sample_bits(index, dim), by_bits(index, dim), "dim {dim} index {index}");
+            }
+            for _ in 0..500 {
+                let index = (rng.uniform_u32() as u64) << 32 | rng.uniform_u32() as u64;
+                let index = index >> (rng.uniform_u32() % 64);
+                assert_eq!(sobol_sample_bits(index, dim), by_bits(index, dim), "dim {dim} index {index}");
+            }
+        }
     }
 
     #[test]
