@@ -223,6 +223,7 @@ impl DiffuseAreaLight {
 
     /// The point `u` chooses (pbrt-v3's `Shape::Sample(u)`: a triangle in proportion to area,
     /// then uniformly on it). `None` for a missing mesh or triangle.
+    #[inline]
     pub fn sample_point(&self, u: Vec2, meshes: &[TriangleMesh]) -> Option<AreaLightPoint> {
         let g = &self.geom;
         let mesh = meshes.get(g.mesh as usize)?;
@@ -245,6 +246,7 @@ impl DiffuseAreaLight {
 
     /// The incident radiance sample at `ctx` from the light's `point` (pbrt-v3's `Sample_Li`
     /// after `Shape::Sample`): direction, solid-angle pdf, emitted radiance toward `ctx`.
+    #[inline]
     fn sample_li_from(&self, ctx: &LightContext, point: &AreaLightPoint) -> Option<LightLiSample> {
         let &AreaLightPoint { p, p_error, n } = point;
         let g = &self.geom;
