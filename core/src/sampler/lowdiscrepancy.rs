@@ -145,6 +145,13 @@ impl FastDiv {
         let q = if a <= u32::MAX as u64 { ((a as u128 * self.m as u128) >> 64) as u64 } else { a / self.d };
         (q, a - q * self.d)
     }
+    /// [`FastDiv::div_rem`] for `a` ≤ `u32::MAX` (larger values give wrong results).
+    #[inline(always)]
+    fn div_rem_u32(self, a: u64) -> (u64, u64) {
+        debug_assert!(a <= u32::MAX as u64);
+        let q = ((a as u128 * self.m as u128) >> 64) as u64;
+        (q, a - q * self.d)
+    }
 }
 
 /// Per prime base: the divisor and `1 / base` (the same f64 `radical_inverse` computes).
@@ -233,8 +240,16 @@ pub fn scrambled_radical_inverse(base_index: usize, a: u64, perm: &[u16]) -> f32
 fn scrambled_radical_inverse_in(pb: &PrimeBase, a: u64, perm: &[u16]) -> f32 {
     let inv_base = pb.inv_base;
     let (mut a, mut inv_base_n, mut result) = (a, 1.0f64, 0.0f64);
-    while a > 0 {
+    // The same digits, low first, in two loops: those of a value beyond 32 bits by division,
+    // then (the values every sampler index takes) by the multiplication alone.
+    while a > u32::MAX as u64 {
         let (next, digit) = pb.div.div_rem(a);
+        inv_base_n *= inv_base;
+        result += perm[digit as usize] as f64 * inv_base_n;
+        a = next;
+    }
+    while a > 0 {
+        let (next, digit) = pb.div.div_rem_u32(a);
         inv_base_n *= inv_base;
         result += perm[digit as usize] as f64 * inv_base_n;
         a = next;
@@ -277,9 +292,9 @@ impl ScrambledRadicalInverses {
     #[inline]
     pub fn eval(&self, base_index: usize, a: u64) -> f32 {
         let i = base_index.min(PRIME_TABLE_SIZE - 1);
-        let len = PRIMES[i] as usize;
+        // (The digits index the permutation; the slice's end is only bounded by the table's.)
         let perm = if i < EAGER_BASES {
-            &self.head[PRIME_SUMS[i]..PRIME_SUMS[i] + len]
+            &self.head[PRIME_SUMS[i]..]
         } else {
             let tail = self.tail.1.get_or_init(|| {
                 let mut rng = self.tail.0.clone();
@@ -287,8 +302,7 @@ impl ScrambledRadicalInverses {
                 append_permutations(&mut t, &PRIMES[EAGER_BASES..], &mut rng);
                 t
             });
-            let start = PRIME_SUMS[i] - PRIME_SUMS[EAGER_BASES];
-            &tail[start..start + len]
+            &tail[PRIME_SUMS[i] - PRIME_SUMS[EAGER_BASES]..]
         };
         scrambled_radical_inverse_in(&PRIME_BASES[i], a, perm)
     }
