@@ -295,9 +295,26 @@ impl InfiniteLight {
     }
 
     fn lookup_dir(&self, d: Vec3) -> Rgb {
-        match self.angles(d) {
-            Some((theta, _, phi)) => self.map.lookup(Vec2::new(phi / (2.0 * PI), theta / PI)),
-            None => Rgb::ZERO,
+        self.angles(d).map_or(Rgb::ZERO, |a| self.lookup_at(a))
+    }
+
+    /// The map's radiance at the [`InfiniteLight::angles`] `(θ, sin θ, φ)`.
+    #[inline]
+    fn lookup_at(&self, (theta, _, phi): (f32, f32, f32)) -> Rgb {
+        self.map.lookup(Vec2::new(phi / (2.0 * PI), theta / PI))
+    }
+
+    /// The solid-angle density of sampling the direction at `(θ, sin θ, φ)` (0 at the poles).
+    #[inline]
+    fn pdf_at(&self, (theta, sin_t, phi): (f32, f32, f32)) -> f32 {
+        if !(sin_t > 0.0) {
+            return 0.0;
+        }
+        let pdf = self.dist.pdf(Vec2::new(phi / (2.0 * PI), theta / PI)) / (2.0 * PI * PI * sin_t);
+        if pdf.is_finite() {
+            pdf
+        } else {
+            0.0
         }
     }
 }
@@ -498,18 +515,7 @@ impl Light {
     /// Solid-angle pdf of sampling `wi` from `ctx`; for area lights the caller passes the point it found on the light (`light_hit`: point and geometric normal), since the caller already traced the ray.
     pub fn pdf_li(&self, ctx: &LightContext, wi: Vec3, light_hit: Option<(Vec3, Vec3)>) -> f32 {
         crate::phase::timed(Phase::LightSampling, || match self {
-            Light::Infinite(l) => {
-                let Some((theta, sin_t, phi)) = l.angles(wi) else { return 0.0 };
-                if !(sin_t > 0.0) {
-                    return 0.0;
-                }
-                let pdf = l.dist.pdf(Vec2::new(phi / (2.0 * PI), theta / PI)) / (2.0 * PI * PI * sin_t);
-                if pdf.is_finite() {
-                    pdf
-                } else {
-                    0.0
-                }
-            }
+            Light::Infinite(l) => l.angles(wi).map_or(0.0, |a| l.pdf_at(a)),
             Light::Area(a) => {
                 let Some((p, n)) = light_hit else { return 0.0 };
                 let d2 = (p - ctx.p).length_squared();
@@ -539,6 +545,19 @@ impl Light {
         crate::phase::timed(Phase::LightSampling, || match self {
             Light::Infinite(l) => l.lookup_dir(ray.d),
             _ => Rgb::ZERO,
+        })
+    }
+
+    /// [`Light::le`] of an escaping ray and [`Light::pdf_li`] of its direction (which for the
+    /// lights with radiance there, infinite lights, does not depend on the receiving point):
+    /// the same values, with the direction's angles found once.
+    pub fn le_and_pdf(&self, ray: &Ray) -> (Rgb, f32) {
+        crate::phase::timed(Phase::LightSampling, || match self {
+            Light::Infinite(l) => match l.angles(ray.d) {
+                Some(a) => (l.lookup_at(a), l.pdf_at(a)),
+                None => (Rgb::ZERO, 0.0),
+            },
+            _ => (Rgb::ZERO, 0.0),
         })
     }
 
