@@ -86,8 +86,9 @@ impl RgbMap {
         RgbMap { width: 1, height: 1, texels: vec![c] }
     }
 
-    fn texel(&self, s: i64, t: i64) -> Rgb {
-        let (s, t) = (wrap(s, self.width), wrap(t, self.height));
+    /// The texel at wrapped coordinates (`s < width`, `t < height`).
+    #[inline]
+    fn texel(&self, s: usize, t: usize) -> Rgb {
         self.texels.get(t * self.width + s).copied().unwrap_or(Rgb::ZERO)
     }
 
@@ -98,20 +99,39 @@ impl RgbMap {
         (sum / n).as_vec3()
     }
 
-    /// Bilinear lookup at `st` ∈ [0,1]² (zero for non-finite coordinates).
+    /// Bilinear lookup at `st` ∈ [0,1]² (zero for non-finite coordinates). Always inlined: the
+    /// sampling distribution's build looks up a whole row at one `t`, whose part is then hoisted.
+    #[inline(always)]
     pub fn lookup(&self, st: Vec2) -> Rgb {
         if !st.is_finite() || self.width == 0 || self.height == 0 {
             return Rgb::ZERO;
         }
         let s = st.x * self.width as f32 - 0.5;
         let t = st.y * self.height as f32 - 0.5;
-        let (s0, t0) = (s.floor(), t.floor());
+        let ((s0, si), (t0, ti)) = (floor_parts(s), floor_parts(t));
         let (ds, dt) = (s - s0, t - t0);
-        let (s0, t0) = (s0 as i64, t0 as i64);
+        let (s0, t0) = (si, ti);
+        let (s0, s1) = (wrap(s0, self.width), wrap(s0.wrapping_add(1), self.width));
+        let (t0, t1) = (wrap(t0, self.height), wrap(t0.wrapping_add(1), self.height));
         (1.0 - ds) * (1.0 - dt) * self.texel(s0, t0)
-            + (1.0 - ds) * dt * self.texel(s0, t0 + 1)
-            + ds * (1.0 - dt) * self.texel(s0 + 1, t0)
-            + ds * dt * self.texel(s0 + 1, t0 + 1)
+            + (1.0 - ds) * dt * self.texel(s0, t1)
+            + ds * (1.0 - dt) * self.texel(s1, t0)
+            + ds * dt * self.texel(s1, t1)
+    }
+}
+
+/// `(x.floor(), x.floor() as i64)` for finite `x` that is not `-0.0` (a lookup's `s · w − 0.5`
+/// never is): below 2²³ in magnitude from the truncation, without the library call the baseline
+/// x86-64 target makes for `floor`; larger values are integers already.
+#[inline]
+fn floor_parts(x: f32) -> (f32, i64) {
+    if x.abs() < 8_388_608.0 {
+        let i = x as i32;
+        let i = if i as f32 > x { i - 1 } else { i };
+        (i as f32, i as i64)
+    } else {
+        let f = x.floor();
+        (f, f as i64)
     }
 }
 
@@ -992,6 +1012,20 @@ fn make_light(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_parts_is_floor() {
+        let mut rng = Rng::new(9);
+        let special = [0.0f32, 0.5, -0.5, 1.0, -1.0, 1.5, -1.5, 8_388_607.5, -8_388_607.5, 8_388_608.0, -8_388_609.0];
+        let special = special.into_iter().chain([1e30, -1e30, f32::MAX, f32::MIN, f32::MIN_POSITIVE, -1e-45, 1e-45]);
+        let random: Vec<f32> = (0..200_000).map(|_| f32::from_bits(rng.uniform_u32())).collect();
+        let near: Vec<f32> = (0..200_000).map(|_| (rng.uniform_f32() - 0.5) * 4096.0).collect();
+        for x in special.chain(random).chain(near).filter(|x| x.is_finite() && x.to_bits() != (-0.0f32).to_bits()) {
+            let (f, i) = floor_parts(x);
+            assert_eq!(f.to_bits(), x.floor().to_bits(), "{x}");
+            assert_eq!(i, x.floor() as i64, "{x}");
+        }
+    }
 
     #[test]
     fn wrap_is_rem_euclid() {
