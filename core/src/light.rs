@@ -200,6 +200,45 @@ pub struct DiffuseAreaLight {
     /// Triangle choice in proportion to area (only when `geom.tris` has several).
     pub tri_dist: Option<Distribution1D>,
     pub n_samples: u32,
+    /// `geom.tris`' geometry as a sample needs it (the meshes do not change after the build).
+    triangles: Vec<LightTriangle>,
+}
+
+/// An emitting triangle as [`DiffuseAreaLight::sample_point`] reads it: its vertices, its
+/// winding normal (normalised, after the mesh's flip) and its vertex shading normals (missing
+/// ones zero), the values [`sampled_normal`] computes from the mesh at every sample.
+#[derive(Clone, Debug, PartialEq)]
+struct LightTriangle {
+    pv: [Vec3; 3],
+    n: Vec3,
+    shading: Option<[Vec3; 3]>,
+}
+
+impl LightTriangle {
+    fn new(mesh: &TriangleMesh, tri: usize, pv: [Vec3; 3]) -> Self {
+        let mut n = (pv[1] - pv[0]).cross(pv[2] - pv[0]).normalize_or_zero();
+        if mesh.flip_normals {
+            n = -n;
+        }
+        let shading = match (&mesh.normals, mesh.indices.get(tri)) {
+            (Some(ns), Some(idx)) => Some(idx.map(|i| ns.get(i as usize).copied().unwrap_or(Vec3::ZERO))),
+            _ => None,
+        };
+        LightTriangle { pv, n, shading }
+    }
+
+    /// The normal pbrt-v3's `Triangle::Sample` gives the point with barycentrics `b`: the
+    /// winding normal, face-forwarded to the interpolated shading normal when there is one.
+    #[inline]
+    fn normal_at(&self, b: [f32; 3]) -> Vec3 {
+        if let Some(nv) = self.shading {
+            let s = interpolate(nv, b);
+            if s != Vec3::ZERO && s.is_finite() {
+                return face_forward(self.n, s);
+            }
+        }
+        self.n
+    }
 }
 
 /// A point an area light's sample chose, with its normal and error bound: the part of
@@ -234,19 +273,22 @@ impl DiffuseAreaLight {
             return None;
         }
         let tri_dist = (tris.len() > 1).then(|| Distribution1D::new(&w));
+        let triangles = tris
+            .iter()
+            .map(|&t| LightTriangle::new(mesh, t as usize, tri_vertices(mesh, t as usize).unwrap_or_default()))
+            .collect();
         Some(DiffuseAreaLight {
             geom: AreaLight { mesh: mesh_index, tris, l, two_sided, area: total as f32 },
             tri_dist,
             n_samples,
+            triangles,
         })
     }
 
     /// The point `u` chooses (pbrt-v3's `Shape::Sample(u)`: a triangle in proportion to area,
-    /// then uniformly on it). `None` for a missing mesh or triangle.
+    /// then uniformly on it).
     #[inline]
-    pub fn sample_point(&self, u: Vec2, meshes: &[TriangleMesh]) -> Option<AreaLightPoint> {
-        let g = &self.geom;
-        let mesh = meshes.get(g.mesh as usize)?;
+    pub fn sample_point(&self, u: Vec2) -> Option<AreaLightPoint> {
         let (k, u0) = match &self.tri_dist {
             Some(d) => {
                 let (i, _, r) = d.sample_discrete(u.x);
@@ -254,12 +296,12 @@ impl DiffuseAreaLight {
             }
             None => (0, u.x),
         };
-        let tri = *g.tris.get(k)? as usize;
-        let pv = tri_vertices(mesh, tri)?;
+        let tri = self.triangles.get(k)?;
+        let pv = tri.pv;
         let b = uniform_sample_triangle(Vec2::new(u0, u.y));
         let b = [b.x, b.y, 1.0 - b.x - b.y];
         let p = interpolate(pv, b);
-        let n = sampled_normal(mesh, tri, pv, b);
+        let n = tri.normal_at(b);
         let p_error = gamma(6) * ((b[0] * pv[0]).abs() + (b[1] * pv[1]).abs() + (b[2] * pv[2]).abs());
         Some(AreaLightPoint { p, p_error, n })
     }
@@ -446,18 +488,7 @@ fn tri_vertices(mesh: &TriangleMesh, tri: usize) -> Option<[Vec3; 3]> {
 /// mesh has normals, else flipped by `ReverseOrientation` xor handedness (as
 /// `Scene::interaction` orients hits).
 fn sampled_normal(mesh: &TriangleMesh, tri: usize, pv: [Vec3; 3], b: [f32; 3]) -> Vec3 {
-    let mut n = (pv[1] - pv[0]).cross(pv[2] - pv[0]).normalize_or_zero();
-    if mesh.flip_normals {
-        n = -n;
-    }
-    if let (Some(ns), Some(idx)) = (&mesh.normals, mesh.indices.get(tri)) {
-        let nv = idx.map(|i| ns.get(i as usize).copied().unwrap_or(Vec3::ZERO));
-        let s = interpolate(nv, b);
-        if s != Vec3::ZERO && s.is_finite() {
-            n = face_forward(n, s);
-        }
-    }
-    n
+    LightTriangle::new(mesh, tri, pv).normal_at(b)
 }
 
 /// The emitting side of triangle `tri` of `mesh`, as area lights define it (the normal
@@ -472,7 +503,9 @@ pub fn emitting_normal(mesh: &TriangleMesh, tri: usize) -> Vec3 {
 impl Light {
     /// Samples an incident direction at `ctx` (pbrt-v3's `Sample_Li`). `None` if the
     /// pdf is 0 or the sample carries no radiance.
-    pub fn sample_li(&self, ctx: &LightContext, u: Vec2, meshes: &[TriangleMesh]) -> Option<LightLiSample> {
+    /// (`_meshes`: area lights keep what they sample of their triangles; the argument stays so
+    /// that callers need not change.)
+    pub fn sample_li(&self, ctx: &LightContext, u: Vec2, _meshes: &[TriangleMesh]) -> Option<LightLiSample> {
         crate::phase::timed(Phase::LightSampling, || match self {
             Light::Point(l) => point_sample(ctx, l.p, l.i, |_| Rgb::ONE),
             Light::Spot(l) => point_sample(ctx, l.p, l.i, |w| Rgb::splat(l.falloff(w))),
@@ -519,7 +552,7 @@ impl Light {
                     delta: false,
                 })
             }
-            Light::Area(a) => a.sample_li_from(ctx, &a.sample_point(u, meshes)?),
+            Light::Area(a) => a.sample_li_from(ctx, &a.sample_point(u)?),
         })
     }
 
@@ -1760,7 +1793,10 @@ mod tests {
                 }
             }
         }
-        // Out-of-range geometry references are no samples, not panics.
-        assert!(all.last().unwrap().sample_li(&ctx(Vec3::ZERO), Vec2::ZERO, &[]).is_none());
+        // An area light keeps what it samples of its triangles: no mesh lookup at sampling time
+        // (so no out-of-range reference), the same sample without the meshes.
+        let light = all.last().unwrap();
+        let at = ctx(Vec3::new(0.2, 0.2, 1.0));
+        assert_eq!(light.sample_li(&at, Vec2::splat(0.3), &[]), light.sample_li(&at, Vec2::splat(0.3), &meshes));
     }
 }

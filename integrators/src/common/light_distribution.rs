@@ -148,12 +148,12 @@ impl SpatialLightDistribution {
     }
 
     /// The area lights' points for [`Self::points`], light-major (see `area_points`).
-    fn prepare(&self, lights: &[Light], scene: &Scene) -> Option<Vec<Prepared>> {
+    fn prepare(&self, lights: &[Light]) -> Option<Vec<Prepared>> {
         if lights.len().saturating_mul(self.points.len()) > MAX_PREPARED {
             return None;
         }
         let one = |light: &Light, pt: &VoxelPoint| match light {
-            Light::Area(a) => Prepared::Area(a.sample_point(pt.u, &scene.meshes)),
+            Light::Area(a) => Prepared::Area(a.sample_point(pt.u)),
             _ => Prepared::Other,
         };
         Some(lights.iter().flat_map(|l| self.points.iter().map(move |pt| one(l, pt))).collect())
@@ -166,7 +166,7 @@ impl SpatialLightDistribution {
         let corner = Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32);
         let (p0, p1) = (lerp(corner / n), lerp((corner + Vec3::ONE) / n));
         let lights = scene.light_list();
-        let prepared = self.area_points.get_or_init(|| self.prepare(lights, scene)).as_deref();
+        let prepared = self.area_points.get_or_init(|| self.prepare(lights)).as_deref();
         let mut contrib = vec![0.0f32; lights.len()];
         for (i, pt) in self.points.iter().enumerate() {
             let p = (Vec3::ONE - pt.t) * p0 + pt.t * p1;
