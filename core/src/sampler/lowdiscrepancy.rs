@@ -238,8 +238,15 @@ pub fn scrambled_radical_inverse(base_index: usize, a: u64, perm: &[u16]) -> f32
 /// `base` entries (digits index it; a shorter table panics).
 #[inline]
 fn scrambled_radical_inverse_in(pb: &PrimeBase, a: u64, perm: &[u16]) -> f32 {
+    scrambled_digits(pb, a, perm, 1.0, 0.0)
+}
+
+/// The digit loop of [`scrambled_radical_inverse_in`] from a state it reaches after some low
+/// digits: `a` the remaining digits, `inv_base_n` and `result` its running values.
+#[inline(always)]
+fn scrambled_digits(pb: &PrimeBase, a: u64, perm: &[u16], inv_base_n: f64, result: f64) -> f32 {
     let inv_base = pb.inv_base;
-    let (mut a, mut inv_base_n, mut result) = (a, 1.0f64, 0.0f64);
+    let (mut a, mut inv_base_n, mut result) = (a, inv_base_n, result);
     // The same digits, low first, in two loops: those of a value beyond 32 bits by division,
     // then (the values every sampler index takes) by the multiplication alone.
     while a > u32::MAX as u64 {
@@ -258,6 +265,55 @@ fn scrambled_radical_inverse_in(pb: &PrimeBase, a: u64, perm: &[u16]) -> f32 {
     (result as f32).min(ONE_MINUS_EPSILON_F32)
 }
 
+/// Bases (the first `PAIR_BASES`) whose two lowest digits are looked up together: the running
+/// sum after two digits is a function of those digits alone (it starts from 0), so a table of
+/// `base²` entries holds it exactly; the digits after it are summed one by one as before.
+const PAIR_BASES: usize = 16;
+
+/// `PAIR_OFFSETS[i]`: where base `i`'s pair table starts (the sum of the squares of the primes before it).
+const PAIR_OFFSETS: [usize; PAIR_BASES + 1] = {
+    let mut out = [0usize; PAIR_BASES + 1];
+    let mut i = 0;
+    while i < PAIR_BASES {
+        out[i + 1] = out[i] + PRIMES_HEAD[i] * PRIMES_HEAD[i];
+        i += 1;
+    }
+    out
+};
+
+/// The first primes, for the constants above (`PRIMES` is a static).
+const PRIMES_HEAD: [usize; PAIR_BASES] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53];
+
+/// Division by `base²` for the pair bases.
+static PAIR_DIVS: [FastDiv; PAIR_BASES] = {
+    let mut out = [FastDiv::new(2); PAIR_BASES];
+    let mut i = 0;
+    while i < PAIR_BASES {
+        out[i] = FastDiv::new((PRIMES_HEAD[i] * PRIMES_HEAD[i]) as u32);
+        i += 1;
+    }
+    out
+};
+
+/// The running sum of [`scrambled_digits`] after the two lowest digits `r % b`, `r / b`, for
+/// every `r < b²` of each pair base, computed by the same two steps.
+fn pair_tables(head: &[u16]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(PAIR_OFFSETS[PAIR_BASES]);
+    for i in 0..PAIR_BASES {
+        let (p, inv_base) = (PRIMES[i] as usize, PRIME_BASES[i].inv_base);
+        let perm = &head[PRIME_SUMS[i]..PRIME_SUMS[i] + p];
+        for r in 0..p * p {
+            let (mut inv_base_n, mut result) = (1.0f64, 0.0f64);
+            for digit in [r % p, r / p] {
+                inv_base_n *= inv_base;
+                result += perm[digit] as f64 * inv_base_n;
+            }
+            out.push(result);
+        }
+    }
+    out
+}
+
 /// Bases whose permutations are drawn when a [`ScrambledRadicalInverses`] is made; the
 /// others (a table of 3.7 M digits) only when a dimension past them is first used.
 const EAGER_BASES: usize = 128;
@@ -268,6 +324,8 @@ const EAGER_BASES: usize = 128;
 pub struct ScrambledRadicalInverses {
     /// Permutations of the first `EAGER_BASES` bases, concatenated.
     head: Arc<Vec<u16>>,
+    /// [`pair_tables`] of `head`.
+    pairs: Arc<Vec<f64>>,
     /// The generator after `head`, and the remaining permutations drawn from it on demand.
     tail: Arc<(Rng, OnceLock<Vec<u16>>)>,
 }
@@ -285,13 +343,21 @@ impl ScrambledRadicalInverses {
         let mut head = Vec::with_capacity(PRIME_SUMS[EAGER_BASES]);
         append_permutations(&mut head, &PRIMES[..EAGER_BASES], rng);
         let tail = Arc::new((rng.clone(), OnceLock::new()));
-        ScrambledRadicalInverses { head: Arc::new(head), tail }
+        let pairs = Arc::new(pair_tables(&head));
+        ScrambledRadicalInverses { head: Arc::new(head), pairs, tail }
     }
 
     /// The permuted radical inverse of `a` in base `primes()[base_index]` (`base_index` < `PRIME_TABLE_SIZE`).
     #[inline]
     pub fn eval(&self, base_index: usize, a: u64) -> f32 {
         let i = base_index.min(PRIME_TABLE_SIZE - 1);
+        if i < PAIR_BASES && a >= PRIMES_HEAD[i] as u64 && a <= u32::MAX as u64 {
+            // Two digits or more: the first two from the table.
+            let pb = &PRIME_BASES[i];
+            let (rest, low) = PAIR_DIVS[i].div_rem_u32(a);
+            let result = self.pairs[PAIR_OFFSETS[i] + low as usize];
+            return scrambled_digits(pb, rest, &self.head[PRIME_SUMS[i]..], pb.inv_base * pb.inv_base, result);
+        }
         // (The digits index the permutation; the slice's end is only bounded by the table's.)
         let perm = if i < EAGER_BASES {
             &self.head[PRIME_SUMS[i]..]
@@ -510,6 +576,27 @@ mod tests {
             for _ in 0..200 {
                 check(rng.uniform_u32() as u64);
                 check((rng.uniform_u32() as u64 * d as u64).saturating_sub(1));
+            }
+        }
+    }
+
+    #[test]
+    fn pair_tables_give_the_digit_by_digit_values() {
+        // Every pair base, values with one digit, exactly two, many, at the table's ends and
+        // beyond 32 bits: bit-equal to the digit loop over the full permutation table.
+        assert!(PRIMES_HEAD.iter().zip(primes()).all(|(&a, &b)| a == b as usize));
+        let perms = radical_inverse_permutations(&mut Rng::new(3));
+        let lazy = ScrambledRadicalInverses::new(&mut Rng::new(3));
+        let mut rng = Rng::new(4);
+        for i in 0..PAIR_BASES + 2 {
+            let p = primes()[i] as u64;
+            let perm = &perms[prime_sums()[i]..prime_sums()[i] + p as usize];
+            let mut values = vec![0, 1, p - 1, p, p + 1, p * p - 1, p * p, p * p + 1, u32::MAX as u64];
+            values.extend([u32::MAX as u64 + 1, u64::MAX, 31_104 * 15 + 77]);
+            values.extend((0..3000).map(|_| rng.uniform_u32() as u64 >> (rng.uniform_u32() % 32)));
+            for a in values {
+                let want = scrambled_radical_inverse(i, a, perm);
+                assert_eq!(lazy.eval(i, a).to_bits(), want.to_bits(), "base {p} a {a}");
             }
         }
     }
