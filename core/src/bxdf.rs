@@ -831,7 +831,9 @@ impl Bsdf {
                 return None;
             }
             let ux = clamp_u(u.x);
-            let comp = ((ux * matching as f32).floor() as usize).min(matching - 1);
+            // (`as usize` truncates and saturates negatives and NaN to 0: `floor` without its
+            // library call, the same index for every value.)
+            let comp = ((ux * matching as f32) as usize).min(matching - 1);
             let bxdf = self.bxdfs().iter().filter(|b| b.matches(flags)).nth(comp)?;
             let u_remapped = Vec2::new((ux * matching as f32 - comp as f32).min(ONE_MINUS_EPSILON), u.y);
 

@@ -86,8 +86,9 @@ impl RgbMap {
         RgbMap { width: 1, height: 1, texels: vec![c] }
     }
 
-    fn texel(&self, s: i64, t: i64) -> Rgb {
-        let (s, t) = (wrap(s, self.width), wrap(t, self.height));
+    /// The texel at wrapped coordinates (`s < width`, `t < height`).
+    #[inline]
+    fn texel(&self, s: usize, t: usize) -> Rgb {
         self.texels.get(t * self.width + s).copied().unwrap_or(Rgb::ZERO)
     }
 
@@ -98,20 +99,39 @@ impl RgbMap {
         (sum / n).as_vec3()
     }
 
-    /// Bilinear lookup at `st` ∈ [0,1]² (zero for non-finite coordinates).
+    /// Bilinear lookup at `st` ∈ [0,1]² (zero for non-finite coordinates). Always inlined: the
+    /// sampling distribution's build looks up a whole row at one `t`, whose part is then hoisted.
+    #[inline(always)]
     pub fn lookup(&self, st: Vec2) -> Rgb {
         if !st.is_finite() || self.width == 0 || self.height == 0 {
             return Rgb::ZERO;
         }
         let s = st.x * self.width as f32 - 0.5;
         let t = st.y * self.height as f32 - 0.5;
-        let (s0, t0) = (s.floor(), t.floor());
+        let ((s0, si), (t0, ti)) = (floor_parts(s), floor_parts(t));
         let (ds, dt) = (s - s0, t - t0);
-        let (s0, t0) = (s0 as i64, t0 as i64);
+        let (s0, t0) = (si, ti);
+        let (s0, s1) = (wrap(s0, self.width), wrap(s0.wrapping_add(1), self.width));
+        let (t0, t1) = (wrap(t0, self.height), wrap(t0.wrapping_add(1), self.height));
         (1.0 - ds) * (1.0 - dt) * self.texel(s0, t0)
-            + (1.0 - ds) * dt * self.texel(s0, t0 + 1)
-            + ds * (1.0 - dt) * self.texel(s0 + 1, t0)
-            + ds * dt * self.texel(s0 + 1, t0 + 1)
+            + (1.0 - ds) * dt * self.texel(s0, t1)
+            + ds * (1.0 - dt) * self.texel(s1, t0)
+            + ds * dt * self.texel(s1, t1)
+    }
+}
+
+/// `(x.floor(), x.floor() as i64)` for finite `x` that is not `-0.0` (a lookup's `s · w − 0.5`
+/// never is): below 2²³ in magnitude from the truncation, without the library call the baseline
+/// x86-64 target makes for `floor`; larger values are integers already.
+#[inline]
+fn floor_parts(x: f32) -> (f32, i64) {
+    if x.abs() < 8_388_608.0 {
+        let i = x as i32;
+        let i = if i as f32 > x { i - 1 } else { i };
+        (i as f32, i as i64)
+    } else {
+        let f = x.floor();
+        (f, f as i64)
     }
 }
 
@@ -180,6 +200,54 @@ pub struct DiffuseAreaLight {
     /// Triangle choice in proportion to area (only when `geom.tris` has several).
     pub tri_dist: Option<Distribution1D>,
     pub n_samples: u32,
+    /// `geom.tris`' geometry as a sample needs it (the meshes do not change after the build).
+    triangles: Vec<LightTriangle>,
+}
+
+/// An emitting triangle as [`DiffuseAreaLight::sample_point`] reads it: its vertices, its
+/// winding normal (normalised, after the mesh's flip) and its vertex shading normals (missing
+/// ones zero), the values [`sampled_normal`] computes from the mesh at every sample.
+#[derive(Clone, Debug, PartialEq)]
+struct LightTriangle {
+    pv: [Vec3; 3],
+    n: Vec3,
+    shading: Option<[Vec3; 3]>,
+}
+
+impl LightTriangle {
+    fn new(mesh: &TriangleMesh, tri: usize, pv: [Vec3; 3]) -> Self {
+        let mut n = (pv[1] - pv[0]).cross(pv[2] - pv[0]).normalize_or_zero();
+        if mesh.flip_normals {
+            n = -n;
+        }
+        let shading = match (&mesh.normals, mesh.indices.get(tri)) {
+            (Some(ns), Some(idx)) => Some(idx.map(|i| ns.get(i as usize).copied().unwrap_or(Vec3::ZERO))),
+            _ => None,
+        };
+        LightTriangle { pv, n, shading }
+    }
+
+    /// The normal pbrt-v3's `Triangle::Sample` gives the point with barycentrics `b`: the
+    /// winding normal, face-forwarded to the interpolated shading normal when there is one.
+    #[inline]
+    fn normal_at(&self, b: [f32; 3]) -> Vec3 {
+        if let Some(nv) = self.shading {
+            let s = interpolate(nv, b);
+            if s != Vec3::ZERO && s.is_finite() {
+                return face_forward(self.n, s);
+            }
+        }
+        self.n
+    }
+}
+
+/// A point an area light's sample chose, with its normal and error bound: the part of
+/// [`Light::sample_li`] that does not depend on the receiving point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AreaLightPoint {
+    pub p: Vec3,
+    pub p_error: Vec3,
+    pub n: Vec3,
 }
 
 impl DiffuseAreaLight {
@@ -205,11 +273,60 @@ impl DiffuseAreaLight {
             return None;
         }
         let tri_dist = (tris.len() > 1).then(|| Distribution1D::new(&w));
+        let triangles = tris
+            .iter()
+            .map(|&t| LightTriangle::new(mesh, t as usize, tri_vertices(mesh, t as usize).unwrap_or_default()))
+            .collect();
         Some(DiffuseAreaLight {
             geom: AreaLight { mesh: mesh_index, tris, l, two_sided, area: total as f32 },
             tri_dist,
             n_samples,
+            triangles,
         })
+    }
+
+    /// The point `u` chooses (pbrt-v3's `Shape::Sample(u)`: a triangle in proportion to area,
+    /// then uniformly on it).
+    #[inline]
+    pub fn sample_point(&self, u: Vec2) -> Option<AreaLightPoint> {
+        let (k, u0) = match &self.tri_dist {
+            Some(d) => {
+                let (i, _, r) = d.sample_discrete(u.x);
+                (i, r)
+            }
+            None => (0, u.x),
+        };
+        let tri = self.triangles.get(k)?;
+        let pv = tri.pv;
+        let b = uniform_sample_triangle(Vec2::new(u0, u.y));
+        let b = [b.x, b.y, 1.0 - b.x - b.y];
+        let p = interpolate(pv, b);
+        let n = tri.normal_at(b);
+        let p_error = gamma(6) * ((b[0] * pv[0]).abs() + (b[1] * pv[1]).abs() + (b[2] * pv[2]).abs());
+        Some(AreaLightPoint { p, p_error, n })
+    }
+
+    /// The incident radiance sample at `ctx` from the light's `point` (pbrt-v3's `Sample_Li`
+    /// after `Shape::Sample`): direction, solid-angle pdf, emitted radiance toward `ctx`.
+    #[inline]
+    fn sample_li_from(&self, ctx: &LightContext, point: &AreaLightPoint) -> Option<LightLiSample> {
+        let &AreaLightPoint { p, p_error, n } = point;
+        let g = &self.geom;
+        let d = p - ctx.p;
+        let d2 = d.length_squared();
+        if !(d2 > 0.0) || !d2.is_finite() {
+            return None;
+        }
+        let wi = d / d2.sqrt();
+        let pdf = d2 / (n.dot(wi).abs() * g.area);
+        if !(pdf.is_finite() && pdf > 0.0) {
+            return None;
+        }
+        let li = if g.two_sided || n.dot(-wi) > 0.0 { g.l } else { Rgb::ZERO };
+        if li == Rgb::ZERO {
+            return None;
+        }
+        Some(LightLiSample { li, wi, pdf, p_light: p, p_light_error: p_error, n_light: n, delta: false })
     }
 }
 
@@ -240,9 +357,26 @@ impl InfiniteLight {
     }
 
     fn lookup_dir(&self, d: Vec3) -> Rgb {
-        match self.angles(d) {
-            Some((theta, _, phi)) => self.map.lookup(Vec2::new(phi / (2.0 * PI), theta / PI)),
-            None => Rgb::ZERO,
+        self.angles(d).map_or(Rgb::ZERO, |a| self.lookup_at(a))
+    }
+
+    /// The map's radiance at the [`InfiniteLight::angles`] `(θ, sin θ, φ)`.
+    #[inline]
+    fn lookup_at(&self, (theta, _, phi): (f32, f32, f32)) -> Rgb {
+        self.map.lookup(Vec2::new(phi / (2.0 * PI), theta / PI))
+    }
+
+    /// The solid-angle density of sampling the direction at `(θ, sin θ, φ)` (0 at the poles).
+    #[inline]
+    fn pdf_at(&self, (theta, sin_t, phi): (f32, f32, f32)) -> f32 {
+        if !(sin_t > 0.0) {
+            return 0.0;
+        }
+        let pdf = self.dist.pdf(Vec2::new(phi / (2.0 * PI), theta / PI)) / (2.0 * PI * PI * sin_t);
+        if pdf.is_finite() {
+            pdf
+        } else {
+            0.0
         }
     }
 }
@@ -354,18 +488,7 @@ fn tri_vertices(mesh: &TriangleMesh, tri: usize) -> Option<[Vec3; 3]> {
 /// mesh has normals, else flipped by `ReverseOrientation` xor handedness (as
 /// `Scene::interaction` orients hits).
 fn sampled_normal(mesh: &TriangleMesh, tri: usize, pv: [Vec3; 3], b: [f32; 3]) -> Vec3 {
-    let mut n = (pv[1] - pv[0]).cross(pv[2] - pv[0]).normalize_or_zero();
-    if mesh.flip_normals {
-        n = -n;
-    }
-    if let (Some(ns), Some(idx)) = (&mesh.normals, mesh.indices.get(tri)) {
-        let nv = idx.map(|i| ns.get(i as usize).copied().unwrap_or(Vec3::ZERO));
-        let s = interpolate(nv, b);
-        if s != Vec3::ZERO && s.is_finite() {
-            n = face_forward(n, s);
-        }
-    }
-    n
+    LightTriangle::new(mesh, tri, pv).normal_at(b)
 }
 
 /// The emitting side of triangle `tri` of `mesh`, as area lights define it (the normal
@@ -380,7 +503,9 @@ pub fn emitting_normal(mesh: &TriangleMesh, tri: usize) -> Vec3 {
 impl Light {
     /// Samples an incident direction at `ctx` (pbrt-v3's `Sample_Li`). `None` if the
     /// pdf is 0 or the sample carries no radiance.
-    pub fn sample_li(&self, ctx: &LightContext, u: Vec2, meshes: &[TriangleMesh]) -> Option<LightLiSample> {
+    /// (`_meshes`: area lights keep what they sample of their triangles; the argument stays so
+    /// that callers need not change.)
+    pub fn sample_li(&self, ctx: &LightContext, u: Vec2, _meshes: &[TriangleMesh]) -> Option<LightLiSample> {
         crate::phase::timed(Phase::LightSampling, || match self {
             Light::Point(l) => point_sample(ctx, l.p, l.i, |_| Rgb::ONE),
             Light::Spot(l) => point_sample(ctx, l.p, l.i, |w| Rgb::splat(l.falloff(w))),
@@ -427,57 +552,23 @@ impl Light {
                     delta: false,
                 })
             }
-            Light::Area(a) => {
-                let g = &a.geom;
-                let mesh = meshes.get(g.mesh as usize)?;
-                let (k, u0) = match &a.tri_dist {
-                    Some(d) => {
-                        let (i, _, r) = d.sample_discrete(u.x);
-                        (i, r)
-                    }
-                    None => (0, u.x),
-                };
-                let tri = *g.tris.get(k)? as usize;
-                let pv = tri_vertices(mesh, tri)?;
-                let b = uniform_sample_triangle(Vec2::new(u0, u.y));
-                let b = [b.x, b.y, 1.0 - b.x - b.y];
-                let p = interpolate(pv, b);
-                let n = sampled_normal(mesh, tri, pv, b);
-                let p_err = gamma(6) * ((b[0] * pv[0]).abs() + (b[1] * pv[1]).abs() + (b[2] * pv[2]).abs());
-                let d = p - ctx.p;
-                let d2 = d.length_squared();
-                if !(d2 > 0.0) || !d2.is_finite() {
-                    return None;
-                }
-                let wi = d / d2.sqrt();
-                let pdf = d2 / (n.dot(wi).abs() * g.area);
-                if !(pdf.is_finite() && pdf > 0.0) {
-                    return None;
-                }
-                let li = self.l(n, -wi);
-                if li == Rgb::ZERO {
-                    return None;
-                }
-                Some(LightLiSample { li, wi, pdf, p_light: p, p_light_error: p_err, n_light: n, delta: false })
-            }
+            Light::Area(a) => a.sample_li_from(ctx, &a.sample_point(u)?),
+        })
+    }
+
+    /// [`Light::sample_li`] for an area light whose point [`DiffuseAreaLight::sample_point`]
+    /// already chose (it does not depend on `ctx`): the same sample. `None` for other lights.
+    pub fn sample_li_from(&self, ctx: &LightContext, point: &AreaLightPoint) -> Option<LightLiSample> {
+        crate::phase::timed(Phase::LightSampling, || match self {
+            Light::Area(a) => a.sample_li_from(ctx, point),
+            _ => None,
         })
     }
 
     /// Solid-angle pdf of sampling `wi` from `ctx`; for area lights the caller passes the point it found on the light (`light_hit`: point and geometric normal), since the caller already traced the ray.
     pub fn pdf_li(&self, ctx: &LightContext, wi: Vec3, light_hit: Option<(Vec3, Vec3)>) -> f32 {
         crate::phase::timed(Phase::LightSampling, || match self {
-            Light::Infinite(l) => {
-                let Some((theta, sin_t, phi)) = l.angles(wi) else { return 0.0 };
-                if !(sin_t > 0.0) {
-                    return 0.0;
-                }
-                let pdf = l.dist.pdf(Vec2::new(phi / (2.0 * PI), theta / PI)) / (2.0 * PI * PI * sin_t);
-                if pdf.is_finite() {
-                    pdf
-                } else {
-                    0.0
-                }
-            }
+            Light::Infinite(l) => l.angles(wi).map_or(0.0, |a| l.pdf_at(a)),
             Light::Area(a) => {
                 let Some((p, n)) = light_hit else { return 0.0 };
                 let d2 = (p - ctx.p).length_squared();
@@ -507,6 +598,19 @@ impl Light {
         crate::phase::timed(Phase::LightSampling, || match self {
             Light::Infinite(l) => l.lookup_dir(ray.d),
             _ => Rgb::ZERO,
+        })
+    }
+
+    /// [`Light::le`] of an escaping ray and [`Light::pdf_li`] of its direction (which for the
+    /// lights with radiance there, infinite lights, does not depend on the receiving point):
+    /// the same values, with the direction's angles found once.
+    pub fn le_and_pdf(&self, ray: &Ray) -> (Rgb, f32) {
+        crate::phase::timed(Phase::LightSampling, || match self {
+            Light::Infinite(l) => match l.angles(ray.d) {
+                Some(a) => (l.lookup_at(a), l.pdf_at(a)),
+                None => (Rgb::ZERO, 0.0),
+            },
+            _ => (Rgb::ZERO, 0.0),
         })
     }
 
@@ -941,6 +1045,20 @@ fn make_light(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_parts_is_floor() {
+        let mut rng = Rng::new(9);
+        let special = [0.0f32, 0.5, -0.5, 1.0, -1.0, 1.5, -1.5, 8_388_607.5, -8_388_607.5, 8_388_608.0, -8_388_609.0];
+        let special = special.into_iter().chain([1e30, -1e30, f32::MAX, f32::MIN, f32::MIN_POSITIVE, -1e-45, 1e-45]);
+        let random: Vec<f32> = (0..200_000).map(|_| f32::from_bits(rng.uniform_u32())).collect();
+        let near: Vec<f32> = (0..200_000).map(|_| (rng.uniform_f32() - 0.5) * 4096.0).collect();
+        for x in special.chain(random).chain(near).filter(|x| x.is_finite() && x.to_bits() != (-0.0f32).to_bits()) {
+            let (f, i) = floor_parts(x);
+            assert_eq!(f.to_bits(), x.floor().to_bits(), "{x}");
+            assert_eq!(i, x.floor() as i64, "{x}");
+        }
+    }
 
     #[test]
     fn wrap_is_rem_euclid() {
@@ -1675,7 +1793,10 @@ mod tests {
                 }
             }
         }
-        // Out-of-range geometry references are no samples, not panics.
-        assert!(all.last().unwrap().sample_li(&ctx(Vec3::ZERO), Vec2::ZERO, &[]).is_none());
+        // An area light keeps what it samples of its triangles: no mesh lookup at sampling time
+        // (so no out-of-range reference), the same sample without the meshes.
+        let light = all.last().unwrap();
+        let at = ctx(Vec3::new(0.2, 0.2, 1.0));
+        assert_eq!(light.sample_li(&at, Vec2::splat(0.3), &[]), light.sample_li(&at, Vec2::splat(0.3), &meshes));
     }
 }

@@ -3,7 +3,9 @@
 //! i-th sample of a pixel to its global index; dimension d of a sample is dimension d of that
 //! global point. Dimensions 0–1 are the film position; dimensions 2–4 are kept for the
 //! camera (time, lens), and arrays take the dimensions after them, element k of pixel sample s
-//! being global sample `s * n + k` of the pixel (as pbrt-v3).
+//! being global sample `s * n + k` of the pixel (as pbrt-v3). pbrt-v3 fills every array in
+//! `StartPixelSample`; here an array is filled when it is fetched (the same values), so the
+//! arrays an integrator requests for deeper bounces cost nothing at the samples that stop early.
 
 use super::lowdiscrepancy::{
     inverse_radical_inverse, radical_inverse, sobol_column, sobol_sample_bits, FastDiv, ScrambledRadicalInverses,
@@ -122,24 +124,6 @@ impl<P: GlobalPattern> Sampler for GlobalSampler<P> {
         self.array_1d = 0;
         self.array_2d = 0;
         self.array_end_dim = ARRAY_START_DIM + self.sizes_1d.len() as u32 + 2 * self.sizes_2d.len() as u32;
-        let mut dim = ARRAY_START_DIM;
-        for (i, &n) in self.sizes_1d.iter().enumerate() {
-            for k in 0..n as u64 {
-                let gi = self.pattern.index_with_offset(pixel, offset, index as u64 * n as u64 + k);
-                self.arrays_1d[i][k as usize] = self.pattern.sample_dimension(pixel, gi, dim);
-            }
-            dim += 1;
-        }
-        for (i, &n) in self.sizes_2d.iter().enumerate() {
-            for k in 0..n as u64 {
-                let gi = self.pattern.index_with_offset(pixel, offset, index as u64 * n as u64 + k);
-                self.arrays_2d[i][k as usize] = Vec2::new(
-                    self.pattern.sample_dimension(pixel, gi, dim),
-                    self.pattern.sample_dimension(pixel, gi, dim + 1),
-                );
-            }
-            dim += 2;
-        }
     }
     fn get_1d(&mut self) -> f32 {
         let d = self.next_dimensions(1);
@@ -159,18 +143,32 @@ impl<P: GlobalPattern> Sampler for GlobalSampler<P> {
         self.next_dimensions(2);
     }
     fn get_1d_array(&mut self, n: u32) -> Option<&[f32]> {
-        if self.sizes_1d.get(self.array_1d) != Some(&n) {
+        let i = self.array_1d;
+        if self.sizes_1d.get(i) != Some(&n) {
             return None;
         }
         self.array_1d += 1;
-        Some(&self.arrays_1d[self.array_1d - 1])
+        let dim = ARRAY_START_DIM + i as u32;
+        let (pattern, pixel, base) = (&self.pattern, self.pixel, self.sample as u64 * n as u64);
+        for (k, v) in self.arrays_1d[i].iter_mut().enumerate() {
+            let gi = pattern.index_with_offset(pixel, self.offset, base + k as u64);
+            *v = pattern.sample_dimension(pixel, gi, dim);
+        }
+        Some(&self.arrays_1d[i])
     }
     fn get_2d_array(&mut self, n: u32) -> Option<&[Vec2]> {
-        if self.sizes_2d.get(self.array_2d) != Some(&n) {
+        let i = self.array_2d;
+        if self.sizes_2d.get(i) != Some(&n) {
             return None;
         }
         self.array_2d += 1;
-        Some(&self.arrays_2d[self.array_2d - 1])
+        let dim = ARRAY_START_DIM + self.sizes_1d.len() as u32 + 2 * i as u32;
+        let (pattern, pixel, base) = (&self.pattern, self.pixel, self.sample as u64 * n as u64);
+        for (k, v) in self.arrays_2d[i].iter_mut().enumerate() {
+            let gi = pattern.index_with_offset(pixel, self.offset, base + k as u64);
+            *v = Vec2::new(pattern.sample_dimension(pixel, gi, dim), pattern.sample_dimension(pixel, gi, dim + 1));
+        }
+        Some(&self.arrays_2d[i])
     }
     fn clone_box(&self) -> Box<dyn Sampler> {
         Box::new(self.clone())
@@ -472,6 +470,36 @@ mod tests {
         s.get_2d();
         // A 2D sample starting at dimension 4 would straddle the array block: it skips it.
         assert_eq!(s.get_2d(), Vec2::new(8.0, 9.0));
+    }
+
+    #[test]
+    fn arrays_are_the_global_points_of_their_dimensions() {
+        // Arrays are filled when fetched: element k of pixel sample s is global sample
+        // s * n + k of the pixel, in the array's own dimensions (as pbrt-v3 fills them eagerly).
+        let mut s = HaltonSampler::halton(8, false, 0);
+        s.request_1d_array(3);
+        s.request_2d_array(2);
+        s.request_2d_array(4);
+        let h = s.pattern().clone();
+        let pixel = IVec2::new(13, 7);
+        for sample in [0u32, 5] {
+            s.start_pixel_sample(pixel, sample);
+            let a1 = s.get_1d_array(3).unwrap().to_vec();
+            let a2 = s.get_2d_array(2).unwrap().to_vec();
+            let a3 = s.get_2d_array(4).unwrap().to_vec();
+            let at = |n: u64, k: usize, dim: u32| {
+                h.sample_dimension(pixel, h.index_for_sample(pixel, sample as u64 * n + k as u64), dim)
+            };
+            for (k, v) in a1.iter().enumerate() {
+                assert_eq!(v.to_bits(), at(3, k, 5).to_bits());
+            }
+            for (k, v) in a2.iter().enumerate() {
+                assert_eq!([v.x, v.y].map(f32::to_bits), [at(2, k, 6), at(2, k, 7)].map(f32::to_bits));
+            }
+            for (k, v) in a3.iter().enumerate() {
+                assert_eq!([v.x, v.y].map(f32::to_bits), [at(4, k, 8), at(4, k, 9)].map(f32::to_bits));
+            }
+        }
     }
 
     #[test]

@@ -15,7 +15,30 @@ pub const NUM_SOBOL_DIMENSIONS: u32 = 1024;
 /// Generator-matrix columns per dimension: indices below 2^52 are supported.
 pub const SOBOL_MATRIX_SIZE: usize = 52;
 
-static SOBOL_BYTES: &[u8] = include_bytes!("sobol_matrices.bin");
+const SOBOL_BYTES: &[u8] = include_bytes!("sobol_matrices.bin");
+
+/// Columns per dimension in [`SOBOL_MATRICES`]: the `SOBOL_MATRIX_SIZE` columns, then zeros,
+/// so that any index bit (0–63) addresses its column without a bounds check.
+const SOBOL_ROW: usize = 64;
+
+/// The generator matrices as words, dimension `d`'s column `j` at `d * SOBOL_ROW + j`.
+static SOBOL_MATRICES: [[u32; SOBOL_ROW]; NUM_SOBOL_DIMENSIONS as usize] = {
+    let mut out = [[0u32; SOBOL_ROW]; NUM_SOBOL_DIMENSIONS as usize];
+    let mut d = 0;
+    while d < NUM_SOBOL_DIMENSIONS as usize {
+        let mut j = 0;
+        while j < SOBOL_MATRIX_SIZE {
+            let k = 4 * (d * SOBOL_MATRIX_SIZE + j);
+            if k + 4 <= SOBOL_BYTES.len() {
+                let b = [SOBOL_BYTES[k], SOBOL_BYTES[k + 1], SOBOL_BYTES[k + 2], SOBOL_BYTES[k + 3]];
+                out[d][j] = u32::from_le_bytes(b);
+            }
+            j += 1;
+        }
+        d += 1;
+    }
+    out
+};
 
 /// Column `j` (contribution of index bit `j`, most significant output bit first) of dimension `dim`'s
 /// Sobol' generator matrix; 0 out of range.
@@ -23,24 +46,18 @@ pub fn sobol_column(dim: u32, j: usize) -> u32 {
     if dim >= NUM_SOBOL_DIMENSIONS || j >= SOBOL_MATRIX_SIZE {
         return 0;
     }
-    let k = 4 * (dim as usize * SOBOL_MATRIX_SIZE + j);
-    match SOBOL_BYTES.get(k..k + 4) {
-        Some(b) => u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-        None => 0,
-    }
+    SOBOL_MATRICES[dim as usize][j]
 }
 
-/// The 32-bit fixed-point Sobol' sample (numerator over 2^32) of `index` in `dim`.
+/// The 32-bit fixed-point Sobol' sample (numerator over 2^32) of `index` in `dim`: the XOR of
+/// the columns of the index's set bits (bits from `SOBOL_MATRIX_SIZE` on have zero columns).
+#[inline]
 pub fn sobol_sample_bits(index: u64, dim: u32) -> u32 {
-    let mut v = 0u32;
-    let mut a = index;
-    let mut j = 0;
-    while a != 0 && j < SOBOL_MATRIX_SIZE {
-        if a & 1 == 1 {
-            v ^= sobol_column(dim, j);
-        }
-        a >>= 1;
-        j += 1;
+    let Some(columns) = SOBOL_MATRICES.get(dim as usize) else { return 0 };
+    let (mut v, mut a) = (0u32, index);
+    while a != 0 {
+        v ^= columns[a.trailing_zeros() as usize & (SOBOL_ROW - 1)];
+        a &= a - 1;
     }
     v
 }
@@ -126,6 +143,13 @@ impl FastDiv {
     #[inline(always)]
     pub fn div_rem(self, a: u64) -> (u64, u64) {
         let q = if a <= u32::MAX as u64 { ((a as u128 * self.m as u128) >> 64) as u64 } else { a / self.d };
+        (q, a - q * self.d)
+    }
+    /// [`FastDiv::div_rem`] for `a` ≤ `u32::MAX` (larger values give wrong results).
+    #[inline(always)]
+    fn div_rem_u32(self, a: u64) -> (u64, u64) {
+        debug_assert!(a <= u32::MAX as u64);
+        let q = ((a as u128 * self.m as u128) >> 64) as u64;
         (q, a - q * self.d)
     }
 }
@@ -214,16 +238,80 @@ pub fn scrambled_radical_inverse(base_index: usize, a: u64, perm: &[u16]) -> f32
 /// `base` entries (digits index it; a shorter table panics).
 #[inline]
 fn scrambled_radical_inverse_in(pb: &PrimeBase, a: u64, perm: &[u16]) -> f32 {
+    scrambled_digits(pb, a, perm, 1.0, 0.0)
+}
+
+/// The digit loop of [`scrambled_radical_inverse_in`] from a state it reaches after some low
+/// digits: `a` the remaining digits, `inv_base_n` and `result` its running values.
+#[inline(always)]
+fn scrambled_digits(pb: &PrimeBase, a: u64, perm: &[u16], inv_base_n: f64, result: f64) -> f32 {
     let inv_base = pb.inv_base;
-    let (mut a, mut inv_base_n, mut result) = (a, 1.0f64, 0.0f64);
-    while a > 0 {
+    let (mut a, mut inv_base_n, mut result) = (a, inv_base_n, result);
+    // The same digits, low first, in two loops: those of a value beyond 32 bits by division,
+    // then (the values every sampler index takes) by the multiplication alone.
+    while a > u32::MAX as u64 {
         let (next, digit) = pb.div.div_rem(a);
+        inv_base_n *= inv_base;
+        result += perm[digit as usize] as f64 * inv_base_n;
+        a = next;
+    }
+    while a > 0 {
+        let (next, digit) = pb.div.div_rem_u32(a);
         inv_base_n *= inv_base;
         result += perm[digit as usize] as f64 * inv_base_n;
         a = next;
     }
     result += perm[0] as f64 * inv_base_n * inv_base / (1.0 - inv_base);
     (result as f32).min(ONE_MINUS_EPSILON_F32)
+}
+
+/// Bases (the first `PAIR_BASES`) whose two lowest digits are looked up together: the running
+/// sum after two digits is a function of those digits alone (it starts from 0), so a table of
+/// `base²` entries holds it exactly; the digits after it are summed one by one as before.
+const PAIR_BASES: usize = 16;
+
+/// `PAIR_OFFSETS[i]`: where base `i`'s pair table starts (the sum of the squares of the primes before it).
+const PAIR_OFFSETS: [usize; PAIR_BASES + 1] = {
+    let mut out = [0usize; PAIR_BASES + 1];
+    let mut i = 0;
+    while i < PAIR_BASES {
+        out[i + 1] = out[i] + PRIMES_HEAD[i] * PRIMES_HEAD[i];
+        i += 1;
+    }
+    out
+};
+
+/// The first primes, for the constants above (`PRIMES` is a static).
+const PRIMES_HEAD: [usize; PAIR_BASES] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53];
+
+/// Division by `base²` for the pair bases.
+static PAIR_DIVS: [FastDiv; PAIR_BASES] = {
+    let mut out = [FastDiv::new(2); PAIR_BASES];
+    let mut i = 0;
+    while i < PAIR_BASES {
+        out[i] = FastDiv::new((PRIMES_HEAD[i] * PRIMES_HEAD[i]) as u32);
+        i += 1;
+    }
+    out
+};
+
+/// The running sum of [`scrambled_digits`] after the two lowest digits `r % b`, `r / b`, for
+/// every `r < b²` of each pair base, computed by the same two steps.
+fn pair_tables(head: &[u16]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(PAIR_OFFSETS[PAIR_BASES]);
+    for i in 0..PAIR_BASES {
+        let (p, inv_base) = (PRIMES[i] as usize, PRIME_BASES[i].inv_base);
+        let perm = &head[PRIME_SUMS[i]..PRIME_SUMS[i] + p];
+        for r in 0..p * p {
+            let (mut inv_base_n, mut result) = (1.0f64, 0.0f64);
+            for digit in [r % p, r / p] {
+                inv_base_n *= inv_base;
+                result += perm[digit] as f64 * inv_base_n;
+            }
+            out.push(result);
+        }
+    }
+    out
 }
 
 /// Bases whose permutations are drawn when a [`ScrambledRadicalInverses`] is made; the
@@ -236,6 +324,8 @@ const EAGER_BASES: usize = 128;
 pub struct ScrambledRadicalInverses {
     /// Permutations of the first `EAGER_BASES` bases, concatenated.
     head: Arc<Vec<u16>>,
+    /// [`pair_tables`] of `head`.
+    pairs: Arc<Vec<f64>>,
     /// The generator after `head`, and the remaining permutations drawn from it on demand.
     tail: Arc<(Rng, OnceLock<Vec<u16>>)>,
 }
@@ -253,16 +343,24 @@ impl ScrambledRadicalInverses {
         let mut head = Vec::with_capacity(PRIME_SUMS[EAGER_BASES]);
         append_permutations(&mut head, &PRIMES[..EAGER_BASES], rng);
         let tail = Arc::new((rng.clone(), OnceLock::new()));
-        ScrambledRadicalInverses { head: Arc::new(head), tail }
+        let pairs = Arc::new(pair_tables(&head));
+        ScrambledRadicalInverses { head: Arc::new(head), pairs, tail }
     }
 
     /// The permuted radical inverse of `a` in base `primes()[base_index]` (`base_index` < `PRIME_TABLE_SIZE`).
     #[inline]
     pub fn eval(&self, base_index: usize, a: u64) -> f32 {
         let i = base_index.min(PRIME_TABLE_SIZE - 1);
-        let len = PRIMES[i] as usize;
+        if i < PAIR_BASES && a >= PRIMES_HEAD[i] as u64 && a <= u32::MAX as u64 {
+            // Two digits or more: the first two from the table.
+            let pb = &PRIME_BASES[i];
+            let (rest, low) = PAIR_DIVS[i].div_rem_u32(a);
+            let result = self.pairs[PAIR_OFFSETS[i] + low as usize];
+            return scrambled_digits(pb, rest, &self.head[PRIME_SUMS[i]..], pb.inv_base * pb.inv_base, result);
+        }
+        // (The digits index the permutation; the slice's end is only bounded by the table's.)
         let perm = if i < EAGER_BASES {
-            &self.head[PRIME_SUMS[i]..PRIME_SUMS[i] + len]
+            &self.head[PRIME_SUMS[i]..]
         } else {
             let tail = self.tail.1.get_or_init(|| {
                 let mut rng = self.tail.0.clone();
@@ -270,8 +368,7 @@ impl ScrambledRadicalInverses {
                 append_permutations(&mut t, &PRIMES[EAGER_BASES..], &mut rng);
                 t
             });
-            let start = PRIME_SUMS[i] - PRIME_SUMS[EAGER_BASES];
-            &tail[start..start + len]
+            &tail[PRIME_SUMS[i] - PRIME_SUMS[EAGER_BASES]..]
         };
         scrambled_radical_inverse_in(&PRIME_BASES[i], a, perm)
     }
@@ -415,6 +512,32 @@ mod tests {
     }
 
     #[test]
+    fn sobol_samples_are_the_matrix_product() {
+        // Bit by bit over the little-endian file, as the matrices are stored.
+        let by_bits = |index: u64, dim: u32| {
+            let mut v = 0u32;
+            for j in 0..SOBOL_MATRIX_SIZE {
+                let k = 4 * (dim as usize * SOBOL_MATRIX_SIZE + j);
+                if index >> j & 1 == 1 && dim < NUM_SOBOL_DIMENSIONS {
+                    v ^= u32::from_le_bytes(SOBOL_BYTES[k..k + 4].try_into().unwrap());
+                }
+            }
+            v
+        };
+        let mut rng = Rng::new(11);
+        for dim in [0u32, 1, 2, 3, 100, 1022, 1023, 1024, 5000] {
+            for index in [0u64, 1, 2, 3, 255, 1 << 51, (1 << 52) - 1, 1 << 52, u64::MAX] {
+                assert_eq!(sobol_sample_bits(index, dim), by_bits(index, dim), "dim {dim} index {index}");
+            }
+            for _ in 0..500 {
+                let index = (rng.uniform_u32() as u64) << 32 | rng.uniform_u32() as u64;
+                let index = index >> (rng.uniform_u32() % 64);
+                assert_eq!(sobol_sample_bits(index, dim), by_bits(index, dim), "dim {dim} index {index}");
+            }
+        }
+    }
+
+    #[test]
     fn sobol_first_dimensions() {
         for j in 0..32 {
             assert_eq!(sobol_column(0, j), C_VAN_DER_CORPUT[j]);
@@ -453,6 +576,27 @@ mod tests {
             for _ in 0..200 {
                 check(rng.uniform_u32() as u64);
                 check((rng.uniform_u32() as u64 * d as u64).saturating_sub(1));
+            }
+        }
+    }
+
+    #[test]
+    fn pair_tables_give_the_digit_by_digit_values() {
+        // Every pair base, values with one digit, exactly two, many, at the table's ends and
+        // beyond 32 bits: bit-equal to the digit loop over the full permutation table.
+        assert!(PRIMES_HEAD.iter().zip(primes()).all(|(&a, &b)| a == b as usize));
+        let perms = radical_inverse_permutations(&mut Rng::new(3));
+        let lazy = ScrambledRadicalInverses::new(&mut Rng::new(3));
+        let mut rng = Rng::new(4);
+        for i in 0..PAIR_BASES + 2 {
+            let p = primes()[i] as u64;
+            let perm = &perms[prime_sums()[i]..prime_sums()[i] + p as usize];
+            let mut values = vec![0, 1, p - 1, p, p + 1, p * p - 1, p * p, p * p + 1, u32::MAX as u64];
+            values.extend([u32::MAX as u64 + 1, u64::MAX, 31_104 * 15 + 77]);
+            values.extend((0..3000).map(|_| rng.uniform_u32() as u64 >> (rng.uniform_u32() % 32)));
+            for a in values {
+                let want = scrambled_radical_inverse(i, a, perm);
+                assert_eq!(lazy.eval(i, a).to_bits(), want.to_bits(), "base {p} a {a}");
             }
         }
     }

@@ -15,6 +15,7 @@ use super::trianglemesh::{checked_points, checked_triangles};
 use super::{loc_or_entity, ObjMesh, ShapeContext};
 use crate::parser::{Diagnostic, ShapeDesc};
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 const NONE: u32 = u32::MAX;
 /// The subdivided mesh may have at most this many triangles.
@@ -38,15 +39,38 @@ struct Topology {
     edges: Vec<[u32; 2]>,
 }
 
+/// The hash of a directed edge's key `a << 32 | b`: one `mix_bits` instead of SipHash (the map
+/// is only queried, never iterated, so the hasher cannot change the result).
+#[derive(Default)]
+struct EdgeHasher(u64);
+
+impl Hasher for EdgeHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = crate::rng::mix_bits(self.0 ^ b as u64);
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = crate::rng::mix_bits(self.0 ^ v);
+    }
+}
+
+fn edge_key(a: u32, b: u32) -> u64 {
+    (a as u64) << 32 | b as u64
+}
+
 fn topology(nv: usize, faces: &[[u32; 3]]) -> Result<Topology, String> {
-    let mut directed: HashMap<(u32, u32), (u32, u8), crate::mesh::hash::WordHash> =
+    let mut directed: HashMap<u64, (u32, u8), BuildHasherDefault<EdgeHasher>> =
         HashMap::with_capacity_and_hasher(faces.len() * 3, Default::default());
     for (f, t) in faces.iter().enumerate() {
         if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
             return Err(format!("face {f} uses a vertex twice"));
         }
         for k in 0..3 {
-            if directed.insert((t[k], t[(k + 1) % 3]), (f as u32, k as u8)).is_some() {
+            if directed.insert(edge_key(t[k], t[(k + 1) % 3]), (f as u32, k as u8)).is_some() {
                 return Err(format!(
                     "edge ({}, {}) is used twice in the same direction (non-manifold or inconsistently oriented)",
                     t[k],
@@ -61,7 +85,7 @@ fn topology(nv: usize, faces: &[[u32; 3]]) -> Result<Topology, String> {
     for (f, t) in faces.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (t[k], t[(k + 1) % 3]);
-            if let Some(&(g, kk)) = directed.get(&(b, a)) {
+            if let Some(&(g, kk)) = directed.get(&edge_key(b, a)) {
                 nbr[f][k] = g;
                 if (g as usize) < f {
                     edge_of[f][k] = edge_of[g as usize][kk as usize];

@@ -67,6 +67,8 @@ pub fn estimate_direct(
                 stats.rays += 1;
                 let hit = scene.intersect(&ray);
                 let mut light_hit = None;
+                // An escaping ray's radiance and the light's pdf of its direction at once.
+                let mut escaped_pdf = None;
                 let li = match &hit {
                     Some(h) => {
                         if scene.area_light_at(h) == Some(light_index) {
@@ -77,13 +79,17 @@ pub fn estimate_direct(
                             Rgb::ZERO
                         }
                     }
-                    None => light.le(&ray),
+                    None => {
+                        let (le, pdf) = light.le_and_pdf(&ray);
+                        escaped_pdf = Some(pdf);
+                        le
+                    }
                 };
                 if li != Rgb::ZERO {
                     let weight = if specular {
                         1.0
                     } else {
-                        let light_pdf = light.pdf_li(&ctx, bs.wi, light_hit);
+                        let light_pdf = escaped_pdf.unwrap_or_else(|| light.pdf_li(&ctx, bs.wi, light_hit));
                         if light_pdf == 0.0 {
                             return ld;
                         }

@@ -8,7 +8,7 @@
 //! there first.
 
 use penumbra_core::geometry::Bounds3;
-use penumbra_core::light::LightContext;
+use penumbra_core::light::{AreaLightPoint, Light, LightContext};
 use penumbra_core::sampler::lowdiscrepancy::radical_inverse;
 use penumbra_core::sampling::Distribution1D;
 use penumbra_core::scene::Scene;
@@ -71,7 +71,30 @@ pub struct SpatialLightDistribution {
     bounds: Bounds3,
     n_voxels: [usize; 3],
     voxels: Vec<OnceLock<Box<Distribution1D>>>,
+    /// The voxel's Halton points: the same in every voxel, so computed once.
+    points: Vec<VoxelPoint>,
+    /// The point each area light's sample chooses for each of [`Self::points`] (it depends on
+    /// the sample alone), light by light; `None` when there are too many lights to keep them.
+    area_points: OnceLock<Option<Vec<Prepared>>>,
 }
+
+/// One of a voxel's Halton points: position within the voxel (`t`) and light sample (`u`).
+struct VoxelPoint {
+    t: Vec3,
+    u: Vec2,
+}
+
+/// What a light's sample at one [`VoxelPoint`] needs beyond the receiving point.
+#[derive(Clone, Copy)]
+enum Prepared {
+    /// An area light's point (`None`: the sample chose none).
+    Area(Option<AreaLightPoint>),
+    /// Any other light: sampled at each receiving point.
+    Other,
+}
+
+/// The most lights × points whose area-light samples are kept (about 40 bytes each).
+const MAX_PREPARED: usize = 1 << 18;
 
 /// Halton points per voxel (pbrt-v3's `nSamples`).
 const VOXEL_SAMPLES: u64 = 128;
@@ -90,7 +113,19 @@ impl SpatialLightDistribution {
             }
         });
         let count = n_voxels.iter().product();
-        SpatialLightDistribution { bounds, n_voxels, voxels: (0..count).map(|_| OnceLock::new()).collect() }
+        let points = (0..VOXEL_SAMPLES)
+            .map(|i| VoxelPoint {
+                t: Vec3::new(radical_inverse(0, i), radical_inverse(1, i), radical_inverse(2, i)),
+                u: Vec2::new(radical_inverse(3, i), radical_inverse(4, i)),
+            })
+            .collect();
+        SpatialLightDistribution {
+            bounds,
+            n_voxels,
+            voxels: (0..count).map(|_| OnceLock::new()).collect(),
+            points,
+            area_points: OnceLock::new(),
+        }
     }
 
     fn voxel_of(&self, p: Vec3) -> [usize; 3] {
@@ -112,6 +147,18 @@ impl SpatialLightDistribution {
         self.voxels[index].get_or_init(|| Box::new(self.compute(v, scene)))
     }
 
+    /// The area lights' points for [`Self::points`], light-major (see `area_points`).
+    fn prepare(&self, lights: &[Light]) -> Option<Vec<Prepared>> {
+        if lights.len().saturating_mul(self.points.len()) > MAX_PREPARED {
+            return None;
+        }
+        let one = |light: &Light, pt: &VoxelPoint| match light {
+            Light::Area(a) => Prepared::Area(a.sample_point(pt.u)),
+            _ => Prepared::Other,
+        };
+        Some(lights.iter().flat_map(|l| self.points.iter().map(move |pt| one(l, pt))).collect())
+    }
+
     /// pbrt-v3's `ComputeDistribution` for voxel `v`.
     fn compute(&self, v: [usize; 3], scene: &Scene) -> Distribution1D {
         let lerp = |t: Vec3| (Vec3::ONE - t) * self.bounds.min + t * self.bounds.max;
@@ -119,14 +166,18 @@ impl SpatialLightDistribution {
         let corner = Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32);
         let (p0, p1) = (lerp(corner / n), lerp((corner + Vec3::ONE) / n));
         let lights = scene.light_list();
+        let prepared = self.area_points.get_or_init(|| self.prepare(lights)).as_deref();
         let mut contrib = vec![0.0f32; lights.len()];
-        for i in 0..VOXEL_SAMPLES {
-            let t = Vec3::new(radical_inverse(0, i), radical_inverse(1, i), radical_inverse(2, i));
-            let p = (Vec3::ONE - t) * p0 + t * p1;
+        for (i, pt) in self.points.iter().enumerate() {
+            let p = (Vec3::ONE - pt.t) * p0 + pt.t * p1;
             let ctx = LightContext { p, p_error: Vec3::ZERO, n: Vec3::ZERO };
-            let u = Vec2::new(radical_inverse(3, i), radical_inverse(4, i));
-            for (c, light) in contrib.iter_mut().zip(lights) {
-                if let Some(ls) = light.sample_li(&ctx, u, &scene.meshes) {
+            for (k, (c, light)) in contrib.iter_mut().zip(lights).enumerate() {
+                let sample = match prepared.map(|v| v[k * self.points.len() + i]) {
+                    Some(Prepared::Area(None)) => None,
+                    Some(Prepared::Area(Some(point))) => light.sample_li_from(&ctx, &point),
+                    Some(Prepared::Other) | None => light.sample_li(&ctx, pt.u, &scene.meshes),
+                };
+                if let Some(ls) = sample {
                     if ls.pdf > 0.0 {
                         *c += luminance(ls.li) / ls.pdf;
                     }
@@ -140,5 +191,56 @@ impl SpatialLightDistribution {
             *c = c.max(min);
         }
         Distribution1D::new(&contrib)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use penumbra_core::scene::{BuildOptions, Requirements};
+    use penumbra_parser::DiagSink;
+
+    /// The area lights' points kept across voxels give each voxel the distribution that
+    /// sampling every light at every point gives, bit for bit (triangle-mesh lights, a
+    /// one-sided quad, a tessellated sphere, and a point light that is sampled as before).
+    #[test]
+    fn kept_area_light_points_give_the_same_distributions() {
+        let text = "Camera \"perspective\" Film \"rgb\" \"integer xresolution\" 4 \"integer yresolution\" 4
+            WorldBegin
+            AttributeBegin AreaLightSource \"diffuse\" \"rgb L\" [4 3 2] Translate 0 3 0
+              Shape \"sphere\" \"float radius\" 0.5 AttributeEnd
+            AttributeBegin AreaLightSource \"diffuse\" \"rgb L\" [1 1 1]
+              Shape \"trianglemesh\" \"point3 P\" [-1 2 -1 1 2 -1 1 2 1 -1 2 1] \"integer indices\" [0 1 2 0 2 3]
+            AttributeEnd
+            AttributeBegin AreaLightSource \"diffuse\" \"rgb L\" [2 2 2] \"bool twosided\" \"true\"
+              Shape \"trianglemesh\" \"point3 P\" [-3 0 -1 -3 2 -1 -3 2 1] \"integer indices\" [0 1 2]
+            AttributeEnd
+            LightSource \"point\" \"point from\" [1 1 1] \"rgb I\" [3 3 3]
+            Shape \"trianglemesh\" \"point3 P\" [-4 0 -4 4 0 -4 4 0 4 -4 0 4] \"integer indices\" [0 1 2 0 2 3]
+            WorldEnd";
+        let parsed = penumbra_parser::parse_str(text, "<test>", None).unwrap();
+        let warnings = DiagSink::new();
+        let req = Requirements { accel: true, lights: true, materials: true, ..Default::default() };
+        let scene = Scene::build(&parsed.scene, req, &BuildOptions::default(), &warnings).unwrap();
+        assert!(scene.light_list().len() >= 5);
+        let kept = SpatialLightDistribution::new(&scene, 8);
+        let sampled = SpatialLightDistribution::new(&scene, 8);
+        sampled.area_points.set(None).ok().unwrap();
+        let n = kept.n_voxels;
+        let mut checked = 0;
+        for x in 0..n[0] {
+            for y in 0..n[1] {
+                for z in 0..n[2] {
+                    assert_eq!(
+                        kept.compute([x, y, z], &scene),
+                        sampled.compute([x, y, z], &scene),
+                        "voxel {x} {y} {z}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 10);
+        assert!(kept.area_points.get().unwrap().is_some());
     }
 }
