@@ -33,6 +33,8 @@
 //!   objects' sphere sets ([`reflect`]): `ρ/π · E^R` is added to the Lambertian part.
 //! - `"string formfactor"` `"exact"`: how a reflecting sphere's radiance reaches a receiver
 //!   ([`reflect::tables::FormFactor`]); `"thesis"`: eqs. 4.24 and 4.32 as written.
+//! - `"bool groundbounce"` true: with `interreflect`, the ground plane reflects its shadowed
+//!   light onto what stands on it ([`reflect::ground`]; not in the thesis).
 
 pub mod bright;
 pub mod lighting;
@@ -77,6 +79,8 @@ pub struct Shexp {
     pub interreflect: bool,
     /// How a reflecting sphere's radiance reaches a receiver.
     pub form_factor: reflect::tables::FormFactor,
+    /// With `interreflect`, the ground plane reflects too ([`reflect::ground`]).
+    pub ground_bounce: bool,
 }
 
 /// The parameters `shexp` reads.
@@ -114,6 +118,11 @@ pub const PARAMS: &[ParamSpec] = &[
         "interreflect: how a sphere's radiance reaches a receiver: exact for a lone sphere, or the thesis's eqs. 4.24 and 4.32",
     )
     .strict(),
+    ParamSpec::bool(
+        "groundbounce",
+        true,
+        "interreflect: the ground plane reflects its shadowed direct light onto what stands on it (not in the thesis)",
+    ),
     max_depth(1024),
     PIXEL_BOUNDS,
 ];
@@ -134,6 +143,7 @@ impl Shexp {
         let interreflect = p.bool("interreflect")?;
         let form_factor =
             p.choice("formfactor", [reflect::tables::FormFactor::Exact, reflect::tables::FormFactor::Thesis])?;
+        let ground_bounce = p.bool("groundbounce")?;
         let max_depth = max_depth_param(&p)?;
         let pixel_bounds = pixel_bounds_param(&p)?;
         Ok(Box::new(Shexp {
@@ -147,6 +157,7 @@ impl Shexp {
             pixel_bounds,
             interreflect,
             form_factor,
+            ground_bounce,
         }))
     }
 }
@@ -177,6 +188,7 @@ struct Estimator<'a> {
     others: Vec<usize>,
     bright: Vec<bright::BrightLight>,
     reflect: Option<reflect::Reflectors>,
+    ground: Option<reflect::ground::GroundBounce>,
     warn_lobes: AtomicBool,
     warnings: &'a DiagSink,
 }
@@ -190,8 +202,10 @@ thread_local! {
 }
 
 impl Estimator<'_> {
-    /// `∫ L V max(0, n·ω) dω` per channel at `p` (shexp's approximation, clamped).
-    fn shadowed(&self, p: DVec3, n: DVec3, object: usize) -> [f64; 3] {
+    /// `∫ L V max(0, n·ω) dω` per channel at `p` (shexp's approximation, clamped); with
+    /// `ground`, plus the ground plane's light of that radiance through the same `V`
+    /// ([`reflect::ground`]).
+    fn shadowed(&self, p: DVec3, n: DVec3, object: usize, ground: Option<[f64; 3]>) -> [f64; 3] {
         let Some(env) = &self.env else { return [0.0; 3] };
         let k = self.vis.order().coeffs();
         SCRATCH.with(|cell| {
@@ -212,8 +226,46 @@ impl Estimator<'_> {
                 let unshadowed = lh[0][c] * penumbra_core::sh::SQRT_4PI;
                 out[c] = if shadowed.is_finite() { shadowed.clamp(0.0, unshadowed.max(0.0)) } else { 0.0 };
             }
+            if let (Some(g), Some(radiance)) = (&self.ground, ground) {
+                for (o, e) in out.iter_mut().zip(g.irradiance((p, n), radiance, v, lh, tmp)) {
+                    *o += e;
+                }
+            }
             out
         })
+    }
+
+    /// The radiance of the ground plane as a receiver at `p` (unit normal `n`) sees it: the
+    /// plane's albedo/π times its shadowed irradiance (the direct term, the bright regions
+    /// with shadow rays) averaged over [`reflect::ground::GroundBounce::seen_points`].
+    fn ground_radiance(&self, p: DVec3, n: DVec3, scene: &Scene, shadow_rays: &mut u64) -> Option<[f64; 3]> {
+        let g = self.ground.as_ref()?;
+        let k = self.vis.order().coeffs();
+        let (mut lh, mut tmp) = (vec![[0.0; 3]; k], vec![0.0; k]);
+        let Some(points) = g.seen_points(p, n, &mut lh, &mut tmp) else { return Some(g.radiance) };
+        let up = g.plane.normal;
+        let mut sum = [0.0; 3];
+        for q in points {
+            let mut e = self.shadowed(q, up, g.plane.object, None);
+            // Off the plane by a distance relative to the receiver's.
+            let origin = (q + up * (1e-5 * (p - q).length())).as_vec3();
+            for b in &self.bright {
+                let c = up.dot(b.dir);
+                if c <= 0.0 {
+                    continue;
+                }
+                *shadow_rays += 1;
+                if !scene.occluded(&Ray::new(origin, b.dir.as_vec3(), f32::INFINITY)) {
+                    for (ec, bc) in e.iter_mut().zip(b.irradiance) {
+                        *ec += bc * c;
+                    }
+                }
+            }
+            for (sc, ec) in sum.iter_mut().zip(e) {
+                *sc += ec.max(0.0) / points.len() as f64;
+            }
+        }
+        Some([0, 1, 2].map(|c| g.albedo[c] * sum[c] * std::f64::consts::FRAC_1_PI))
     }
 
     /// Adds to `e` the irradiance per channel from the split-off bright regions at `si` (unit
@@ -265,7 +317,7 @@ impl Estimator<'_> {
         shadow_rays: &mut u64,
     ) -> [f64; 3] {
         let si = &sample.si;
-        let mut e = self.shadowed(si.p.as_dvec3(), sample.n, si.mesh as usize);
+        let mut e = self.shadowed(si.p.as_dvec3(), sample.n, si.mesh as usize, None);
         let n = sample.n.as_vec3();
         self.add_bright(&mut e, si, (n, n), scene, shadow_rays);
         e.map(|v| v * std::f64::consts::FRAC_1_PI)
@@ -286,7 +338,8 @@ impl Estimator<'_> {
             let ns = bsdf.shading_normal();
             let n = if ns.dot(si.wo) < 0.0 { -ns } else { ns };
             let (p, nd) = (si.p.as_dvec3(), n.as_dvec3().normalize());
-            let mut e = self.shadowed(p, nd, si.mesh as usize);
+            let ground = self.ground_radiance(p, nd, scene, &mut stats.shadow_rays);
+            let mut e = self.shadowed(p, nd, si.mesh as usize, ground);
             // The split-off bright regions: one shadow ray each, Lambertian part only (the other
             // lobes see the whole map through directlighting's estimator below).
             self.add_bright(&mut e, si, (n, si.wo), scene, &mut stats.shadow_rays);
@@ -431,10 +484,16 @@ impl Integrator for Shexp {
             others,
             bright: bright_lights,
             reflect: None,
+            ground: None,
             warn_lobes: AtomicBool::new(false),
             warnings: ctx.warnings,
         };
         let mut pass = (0, 0);
+        if let (true, true, Some(env), Some(plane)) = (self.interreflect, self.ground_bounce, &est.env, sets.ground) {
+            est.ground = with_threads(ctx.threads, || {
+                reflect::ground::GroundBounce::build(scene, plane, env, &est.bright, self.order, self.lh_resolution)
+            })?;
+        }
         if self.interreflect && est.env.is_some() {
             let (r, rays) = with_threads(ctx.threads, || est.build_reflectors(scene))?;
             let r = r.map_err(|e| RenderError::Failed(format!("shexp: {e}")))?;

@@ -22,8 +22,9 @@
 //! Choices the thesis leaves open:
 //! - **Which spheres**: all leaves (the same culling by the receiver's tangent plane as the
 //!   shadows); no hierarchy cut, so the ratio `w_S` of eq. 4.34 is 1. Open meshes (shells)
-//!   and the ground plane block but do not reflect (the rules need a closed solid; the
-//!   thesis's ground box does not reflect either).
+//!   block but do not reflect (the rules need a closed solid). The ground plane has no
+//!   spheres (the thesis's ground box does not reflect); [`ground`] lets it reflect as a
+//!   plane (`"bool groundbounce"`, on by default).
 //! - **Order of the spheres** at a receiver: by the power of the receiver with respect to
 //!   each sphere, `|c − p|² − r²` (ties by index). For disjoint spheres that is exact: along
 //!   any ray through both, the product of the entry and exit distances of the nearer one is
@@ -44,6 +45,7 @@
 //! - Only the Lambertian lobe reflects and only the environment lights (and their split-off
 //!   bright regions) feed the bounce; other lights are not bounced.
 
+pub mod ground;
 pub mod surface;
 pub mod tables;
 
