@@ -38,7 +38,12 @@
 //!   rules had to shrink stands for the surface around the receiver, which it cannot see
 //!   (it still blocks). Other objects' shrunk spheres reflect with their shrunk geometry.
 //! - **Sample points**: `m` = 162 (icosphere level 2) per sphere, cells integrated on a
-//!   128 × 256 product rule; directions the rules leave without a point take the value 0.
+//!   128 × 256 product rule; directions the rules leave without a point take the value 0
+//!   (filling them with the sphere's mean valid value instead, so that the truncated SH
+//!   product `M ∗ c_S` loses less where `c_S` is black, made the ground of
+//!   `env/objects-studio` (objects matte) 114 % of `path`'s one-bounce light instead of 86 %,
+//!   RMS 64 % instead of 35 % of its mean: the product's loss offsets the overlap of
+//!   intersecting spheres' baked occlusion, the thesis's Fig. 6.2 brightening).
 //!   `c_S` is projected from 24 × 48 rays per sphere.
 //! - **Clamping**: `L̃_i` and `Ṽ_i` are clamped at 0 (SH ringing), so reflections never
 //!   darken; a sphere with `r_S = 0` (albedo 0, or unlit) is only a blocker, and adds nothing.
@@ -194,8 +199,7 @@ impl Reflectors {
                 let mut m = [vec![0.0; k], vec![0.0; k], vec![0.0; k]];
                 for (j, sample) in s.samples.iter().enumerate() {
                     let Some(sample) = sample else { continue };
-                    let v = shade(sample);
-                    for (mc, vc) in m.iter_mut().zip(v) {
+                    for (mc, vc) in m.iter_mut().zip(shade(sample)) {
                         if vc.is_finite() && vc != 0.0 {
                             mc.iter_mut().zip(surfaces.cells.cell(j)).for_each(|(o, y)| *o += vc * y);
                         }
