@@ -382,8 +382,12 @@ impl Estimator<'_> {
 
 impl Estimator<'_> {
     /// The bounce's precomputation and pass 1, with the rays and shadow rays they cast.
-    fn build_reflectors(&self, scene: &Scene) -> (Result<reflect::Reflectors, penumbra_core::sh::ShError>, (u64, u64)) {
-        let surfaces = reflect::Surfaces::build(scene, self.sets, self.vis.order());
+    fn build_reflectors(
+        &self,
+        scene: &Scene,
+        cancel: &AtomicBool,
+    ) -> (Result<reflect::Reflectors, penumbra_core::sh::ShError>, (u64, u64)) {
+        let surfaces = reflect::Surfaces::build(scene, self.sets, self.vis.order(), cancel);
         let shadow_rays = std::sync::atomic::AtomicU64::new(0);
         let shade = |sample: &reflect::surface::SurfaceSample| {
             let mut n = 0;
@@ -495,7 +499,10 @@ impl Integrator for Shexp {
             })?;
         }
         if self.interreflect && est.env.is_some() {
-            let (r, rays) = with_threads(ctx.threads, || est.build_reflectors(scene))?;
+            let (r, rays) = with_threads(ctx.threads, || est.build_reflectors(scene, ctx.cancel))?;
+            if ctx.cancel.load(Ordering::Relaxed) {
+                return Err(RenderError::Cancelled);
+            }
             let r = r.map_err(|e| RenderError::Failed(format!("shexp: {e}")))?;
             // Nothing reflects (albedo 0, or no closed object): the image is the direct one.
             est.reflect = (r.reflecting() > 0).then_some(r);

@@ -61,6 +61,7 @@ use penumbra_core::sh::{self, ShOrder, SphereQuadrature, TripleProduct};
 use penumbra_core::sphereset::{Source, SphereSets};
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicBool, Ordering};
 use surface::{SphereSurface, SurfaceSample};
 use tables::{FormFactor, FormFactorTable, VoronoiCells};
 
@@ -119,8 +120,9 @@ fn reflects(source: Source) -> bool {
 
 impl Surfaces {
     /// The precomputation for every leaf of `sets` (in parallel over leaves; the result does
-    /// not depend on the thread count).
-    pub fn build(scene: &Scene, sets: &SphereSets, order: ShOrder) -> Surfaces {
+    /// not depend on the thread count). Leaves not started once `cancel` is set are skipped
+    /// (the caller then abandons the render).
+    pub fn build(scene: &Scene, sets: &SphereSets, order: ShOrder, cancel: &AtomicBool) -> Surfaces {
         let cells = VoronoiCells::new(order, SAMPLE_LEVEL, CELL_NODES);
         let colour = SphereQuadrature::product(COLOUR_NODES, 2 * COLOUR_NODES);
         let jobs: Vec<(usize, usize)> =
@@ -134,7 +136,7 @@ impl Surfaces {
             .par_iter()
             .map(|&(i, leaf)| {
                 let set = &sets.sets[i];
-                reflects(set.source)
+                (reflects(set.source) && !cancel.load(Ordering::Relaxed))
                     .then(|| surface::sphere_surface(scene, set, sides[i], leaf, order, &colour, &cells.dirs))
             })
             .collect();
