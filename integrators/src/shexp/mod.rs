@@ -193,8 +193,8 @@ struct Estimator<'a> {
     warnings: &'a DiagSink,
 }
 
-/// Per-thread buffers: visibility scratch, `V`, `LH(N)`, and a basis scratch.
-type ShadeScratch = (visibility::Scratch, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
+/// Per-thread buffers: visibility scratch, `V`, `LH(N)`, a basis scratch and `LH_below(N)`.
+type ShadeScratch = (visibility::Scratch, Vec<f64>, Vec<[f64; 3]>, Vec<f64>, Vec<f64>);
 
 thread_local! {
     static SCRATCH: RefCell<Option<ShadeScratch>> = const { RefCell::new(None) };
@@ -210,13 +210,15 @@ impl Estimator<'_> {
         let k = self.vis.order().coeffs();
         SCRATCH.with(|cell| {
             let mut cell = cell.borrow_mut();
-            let (s, v, lh, tmp) =
-                cell.get_or_insert_with(|| (self.vis.scratch(), vec![0.0; k], vec![[0.0; 3]; k], vec![0.0; k]));
+            let (s, v, lh, tmp, below) = cell.get_or_insert_with(|| {
+                (self.vis.scratch(), vec![0.0; k], vec![[0.0; 3]; k], vec![0.0; k], vec![0.0; k])
+            });
             if v.len() != k {
                 *s = self.vis.scratch();
                 *v = vec![0.0; k];
                 *lh = vec![[0.0; 3]; k];
                 *tmp = vec![0.0; k];
+                *below = vec![0.0; k];
             }
             env.lh(n, lh, tmp);
             self.vis.vector_for_scene(p, n, object, self.sets, s, v);
@@ -227,7 +229,7 @@ impl Estimator<'_> {
                 out[c] = if shadowed.is_finite() { shadowed.clamp(0.0, unshadowed.max(0.0)) } else { 0.0 };
             }
             if let (Some(g), Some(radiance)) = (&self.ground, ground) {
-                for (o, e) in out.iter_mut().zip(g.irradiance((p, n), radiance, v, lh, tmp)) {
+                for (o, e) in out.iter_mut().zip(g.irradiance((p, n), radiance, v, below, tmp)) {
                     *o += e;
                 }
             }
@@ -241,7 +243,7 @@ impl Estimator<'_> {
     fn ground_radiance(&self, p: DVec3, n: DVec3, scene: &Scene, shadow_rays: &mut u64) -> Option<[f64; 3]> {
         let g = self.ground.as_ref()?;
         let k = self.vis.order().coeffs();
-        let (mut lh, mut tmp) = (vec![[0.0; 3]; k], vec![0.0; k]);
+        let (mut lh, mut tmp) = (vec![0.0; k], vec![0.0; k]);
         let Some(points) = g.seen_points(p, n, &mut lh, &mut tmp) else { return Some(g.radiance) };
         let up = g.plane.normal;
         let mut sum = [0.0; 3];
@@ -495,7 +497,7 @@ impl Integrator for Shexp {
         let mut pass = (0, 0);
         if let (true, true, Some(env), Some(plane)) = (self.interreflect, self.ground_bounce, &est.env, sets.ground) {
             est.ground = with_threads(ctx.threads, || {
-                reflect::ground::GroundBounce::build(scene, plane, env, &est.bright, self.order, self.lh_resolution)
+                reflect::ground::GroundBounce::build(scene, plane, env, &est.bright, self.order)
             })?;
         }
         if self.interreflect && est.env.is_some() {
