@@ -464,6 +464,12 @@ impl Integrator for Shexp {
                  estimator",
             );
         }
+        if self.interreflect && (infinite.is_empty() || !others.is_empty()) {
+            ctx.warnings.warn(
+                None,
+                "shexp: \"interreflect\" bounces the \"infinite\" lights only: other lights are not reflected",
+            );
+        }
         let vis = Visibility::new(self.order, self.exp, self.big_theta)
             .map_err(|e| RenderError::Failed(format!("shexp: {e}")))?;
         let mut bright_lights = Vec::new();

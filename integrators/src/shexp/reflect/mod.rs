@@ -33,10 +33,13 @@
 //!   occlusion is in `c_S`, as the thesis prescribes); spheres of different objects that
 //!   intersect are ordered as if disjoint (the thesis forbids the case).
 //! - **Receivers on a reflecting object**: a convex object never sees itself (its set is
-//!   skipped, as for the shadows). On other objects, a sphere of the receiver's own set
-//!   reflects only when it is wholly in front of the tangent plane; one the receiver-inside
-//!   rules had to shrink stands for the surface around the receiver, which it cannot see
-//!   (it still blocks). Other objects' shrunk spheres reflect with their shrunk geometry.
+//!   skipped, as for the shadows). A non-convex object's own spheres reflect onto it like any
+//!   other's, with the geometry the receiver-inside rules leave them (the thesis does not
+//!   say). Measured against `path`'s one-bounce light on the non-convex objects' pixels
+//!   (64², 4 spp; share recovered, RMS of the difference over the mean): the torus of
+//!   `env/objects-studio` (objects matte) 85.7 %, 38 %; an L-shaped prism on a plane 82.8 %,
+//!   21.6 %. Letting only the own spheres wholly in front of the tangent plane reflect gave
+//!   84.3 %, 40 % and 82.4 %, 21.9 %; none of them 78.7 %, 52 % and 81.4 %, 23.2 %.
 //! - **Sample points**: `m` = 162 (icosphere level 2) per sphere, cells integrated on a
 //!   128 × 256 product rule; directions the rules leave without a point take the value 0
 //!   (filling them with the sphere's mean valid value instead, so that the truncated SH
@@ -284,13 +287,12 @@ impl Reflectors {
             let Some(adj) = adjust(original, p, n) else { return };
             let Some((theta, axis)) = cap_of(&adj, p) else { return };
             let id = self.offsets[set] + leaf;
-            let own = sets.sets[set].object == object;
             seen.push(Seen {
                 key: (adj.center - p).length_squared() - adj.radius * adj.radius,
                 id: id as u32,
                 theta,
                 axis,
-                emits: self.radiance[id].is_some() && !(own && adj != *original),
+                emits: self.radiance[id].is_some(),
                 big: false,
             });
         });
