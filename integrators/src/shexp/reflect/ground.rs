@@ -36,7 +36,7 @@ pub const SPREAD: f64 = 2.0;
 
 /// `LH_below(N) = ∫_{N·ω>0, g·ω<0} (N·ω) y(ω) dω`. In the plane's frame `G` (`e₃ = g`) it
 /// depends on the angle `β` between `N` and `g` and on `N`'s azimuth `φ` about `g`: tabulated
-/// over `β` for `φ = 0` (exact arcs of each ring, [`cut_hemisphere`]), turned about `e₃` by
+/// over `β` for `φ = 0` (exact arcs of each ring, `lighting::cut_hemisphere`), turned about `e₃` by
 /// `φ` (each `(m, −m)` pair by the angle `mφ`), then to world by the fixed rotation of `G`.
 pub struct BelowTable {
     order: ShOrder,

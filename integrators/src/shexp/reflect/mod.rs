@@ -41,7 +41,10 @@
 //!   21.6 %. Letting only the own spheres wholly in front of the tangent plane reflect gave
 //!   84.3 %, 40 % and 82.4 %, 21.9 %; none of them 78.7 %, 52 % and 81.4 %, 23.2 %.
 //! - **Sample points**: `m` = 162 (icosphere level 2) per sphere, cells integrated on a
-//!   128 × 256 product rule; directions the rules leave without a point take the value 0
+//!   128 × 256 product rule (on `env/objects-studio` with the objects matte, 64², the
+//!   ground's share of `path`'s one-bounce light and the RMS of the difference over its mean
+//!   are 85.8 %, 38 % with 42 points, 86.3 %, 35 % with 162, 87.2 %, 33 % with 642, whose
+//!   pass 1 costs four times as much); directions the rules leave without a point take the value 0
 //!   (filling them with the sphere's mean valid value instead, so that the truncated SH
 //!   product `M ∗ c_S` loses less where `c_S` is black, made the ground of
 //!   `env/objects-studio` (objects matte) 114 % of `path`'s one-bounce light instead of 86 %,
