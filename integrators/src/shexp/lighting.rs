@@ -128,7 +128,7 @@ fn frame(n: DVec3) -> (DVec3, DVec3) {
 
 /// `∫_{n·ω>0, g·ω>0} (n·ω) y(ω) dω` in n's frame: Gauss–Legendre in `z = n·ω`, and in φ over
 /// exactly the arc of each ring above the plane of `g`.
-fn cut_hemisphere(
+pub(crate) fn cut_hemisphere(
     order: ShOrder,
     n: DVec3,
     g: DVec3,

@@ -29,10 +29,16 @@
 //!   directional lights with shadow rays ([`bright`]; 0: the whole map is projected to SH).
 //! - `"float brightratio"` 4, `"float brightradius"` 45: a region is split off while its peak
 //!   is at least this many times the map's mean luminance; its largest radius (degrees).
-//! - `"bool interreflect"` false: (not yet implemented) the thesis's one-bounce extension.
+//! - `"bool interreflect"` false: the thesis's one-bounce diffuse reflection off the closed
+//!   objects' sphere sets ([`reflect`]): `ρ/π · E^R` is added to the Lambertian part.
+//! - `"string formfactor"` `"exact"`: how a reflecting sphere's radiance reaches a receiver
+//!   ([`reflect::tables::FormFactor`]); `"thesis"`: eqs. 4.24 and 4.32 as written.
+//! - `"bool groundbounce"` true: with `interreflect`, the ground plane reflects its shadowed
+//!   light onto what stands on it ([`reflect::ground`]; not in the thesis).
 
 pub mod bright;
 pub mod lighting;
+pub mod reflect;
 pub mod visibility;
 
 use crate::common::direct::{estimate_direct, specular};
@@ -46,6 +52,7 @@ use penumbra_core::geometry::{Bounds2i, Ray};
 use penumbra_core::integrator::{
     render_pixels, with_threads, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
+use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
@@ -68,6 +75,12 @@ pub struct Shexp {
     pub bright: bright::SplitRule,
     pub max_depth: u32,
     pub pixel_bounds: Option<Bounds2i>,
+    /// One bounce of diffuse reflection off the sphere-set objects ([`reflect`]).
+    pub interreflect: bool,
+    /// How a reflecting sphere's radiance reaches a receiver.
+    pub form_factor: reflect::tables::FormFactor,
+    /// With `interreflect`, the ground plane reflects too ([`reflect::ground`]).
+    pub ground_bounce: bool,
 }
 
 /// The parameters `shexp` reads.
@@ -94,7 +107,22 @@ pub const PARAMS: &[ParamSpec] = &[
     .within(Range::PositiveFinite),
     ParamSpec::float("brightradius", 45.0, "largest angular radius (degrees) of a split bright region")
         .within(Range::LeftOpen(0.0, 90.0)),
-    ParamSpec::bool("interreflect", false, "not implemented yet: warns, direct lighting only"),
+    ParamSpec::bool(
+        "interreflect",
+        false,
+        "one bounce of diffuse light off the closed objects' sphere sets (seed 003 §4.3) onto the Lambertian part",
+    ),
+    ParamSpec::choice(
+        "formfactor",
+        &["exact", "thesis"],
+        "interreflect: how a sphere's radiance reaches a receiver: exact for a lone sphere, or the thesis's eqs. 4.24 and 4.32",
+    )
+    .strict(),
+    ParamSpec::bool(
+        "groundbounce",
+        true,
+        "interreflect: the ground plane reflects its shadowed direct light onto what stands on it (not in the thesis)",
+    ),
     max_depth(1024),
     PIXEL_BOUNDS,
 ];
@@ -112,12 +140,10 @@ impl Shexp {
             peak_ratio: p.float("brightratio")? as f64,
             max_radius: (p.float("brightradius")? as f64).to_radians(),
         };
-        if p.bool("interreflect")? {
-            warnings.warn(
-                params.loc_of("interreflect").cloned(),
-                "shexp: \"interreflect\" is not implemented yet: direct lighting only",
-            );
-        }
+        let interreflect = p.bool("interreflect")?;
+        let form_factor =
+            p.choice("formfactor", [reflect::tables::FormFactor::Exact, reflect::tables::FormFactor::Thesis])?;
+        let ground_bounce = p.bool("groundbounce")?;
         let max_depth = max_depth_param(&p)?;
         let pixel_bounds = pixel_bounds_param(&p)?;
         Ok(Box::new(Shexp {
@@ -129,6 +155,9 @@ impl Shexp {
             bright,
             max_depth,
             pixel_bounds,
+            interreflect,
+            form_factor,
+            ground_bounce,
         }))
     }
 }
@@ -158,31 +187,38 @@ struct Estimator<'a> {
     infinite: Vec<usize>,
     others: Vec<usize>,
     bright: Vec<bright::BrightLight>,
+    reflect: Option<reflect::Reflectors>,
+    ground: Option<reflect::ground::GroundBounce>,
     warn_lobes: AtomicBool,
     warnings: &'a DiagSink,
 }
 
-/// Per-thread buffers: visibility scratch, `V`, `LH(N)`, and a basis scratch.
-type ShadeScratch = (visibility::Scratch, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
+/// Per-thread buffers: visibility scratch, `V`, `LH(N)`, a basis scratch and `LH_below(N)`.
+type ShadeScratch = (visibility::Scratch, Vec<f64>, Vec<[f64; 3]>, Vec<f64>, Vec<f64>);
 
 thread_local! {
     static SCRATCH: RefCell<Option<ShadeScratch>> = const { RefCell::new(None) };
+    static REFLECT_SCRATCH: RefCell<Option<reflect::Scratch>> = const { RefCell::new(None) };
 }
 
 impl Estimator<'_> {
-    /// `∫ L V max(0, n·ω) dω` per channel at `p` (shexp's approximation, clamped).
-    fn shadowed(&self, p: DVec3, n: DVec3, object: usize) -> [f64; 3] {
+    /// `∫ L V max(0, n·ω) dω` per channel at `p` (shexp's approximation, clamped); with
+    /// `ground`, plus the ground plane's light of that radiance through the same `V`
+    /// ([`reflect::ground`]).
+    fn shadowed(&self, p: DVec3, n: DVec3, object: usize, ground: Option<[f64; 3]>) -> [f64; 3] {
         let Some(env) = &self.env else { return [0.0; 3] };
         let k = self.vis.order().coeffs();
         SCRATCH.with(|cell| {
             let mut cell = cell.borrow_mut();
-            let (s, v, lh, tmp) =
-                cell.get_or_insert_with(|| (self.vis.scratch(), vec![0.0; k], vec![[0.0; 3]; k], vec![0.0; k]));
+            let (s, v, lh, tmp, below) = cell.get_or_insert_with(|| {
+                (self.vis.scratch(), vec![0.0; k], vec![[0.0; 3]; k], vec![0.0; k], vec![0.0; k])
+            });
             if v.len() != k {
                 *s = self.vis.scratch();
                 *v = vec![0.0; k];
                 *lh = vec![[0.0; 3]; k];
                 *tmp = vec![0.0; k];
+                *below = vec![0.0; k];
             }
             env.lh(n, lh, tmp);
             self.vis.vector_for_scene(p, n, object, self.sets, s, v);
@@ -192,8 +228,101 @@ impl Estimator<'_> {
                 let unshadowed = lh[0][c] * penumbra_core::sh::SQRT_4PI;
                 out[c] = if shadowed.is_finite() { shadowed.clamp(0.0, unshadowed.max(0.0)) } else { 0.0 };
             }
+            if let (Some(g), Some(radiance)) = (&self.ground, ground) {
+                for (o, e) in out.iter_mut().zip(g.irradiance((p, n), radiance, v, below, tmp)) {
+                    *o += e;
+                }
+            }
             out
         })
+    }
+
+    /// The radiance of the ground plane as a receiver at `p` (unit normal `n`) sees it: the
+    /// plane's albedo/π times its shadowed irradiance (the direct term, the bright regions
+    /// with shadow rays) averaged over [`reflect::ground::GroundBounce::seen_points`].
+    fn ground_radiance(&self, p: DVec3, n: DVec3, scene: &Scene, shadow_rays: &mut u64) -> Option<[f64; 3]> {
+        let g = self.ground.as_ref()?;
+        let k = self.vis.order().coeffs();
+        let (mut lh, mut tmp) = (vec![0.0; k], vec![0.0; k]);
+        let Some(points) = g.seen_points(p, n, &mut lh, &mut tmp) else { return Some(g.radiance) };
+        let up = g.plane.normal;
+        let mut sum = [0.0; 3];
+        for q in points {
+            let mut e = self.shadowed(q, up, g.plane.object, None);
+            // Off the plane by a distance relative to the receiver's.
+            let origin = (q + up * (1e-5 * (p - q).length())).as_vec3();
+            for b in &self.bright {
+                let c = up.dot(b.dir);
+                if c <= 0.0 {
+                    continue;
+                }
+                *shadow_rays += 1;
+                if !scene.occluded(&Ray::new(origin, b.dir.as_vec3(), f32::INFINITY)) {
+                    for (ec, bc) in e.iter_mut().zip(b.irradiance) {
+                        *ec += bc * c;
+                    }
+                }
+            }
+            for (sc, ec) in sum.iter_mut().zip(e) {
+                *sc += ec.max(0.0) / points.len() as f64;
+            }
+        }
+        Some([0, 1, 2].map(|c| g.albedo[c] * sum[c] * std::f64::consts::FRAC_1_PI))
+    }
+
+    /// Adds to `e` the irradiance per channel from the split-off bright regions at `si` (unit
+    /// shading normal `n`, on the side of `side` by the geometric normal): one shadow ray each.
+    fn add_bright(
+        &self,
+        e: &mut [f64; 3],
+        si: &SurfaceInteraction,
+        (n, side): (Vec3, Vec3),
+        scene: &Scene,
+        shadow_rays: &mut u64,
+    ) {
+        for b in &self.bright {
+            let d = b.dir.as_vec3();
+            let c = n.dot(d);
+            if c <= 0.0 || si.n.dot(d) * si.n.dot(side) <= 0.0 {
+                continue;
+            }
+            *shadow_rays += 1;
+            if !scene.occluded(&si.spawn_ray(d)) {
+                for (ch, v) in e.iter_mut().enumerate() {
+                    *v += b.irradiance[ch] * c as f64;
+                }
+            }
+        }
+    }
+
+    /// The reflected irradiance `E^R` at `p` (zero without `"interreflect"`).
+    fn reflected(&self, p: DVec3, n: DVec3, object: usize) -> [f64; 3] {
+        let Some(r) = &self.reflect else { return [0.0; 3] };
+        REFLECT_SCRATCH.with(|cell| {
+            let mut cell = cell.borrow_mut();
+            if !cell.as_ref().is_some_and(|s| r.fits(s)) {
+                *cell = Some(r.scratch(&self.vis));
+            }
+            match cell.as_mut() {
+                Some(s) => r.irradiance(&self.vis, self.sets, p, n, object, s),
+                None => [0.0; 3],
+            }
+        })
+    }
+
+    /// The white-albedo outgoing radiance of a sphere's surface sample point (pass 1 of the
+    /// bounce): the same direct term as a receiver's Lambertian part, over π.
+    fn sample_radiance(
+        &self,
+        sample: &reflect::surface::SurfaceSample,
+        scene: &Scene,
+        shadow_rays: &mut u64,
+    ) -> [f64; 3] {
+        let si = &sample.si;
+        let mut e = self.shadowed(si.p.as_dvec3(), sample.n, si.mesh as usize, None);
+        let n = sample.n.as_vec3();
+        self.add_bright(&mut e, si, (n, n), scene, shadow_rays);
+        e.map(|v| v * std::f64::consts::FRAC_1_PI)
     }
 
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
@@ -210,20 +339,15 @@ impl Estimator<'_> {
         if kd != Rgb::ZERO && self.env.is_some() {
             let ns = bsdf.shading_normal();
             let n = if ns.dot(si.wo) < 0.0 { -ns } else { ns };
-            let mut e = self.shadowed(si.p.as_dvec3(), n.as_dvec3().normalize(), si.mesh as usize);
+            let (p, nd) = (si.p.as_dvec3(), n.as_dvec3().normalize());
+            let ground = self.ground_radiance(p, nd, scene, &mut stats.shadow_rays);
+            let mut e = self.shadowed(p, nd, si.mesh as usize, ground);
             // The split-off bright regions: one shadow ray each, Lambertian part only (the other
             // lobes see the whole map through directlighting's estimator below).
-            for b in &self.bright {
-                let d = b.dir.as_vec3();
-                let c = n.dot(d);
-                if c <= 0.0 || si.n.dot(d) * si.n.dot(si.wo) <= 0.0 {
-                    continue;
-                }
-                stats.shadow_rays += 1;
-                if !scene.occluded(&si.spawn_ray(d)) {
-                    for (ch, v) in e.iter_mut().enumerate() {
-                        *v += b.irradiance[ch] * c as f64;
-                    }
+            self.add_bright(&mut e, si, (n, si.wo), scene, &mut stats.shadow_rays);
+            if self.reflect.is_some() {
+                for (v, rv) in e.iter_mut().zip(self.reflected(p, nd, si.mesh as usize)) {
+                    *v += rv;
                 }
             }
             l += kd * Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32) * std::f32::consts::FRAC_1_PI;
@@ -255,6 +379,26 @@ impl Estimator<'_> {
             }
         }
         l
+    }
+}
+
+impl Estimator<'_> {
+    /// The bounce's precomputation and pass 1, with the rays and shadow rays they cast.
+    fn build_reflectors(
+        &self,
+        scene: &Scene,
+        cancel: &AtomicBool,
+    ) -> (Result<reflect::Reflectors, penumbra_core::sh::ShError>, (u64, u64)) {
+        let surfaces = reflect::Surfaces::build(scene, self.sets, self.vis.order(), cancel);
+        let shadow_rays = std::sync::atomic::AtomicU64::new(0);
+        let shade = |sample: &reflect::surface::SurfaceSample| {
+            let mut n = 0;
+            let v = self.sample_radiance(sample, scene, &mut n);
+            shadow_rays.fetch_add(n, Ordering::Relaxed);
+            v
+        };
+        let r = reflect::Reflectors::build(self.sets, &surfaces, self.shexp.form_factor, &shade);
+        (r, (surfaces.rays, shadow_rays.into_inner()))
     }
 }
 
@@ -320,6 +464,12 @@ impl Integrator for Shexp {
                  estimator",
             );
         }
+        if self.interreflect && (infinite.is_empty() || !others.is_empty()) {
+            ctx.warnings.warn(
+                None,
+                "shexp: \"interreflect\" bounces the \"infinite\" lights only: other lights are not reflected",
+            );
+        }
         let vis = Visibility::new(self.order, self.exp, self.big_theta)
             .map_err(|e| RenderError::Failed(format!("shexp: {e}")))?;
         let mut bright_lights = Vec::new();
@@ -337,7 +487,7 @@ impl Integrator for Shexp {
             let ground = sets.ground.map(|g| g.normal);
             Some(with_threads(ctx.threads, || EnvLighting::build(&sources, ground, self.order, self.lh_resolution))?)
         };
-        let est = Estimator {
+        let mut est = Estimator {
             shexp: self,
             vis,
             env,
@@ -345,12 +495,35 @@ impl Integrator for Shexp {
             infinite,
             others,
             bright: bright_lights,
+            reflect: None,
+            ground: None,
             warn_lobes: AtomicBool::new(false),
             warnings: ctx.warnings,
         };
+        let mut pass = (0, 0);
+        if let (true, true, Some(env), Some(plane)) = (self.interreflect, self.ground_bounce, &est.env, sets.ground) {
+            est.ground = with_threads(ctx.threads, || {
+                reflect::ground::GroundBounce::build(scene, plane, env, &est.bright, self.order)
+            })?;
+        }
+        if self.interreflect && est.env.is_some() {
+            let (r, rays) = with_threads(ctx.threads, || est.build_reflectors(scene, ctx.cancel))?;
+            if ctx.cancel.load(Ordering::Relaxed) {
+                return Err(RenderError::Cancelled);
+            }
+            let r = r.map_err(|e| RenderError::Failed(format!("shexp: {e}")))?;
+            // Nothing reflects (albedo 0, or no closed object): the image is the direct one.
+            est.reflect = (r.reflecting() > 0).then_some(r);
+            pass = rays;
+        }
         let mut stats = render_pixels(&est, scene, ctx, film)?;
+        stats.rays += pass.0;
+        stats.shadow_rays += pass.1;
         stats.counters.insert("leaf spheres".into(), sets.leaf_count() as f64);
         stats.counters.insert("bright lights".into(), est.bright.len() as f64);
+        if let Some(r) = &est.reflect {
+            stats.counters.insert("reflecting spheres".into(), r.reflecting() as f64);
+        }
         Ok(stats)
     }
 }

@@ -71,6 +71,13 @@ fn log_table(order: ShOrder) -> Result<Arc<LogBlockerTable>, sh::ShError> {
     Ok(t)
 }
 
+/// The scaling and squaring of the reflections' per-sphere visibilities (seed 003 §4.3.3, one
+/// or two `exp*` per reflecting sphere and receiver): squarings past `‖f̂‖ = 1` and a Taylor
+/// base to `1e-6` (at most degree 8), where the shadows square only past 4 and run the base
+/// to `1e-10`. Measured on `env/objects-studio` (32², 2 spp): the reflected light changes by
+/// 0.09 % RMS of its mean, for 39 % fewer instructions in the reflections.
+pub const COARSE_EXP: sh::ExpMethod = sh::ExpMethod::ScalingSquaring { threshold: 1.0, max_degree: 8, tolerance: 1e-6 };
+
 /// How `exp*` is evaluated (`"string exp"`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ExpChoice {
@@ -109,6 +116,8 @@ pub struct Visibility {
     order: ShOrder,
     logs: Arc<LogBlockerTable>,
     exp: ShExp,
+    /// The exponential of the reflections' per-sphere visibilities ([`Self::exp_times`]).
+    coarse: ShExp,
     products: &'static TripleProduct,
     big_theta: f64,
 }
@@ -133,9 +142,14 @@ impl Visibility {
                 sh::ExpMethod::Hybrid { table: sh::OptimalLinearTable::from_log_table(&logs)?, threshold: 0.25 }
             }
         };
+        let coarse = match &method {
+            sh::ExpMethod::ScalingSquaring { .. } => COARSE_EXP,
+            m => m.clone(),
+        };
         Ok(Visibility {
             order,
             exp: ShExp::new(order, method)?,
+            coarse: ShExp::new(order, coarse)?,
             logs,
             products: TripleProduct::shared(order)?,
             big_theta,
@@ -205,6 +219,54 @@ impl Visibility {
         counts
     }
 
+    /// The blocker of a cap of half-angle `theta` about unit `axis`, turned to the axis, into
+    /// `out[..n²]`: its log `G_θ` when `theta ≤ big_theta` (returns `false`), else the blocker
+    /// `B_θ = 1 − cap_θ` itself, to be multiplied in explicitly (returns `true`) — the split
+    /// [`vector`](Self::vector) makes.
+    pub fn blocker_into(&self, theta: f64, axis: DVec3, s: &mut Scratch, out: &mut [f64]) -> bool {
+        let k = self.order.coeffs();
+        if theta <= self.big_theta {
+            self.logs.lookup(theta, &mut s.g);
+            out[..k].iter_mut().for_each(|v| *v = 0.0);
+            let _ = sh::zonal::add_rotated_zh(&s.g, axis, 1.0, &mut s.y, &mut out[..k]);
+            false
+        } else {
+            sh::zonal::cap_into(theta, &mut s.cap);
+            s.cap.iter_mut().for_each(|v| *v = -*v);
+            s.cap[0] += SQRT_4PI;
+            let _ = sh::zonal::rotate_zh(&s.cap, axis, &mut out[..k]);
+            true
+        }
+    }
+
+    /// `out = exp*(f) ∗ Π bigs` (the explicit blockers in the order given), as
+    /// [`vector`](Self::vector) combines them; non-finite `f` gives the product alone. With
+    /// `coarse`, scaling and squaring (the default `"exp"`) uses [`COARSE_EXP`].
+    pub fn exp_times<'b>(
+        &self,
+        f: &[f64],
+        bigs: impl Iterator<Item = &'b [f64]>,
+        coarse: bool,
+        s: &mut Scratch,
+        out: &mut [f64],
+    ) {
+        let k = self.order.coeffs();
+        let exp = if coarse { &self.coarse } else { &self.exp };
+        if f[..k].iter().all(|v| *v == 0.0) || exp.exp(&f[..k], &mut out[..k], &mut s.exp).is_err() {
+            out[..k].iter_mut().for_each(|v| *v = 0.0);
+            out[0] = SQRT_4PI;
+        }
+        for b in bigs {
+            s.tmp.copy_from_slice(&out[..k]);
+            let _ = self.products.product(&s.tmp, b, &mut out[..k]);
+        }
+    }
+
+    /// `out = f ∗ g` (the SH product at this order; `out` must not alias the inputs).
+    pub fn product(&self, f: &[f64], g: &[f64], out: &mut [f64]) {
+        let _ = self.products.product(f, g, out);
+    }
+
     /// `V` at `p` on object `object` from every leaf of `sets` the hierarchy does not cull (a
     /// node wholly behind the tangent plane culls its subtree); the receiver's own set is
     /// skipped when it is convex (it cannot shadow its own surface).
@@ -218,13 +280,23 @@ impl Visibility {
         out: &mut [f64],
     ) -> Counts {
         let mut all = |visit: &mut dyn FnMut(&Sphere)| {
-            for set in sets.sets.iter().filter(|set| !(set.convex && set.object == object)) {
-                set.hierarchy.for_each_leaf(
-                    &mut |node: &Sphere| (node.center - p).dot(n) > -node.radius * (1.0 - REL_TOL),
-                    &mut |leaf| visit(&set.leaves[leaf]),
-                );
-            }
+            for_each_leaf_seen(sets, p, n, object, &mut |set, leaf| visit(&sets.sets[set].leaves[leaf]));
         };
         self.vector(p, n, &mut all, s, out)
+    }
+}
+
+/// Calls `visit(set, leaf)` with every leaf of `sets` that may block at `p` (unit normal `n`)
+/// on object `object`: the hierarchy culls nodes wholly behind the tangent plane, and the
+/// receiver's own set is skipped when it is convex (it cannot shadow its own surface).
+pub fn for_each_leaf_seen(sets: &SphereSets, p: DVec3, n: DVec3, object: usize, visit: &mut dyn FnMut(usize, usize)) {
+    for (i, set) in sets.sets.iter().enumerate() {
+        if set.convex && set.object == object {
+            continue;
+        }
+        set.hierarchy.for_each_leaf(
+            &mut |node: &Sphere| (node.center - p).dot(n) > -node.radius * (1.0 - REL_TOL),
+            &mut |leaf| visit(i, leaf),
+        );
     }
 }
