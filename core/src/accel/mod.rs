@@ -229,6 +229,11 @@ impl Accel {
     /// The closest hit along `ray` with `0 < t < ray.t_max`.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let (bray, pre, to_bvh) = self.prepare(ray)?;
+        if !traversable(bray.direction) {
+            let (slot, t, b) = self.traverse_exact(&bray, &pre, false)?;
+            let r = self.refs[slot as usize];
+            return Some(Hit { t: (t - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b });
+        }
         let mut hit = RayHit::none();
         let mut best_b = [0.0f32; 3];
         let found =
@@ -330,9 +335,69 @@ impl Accel {
         Some(Hit { t: (t_max - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b })
     }
 
+    /// The closest hit (or with `any`, the first found) of a BVH-space ray by a traversal of
+    /// the hierarchy with an exact slab test: for the rays [`traversable`] refuses, whose
+    /// direction has a component within f32's epsilon of 0. obvhs inverts such a component as
+    /// ±1/ε, which bends the ray by ~1e-7 rad: a ray lying in a plane where geometry's bounds
+    /// end (from a sphere's centre along its equator, along an axis-aligned box's face) left
+    /// the box of the triangle it was to hit and missed. Here a zero component's slab is the
+    /// whole line when the origin lies within the box's range (inclusive) and empty otherwise;
+    /// the far slab distance is widened by pbrt-v3's 1 + 2γ(3). Returns the BVH slot, the
+    /// BVH-space `t` and the barycentrics.
+    fn traverse_exact(&self, bray: &obvhs::ray::Ray, pre: &RayPrecomp, any: bool) -> Option<(u32, f32, [f32; 3])> {
+        let (o, d) = (bray.origin, bray.direction);
+        let widen = 1.0 + 2.0 * gamma(3);
+        let mut t_max = bray.tmax;
+        let mut best = None;
+        let mut stack = vec![0u32];
+        while let Some(ni) = stack.pop() {
+            let Some(node) = self.bvh.nodes.get(ni as usize) else { continue };
+            for c in 0..8 {
+                if node.is_child_empty(c) {
+                    continue;
+                }
+                let b = node.child_aabb(c);
+                let (mut t0, mut t1) = (0.0f32, t_max);
+                for k in 0..3 {
+                    if d[k] == 0.0 {
+                        if o[k] < b.min[k] || o[k] > b.max[k] {
+                            t0 = f32::INFINITY;
+                        }
+                        continue;
+                    }
+                    let (a, z) = ((b.min[k] - o[k]) / d[k], (b.max[k] - o[k]) / d[k]);
+                    t0 = t0.max(a.min(z));
+                    t1 = t1.min(a.max(z) * widen);
+                }
+                if !(t0 <= t1) {
+                    continue;
+                }
+                if node.is_leaf(c) {
+                    let (start, count) = node.child_primitives(c);
+                    for slot in start..start + count {
+                        let Some(tri) = self.tris.get(slot as usize) else { continue };
+                        if let Some((t, bary)) = pre.intersect(tri, BACKUP, t_max) {
+                            t_max = t;
+                            best = Some((slot, t, bary));
+                            if any {
+                                return best;
+                            }
+                        }
+                    }
+                } else {
+                    stack.push(node.child_node_index(c));
+                }
+            }
+        }
+        best
+    }
+
     /// Whether anything blocks `ray` for `0 < t < ray.t_max` (early exit).
     pub fn occluded(&self, ray: &Ray) -> bool {
         let Some((bray, pre, _)) = self.prepare(ray) else { return false };
+        if !traversable(bray.direction) {
+            return self.traverse_exact(&bray, &pre, true).is_some();
+        }
         !self.bvh.ray_traverse_miss(bray, |r, id| match pre.intersect(&self.tris[id], BACKUP, r.tmax) {
             Some((t, _)) => t,
             None => f32::INFINITY,
@@ -346,6 +411,13 @@ fn unit_direction(d: Vec3) -> (Vec3A, f32) {
     let d = Vec3A::from(d);
     let len = d.length();
     (d / len + Vec3A::ZERO, len)
+}
+
+/// Whether obvhs's traversal can take a BVH-space direction: it inverts a component within
+/// f32's epsilon of 0 as ±1/ε ([`obvhs::ray::safe_inverse`]), which is only safe when no
+/// component is that small.
+fn traversable(d: Vec3A) -> bool {
+    d.abs().min_element() > f32::EPSILON
 }
 
 /// pbrt-v3's default triangle uv when a mesh has none.
@@ -388,6 +460,57 @@ mod tests {
             assert!(accel.occluded(&Ray::new(Vec3::new(0.1, 0.5, 0.2) * scale, Vec3::Y, 1.0 * scale)));
             assert!(!accel.occluded(&Ray::new(Vec3::new(0.1, 0.5, 0.2) * scale, Vec3::Y, 0.4 * scale)));
             assert!(!accel.occluded(&Ray::new(Vec3::new(3.0, 0.5, 0.2) * scale, Vec3::Y, f32::INFINITY)));
+        }
+    }
+
+    /// A UV sphere of radius 1 about the origin, its equator ring in the plane z = 0.
+    fn uv_sphere(rings: usize, segments: usize) -> TriangleMesh {
+        let mut positions = vec![Vec3::Z, -Vec3::Z];
+        for i in 1..rings {
+            let theta = std::f32::consts::PI * i as f32 / rings as f32;
+            for j in 0..segments {
+                let phi = std::f32::consts::TAU * j as f32 / segments as f32;
+                let z = if 2 * i == rings { 0.0 } else { theta.cos() };
+                positions.push(Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), z));
+            }
+        }
+        let v = |i: usize, j: usize| (2 + (i - 1) * segments + j % segments) as u32;
+        let mut indices = Vec::new();
+        for j in 0..segments {
+            indices.push([0, v(1, j), v(1, j + 1)]);
+            indices.push([1, v(rings - 1, j + 1), v(rings - 1, j)]);
+            for i in 1..rings - 1 {
+                indices.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+                indices.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+            }
+        }
+        TriangleMesh { positions, indices, ..Default::default() }
+    }
+
+    /// Rays lying in a coordinate plane that is also a face plane of the hierarchy's boxes (the
+    /// equator's vertices at z = 0, rays from z = 0 with d.z = 0): a slab test computing
+    /// (bound − o) / d as 0 · ∞ gets NaN and loses the box. Every such ray from the centre
+    /// must hit the sphere at distance ~1, and so must one from outside along an axis.
+    #[test]
+    fn rays_in_a_box_face_plane_still_hit() {
+        let accel = Accel::build(&[uv_sphere(16, 32)]);
+        let mut misses = 0;
+        for k in 0..360 {
+            let a = (k as f32).to_radians();
+            for d in
+                [Vec3::new(a.cos(), a.sin(), 0.0), Vec3::new(a.cos(), 0.0, a.sin()), Vec3::new(0.0, a.cos(), a.sin())]
+            {
+                let d = Vec3::new(d.x + 0.0, d.y + 0.0, d.z + 0.0);
+                match accel.intersect(&Ray::new(Vec3::ZERO, d, f32::INFINITY)) {
+                    Some(h) if (h.t - 1.0).abs() < 0.03 => {}
+                    _ => misses += 1,
+                }
+            }
+        }
+        assert_eq!(misses, 0, "rays in coordinate planes that missed");
+        for o in [Vec3::new(3.0, 0.0, 0.0), Vec3::new(3.0, 0.5, 0.0), Vec3::new(0.0, -3.0, 0.0)] {
+            let h = accel.intersect(&Ray::new(o, -o.normalize(), f32::INFINITY));
+            assert!(h.is_some(), "the ray from {o} towards the centre missed");
         }
     }
 
