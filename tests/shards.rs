@@ -25,11 +25,17 @@ fn desc(path: &Path) -> SceneDescription {
 
 /// Runs `f` with the options every render of these tests shares.
 fn with_opts<R>(integrator: &str, spp: u32, f: impl FnOnce(&RenderOptions, &DiagSink) -> R) -> R {
+    with_params(integrator, &[], spp, f)
+}
+
+/// [`with_opts`] with command-line parameters `params` (`key=value`).
+fn with_params<R>(integrator: &str, params: &[&str], spp: u32, f: impl FnOnce(&RenderOptions, &DiagSink) -> R) -> R {
     let cancel = AtomicBool::new(false);
     let warnings = DiagSink::new();
+    let params: Vec<_> = params.iter().map(|p| penumbra::cli_params::parse_param(p).unwrap()).collect();
     let opts = RenderOptions {
         integrator: Some(integrator),
-        params: &[],
+        params: &params,
         build: BuildOptions { spp: Some(spp), seed: 3, crop: Some(CROP), resolution: Some(RES) },
         threads: 2,
         with_variance: false,
@@ -108,15 +114,19 @@ fn sample_ranges_add_up_to_the_single_render_where_allowed() {
 }
 
 /// The environment-lit paths (silhouette's SH tables, shexp's sphere sets and split lights)
-/// keep sample ranges exact too.
+/// keep sample ranges exact too (silhouette with sample shading: its pixel shading shares
+/// work between a pixel's samples and refuses ranges).
 #[test]
 fn environment_lit_sample_ranges_add_up() {
     let d = desc(&scene("suite/env/objects-studio.pbrt")); // halton, box filter
-    for name in ["silhouette", "shexp"] {
-        let one = single(&d, name, 3);
+    for (name, params) in [("silhouette", &["shading=sample"][..]), ("shexp", &[])] {
+        let one = with_params(name, params, 3, |o, w| pipeline::render(&d, o, w).unwrap().image.data);
         let parts: Vec<Shard> = [(0, 1), (1, 2)]
             .iter()
-            .map(|&(k, n)| shard_of(&d, name, n, req(0, 1, TileLayout::Rows, Some(k))).unwrap())
+            .map(|&(k, n)| {
+                let req = req(0, 1, TileLayout::Rows, Some(k));
+                with_params(name, params, n, |o, w| shard::render_shard(&d, "test", o, req, w)).unwrap()
+            })
             .collect();
         assert_same(&merged(parts).unwrap(), &one, &format!("{name} on objects-studio: ranges 0..1, 1..3"));
     }

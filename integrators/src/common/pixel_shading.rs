@@ -38,15 +38,17 @@ pub struct SharedPixel<T> {
 
 impl<T: Copy> SharedPixel<T> {
     /// Traces the pixel's camera `rays` (one traversal for the bundle when it meets few
-    /// triangles) and shades each cluster once with `shade` ([`shade_clusters`]); `samples`
-    /// are the rays' camera samples.
+    /// triangles) and shades each cluster once with `shade` ([`shade_clusters`]), which is
+    /// given `stats` to count its own rays; `samples` are the rays' camera samples; `differs`
+    /// as [`shade_clusters`]'.
     pub fn trace(
         rays: &[Ray],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
         light_distance: impl Fn(DVec3) -> f64,
-        shade: impl FnMut(&SurfacePoint) -> Option<T>,
+        differs: Option<fn(&T, &T) -> bool>,
+        mut shade: impl FnMut(&SurfacePoint, &mut ThreadStats) -> Option<T>,
     ) -> SharedPixel<T> {
         let candidates = scene.bundle_candidates(rays);
         let mut hits: Vec<FirstSurface> = Vec::with_capacity(rays.len());
@@ -57,7 +59,7 @@ impl<T: Copy> SharedPixel<T> {
             stats.add_continued(queries);
             hits.push(first);
         }
-        let shaded = shade_clusters(rays, samples, &hits, light_distance, shade);
+        let shaded = shade_clusters(rays, samples, &hits, light_distance, differs, |p| shade(p, stats));
         SharedPixel { hits, shaded }
     }
 
@@ -116,11 +118,16 @@ fn clusters_of(rays: &[Ray], samples: &[CameraSample], hits: &[FirstSurface]) ->
 /// on the film, not on the rays' world directions, so that it is the same for the scene
 /// rotated, scaled or moved (`penumbra stability`): near-ties between world-space dot products
 /// fell either way with rounding and picked another shading point.
+///
+/// With `differs`, a cluster is also shaded at its member farthest from that one on the film
+/// (the first on a tie), which keeps its own value; when `differs` finds the two values apart
+/// (a shadow edge or a highlight crossing the pixel), every member is shaded.
 pub fn shade_clusters<T: Copy>(
     rays: &[Ray],
     samples: &[CameraSample],
     hits: &[FirstSurface],
     light_distance: impl Fn(DVec3) -> f64,
+    differs: Option<fn(&T, &T) -> bool>,
     mut shade: impl FnMut(&SurfacePoint) -> Option<T>,
 ) -> Vec<Option<T>> {
     let (cluster, clusters) = clusters_of(rays, samples, hits);
@@ -139,10 +146,30 @@ pub fn shade_clusters<T: Copy>(
             continue;
         };
         let extent = members().map(|m| (pos(m) - pos(rep)).length()).fold(0.0, f64::max);
-        let near = extent > NEAR_FIELD * light_distance(pos(rep));
+        let mut every = extent > NEAR_FIELD * light_distance(pos(rep));
         let v = shade_one(rep);
+        let mut far = None;
+        if let (Some(differs), false) = (differs, every) {
+            let by_distance = |a: &usize, b: &usize| {
+                let (da, db) = ((film(*a) - film(rep)).length_squared(), (film(*b) - film(rep)).length_squared());
+                da.total_cmp(&db).then(b.cmp(a))
+            };
+            if let Some(f) = members().filter(|&m| m != rep).max_by(by_distance) {
+                let w = shade_one(f);
+                every = match (&v, &w) {
+                    (Some(a), Some(b)) => differs(a, b),
+                    (None, None) => false,
+                    _ => true,
+                };
+                far = Some((f, w));
+            }
+        }
         for m in members() {
-            shaded[m] = if m == rep || !near { v } else { shade_one(m) };
+            shaded[m] = match far {
+                Some((f, w)) if f == m => w,
+                _ if m == rep || !every => v,
+                _ => shade_one(m),
+            };
         }
     }
     shaded

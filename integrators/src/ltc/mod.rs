@@ -161,7 +161,8 @@ impl LtcShader<'_> {
             scene,
             stats,
             |p| self.nearest_light_distance(p),
-            |h| {
+            None,
+            |h, _| {
                 let desc = LtcShader::lobes(scene, &h.si)?;
                 Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
             },

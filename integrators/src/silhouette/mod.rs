@@ -35,11 +35,21 @@
 //!   estimator (counted as `"silhouette.estimator_fallbacks"`). Area,
 //!   point, spot and distant lights are always added by that estimator, and perfectly
 //!   specular materials recurse as in `directlighting` (up to `"integer maxdepth"`, 5).
+//!
+//! `"string shading"` `pixel` (default; `ao` and `shade`): the integrals are noise-free, so a
+//! pixel's camera samples only resolve which surfaces it sees and where their edges run; each
+//! surface seen in a pixel (a cluster of [`crate::common::pixel_shading`]) is integrated once,
+//! at its most central sample, and its samples reuse the value (`shade`: the irradiance over
+//! π, multiplied by each sample's own albedo, and the SH-shaded lobes' radiance; the
+//! estimator's lights, emission and specular recursion stay per sample). `sample`: every
+//! camera sample is integrated, as `prt` always is.
 
 use crate::common::direct::{estimate_direct, specular};
 use crate::common::params::{ParamSpec, Params};
+use crate::common::pixel_shading::{parse_shading, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, SH_ORDER};
 use penumbra_core::bxdf::BxdfFlags;
+use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray};
 use penumbra_core::integrator::{
@@ -49,7 +59,7 @@ use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::uniform_sample_hemisphere;
-use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfacePoint};
 use penumbra_core::sh::{basis, quadrature::gauss_legendre, transfer::TransferChannels, ShOrder, MAX_ORDER};
 use penumbra_core::silhouette::{
     param::moment, Contour, DualEdges, Interval, Meridians, MomentTable, PoleFrame, ShTable, Traversal,
@@ -86,6 +96,9 @@ pub struct Silhouette {
     /// `"integer glossyorder"` (12): the highest SH order glossy lobes are shaded at (the order
     /// of the environment's SH table).
     pub glossy_order: ShOrder,
+    /// `"string shading"` `pixel` (default): the integrals are computed once per surface a
+    /// pixel sees ([`crate::common::pixel_shading`]); `sample`: at every camera sample.
+    pub pixel_shading: bool,
 }
 
 /// The parameters `silhouette` reads.
@@ -106,6 +119,7 @@ pub const PARAMS: &[ParamSpec] = &[
     )
     .range(1, 16),
     max_depth(1024),
+    SHADING,
 ];
 
 impl Silhouette {
@@ -118,7 +132,8 @@ impl Silhouette {
         let glossy_order =
             ShOrder::new(p.count("glossyorder")? as usize).map_err(|e| Diagnostic::error(None, e.to_string()))?;
         let max_depth = max_depth_param(&p)?;
-        Ok(Box::new(Silhouette { mode, resolution, max_depth, sh_order, glossy_order }))
+        let pixel_shading = parse_shading(&p)?;
+        Ok(Box::new(Silhouette { mode, resolution, max_depth, sh_order, glossy_order, pixel_shading }))
     }
 }
 
@@ -186,6 +201,7 @@ struct Estimator<'a> {
     table_spacing: f64,
     sh_table: OnceLock<ShTable>,
     counters: Counters,
+    pixel_shading: bool,
 }
 
 impl Estimator<'_> {
@@ -308,8 +324,16 @@ impl Estimator<'_> {
     }
 
     fn ao(&self, ray: &Ray, scene: &Scene, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
-        let Some(si) = Self::first_surface(scene, ray, stats) else { return Rgb::ZERO };
-        let n = face_forward(si.n, -ray.d);
+        match Self::first_surface(scene, ray, stats) {
+            Some(si) => self.ao_at(&si, -ray.d, scene, stats, aov),
+            None => Rgb::ZERO,
+        }
+    }
+
+    /// The AO value (and, in `prt`, the transfer channels in `aov`) at `si` seen from `wo`.
+    fn ao_at(&self, si: &SurfaceInteraction, wo: Vec3, scene: &Scene, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+        let si = *si;
+        let n = face_forward(si.n, wo);
         let (nd, m) = (n.as_dvec3(), &self.meridians);
         let (mut sum, mut sum_mc) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
         let k = self.sh.as_ref().map_or(0, |s| s.0.coeffs());
@@ -360,23 +384,65 @@ impl Estimator<'_> {
     fn shade(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
         stats.add_continued(queries);
-        let hit = match first {
-            Ok(h) => h,
-            Err(escaped) => return escaped,
-        };
-        let SurfaceHit { si, bsdf, le, .. } = &hit;
+        match first {
+            Ok(hit) => self.shade_hit(&hit, None, scene, sampler, stats, depth),
+            Err(escaped) => escaped,
+        }
+    }
+
+    /// How `hit` takes the infinite lights in `shade` (`None`: by the estimator).
+    fn env_kind(&self, scene: &Scene, hit: &SurfaceHit) -> Option<EnvKind> {
+        self.table.as_ref()?;
+        let lambertian = scene
+            .material_of(&hit.si)
+            .and_then(|(material, _, textures)| material.ltc_lobes(&hit.si, textures))
+            .filter(|d| d.specular.is_none());
+        match lambertian {
+            Some(d) => Some(EnvKind::Lambertian { albedo: d.diffuse, n: d.n }),
+            None => glossy::Split::of(&hit.bsdf, self.glossy_order).map(EnvKind::Split),
+        }
+    }
+
+    /// The infinite lights' light reflected at `hit` by the surface's `kind` of lobes, as
+    /// `(E, G)`: `E` the irradiance over π at the shading normal (the caller multiplies it by
+    /// the Lambertian albedo) and `G` the SH-shaded lobes' radiance; `None` when the
+    /// traversal failed (the caller takes the estimator fallback).
+    fn env_terms(&self, kind: &EnvKind, hit: &SurfaceHit, scene: &Scene, stats: &mut ThreadStats) -> Option<EnvTerms> {
+        let table = self.table.as_ref()?;
+        let si = &hit.si;
+        match kind {
+            EnvKind::Lambertian { n, .. } => {
+                let ng = face_forward(si.n, si.wo);
+                let mut v = [glam::DVec3::ZERO; 3];
+                let m = &self.meridians;
+                let traversed = self.visible(scene, si, ng, stats, |frame, iv| {
+                    table.add(frame, m, iv.meridian as usize, iv.lo, iv.hi, &mut v)
+                });
+                // pbrt-v3's |cos| with the shading normal: on the visible side.
+                let ns = face_forward(*n, ng).as_dvec3();
+                traversed.then(|| (irradiance_over_pi(ns, &v, m.dphi), Rgb::ZERO))
+            }
+            EnvKind::Split(split) => self.shade_split(split, si, &hit.bsdf, table, scene, stats),
+        }
+    }
+
+    /// Radiance from `hit`, the `depth`-th surface of a camera ray's specular chain; `env` is
+    /// its pixel cluster's [`Self::env_terms`] when pixel shading computed them already
+    /// (`Some(None)`: the cluster's traversal failed).
+    fn shade_hit(
+        &self,
+        hit: &SurfaceHit,
+        env: Option<Option<EnvTerms>>,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        depth: u32,
+    ) -> Rgb {
+        let SurfaceHit { si, bsdf, le, .. } = hit;
         let mut l = *le;
-        let lambertian = self.table.as_ref().and_then(|_| {
-            let (material, _, textures) = scene.material_of(si)?;
-            let d = material.ltc_lobes(si, textures)?;
-            d.specular.is_none().then_some(d)
-        });
-        let split = match (&lambertian, &self.table) {
-            (None, Some(_)) => glossy::Split::of(bsdf, self.glossy_order),
-            _ => None,
-        };
+        let kind = self.env_kind(scene, hit);
         for (k, light) in scene.light_list().iter().enumerate() {
-            if light.is_infinite() && (lambertian.is_some() || split.is_some()) {
+            if light.is_infinite() && kind.is_some() {
                 continue;
             }
             if light.is_infinite() {
@@ -385,25 +451,13 @@ impl Estimator<'_> {
             let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
             l += estimate_direct(si, bsdf, u_scatter, k, light, u_light, scene, stats);
         }
-        if let (Some(d), Some(table)) = (lambertian, &self.table) {
-            let ng = face_forward(si.n, si.wo);
-            let mut v = [glam::DVec3::ZERO; 3];
-            let m = &self.meridians;
-            if self.visible(scene, si, ng, stats, |frame, iv| {
-                table.add(frame, m, iv.meridian as usize, iv.lo, iv.hi, &mut v)
-            }) {
-                // pbrt-v3's |cos| with the shading normal: on the visible side.
-                let ns = face_forward(d.n, ng).as_dvec3();
-                let e =
-                    Rgb::new(ns.dot(v[0] * m.dphi) as f32, ns.dot(v[1] * m.dphi) as f32, ns.dot(v[2] * m.dphi) as f32);
-                l += d.diffuse * e.max(Rgb::ZERO) * std::f32::consts::FRAC_1_PI;
-            } else {
-                l += self.fallback_estimator(si, bsdf, sampler, scene, stats);
-            }
-        }
-        if let (Some(split), Some(table)) = (split, &self.table) {
-            l += match self.shade_split(&split, si, bsdf, table, scene, stats) {
-                Some(c) => c,
+        if let Some(kind) = &kind {
+            let terms = match env {
+                Some(shared) => shared,
+                None => self.env_terms(kind, hit, scene, stats),
+            };
+            l += match terms {
+                Some((e, g)) => kind.albedo() * e + g,
                 None => self.fallback_estimator(si, bsdf, sampler, scene, stats),
             };
         }
@@ -418,10 +472,60 @@ impl Estimator<'_> {
     }
 }
 
+/// `(E, G)` of [`Estimator::env_terms`].
+type EnvTerms = (Rgb, Rgb);
+
+/// What pixel shading computes once per cluster: `ao`'s value (in the first slot) or
+/// `shade`'s [`EnvTerms`] (`None`: the traversal failed).
+type ClusterValue = Option<EnvTerms>;
+
+/// Pixel shading's refinement threshold: two samples of one surface in a pixel (its most
+/// central and its farthest) whose values differ by more than this fraction of the larger in
+/// any colour make every sample of that surface integrated ([`differs`]).
+const REFINE: f32 = 0.1;
+
+/// Whether a pixel cluster's two shaded samples call for shading every member: a shadow edge
+/// or a highlight crosses the pixel, or the traversal failed at one of them.
+fn differs(a: &ClusterValue, b: &ClusterValue) -> bool {
+    match (a, b) {
+        (Some((e1, g1)), Some((e2, g2))) => {
+            let (x, y) = (*e1 + *g1, *e2 + *g2);
+            ((x - y).abs() - REFINE * x.abs().max(y.abs())).max_element() > 0.0
+        }
+        (None, None) => false,
+        _ => true,
+    }
+}
+
+/// How a surface takes the infinite lights in `shade`.
+#[derive(Clone, Copy)]
+enum EnvKind {
+    /// Lambertian lobes only: albedo and shading normal (`ltc_lobes`).
+    Lambertian { albedo: Rgb, n: Vec3 },
+    /// Lambertian lobes by the vector irradiance, the others by SH ([`glossy`]).
+    Split(glossy::Split),
+}
+
+impl EnvKind {
+    fn albedo(&self) -> Rgb {
+        match self {
+            EnvKind::Lambertian { albedo, .. } => *albedo,
+            EnvKind::Split(s) => s.diffuse,
+        }
+    }
+}
+
+/// `max(0, n_s·v)/π` per colour for the vector irradiance `v` summed over meridians of width
+/// `dphi`.
+fn irradiance_over_pi(ns: glam::DVec3, v: &[glam::DVec3; 3], dphi: f64) -> Rgb {
+    let e = Rgb::new(ns.dot(v[0] * dphi) as f32, ns.dot(v[1] * dphi) as f32, ns.dot(v[2] * dphi) as f32);
+    e.max(Rgb::ZERO) * std::f32::consts::FRAC_1_PI
+}
+
 impl Estimator<'_> {
     /// A surface with non-Lambertian lobes under the infinite lights: its Lambertian lobes by
     /// the vector irradiance, the others by SH projection of the visible environment and of
-    /// the lobes ([`glossy`]); `None` when the traversal failed.
+    /// the lobes ([`glossy`]), as [`EnvTerms`]; `None` when the traversal failed.
     fn shade_split(
         &self,
         split: &glossy::Split,
@@ -430,7 +534,7 @@ impl Estimator<'_> {
         table: &MomentTable,
         scene: &Scene,
         stats: &mut ThreadStats,
-    ) -> Option<Rgb> {
+    ) -> Option<EnvTerms> {
         self.counters.glossy_points.fetch_add(1, Ordering::Relaxed);
         let sh_table = self.sh_table.get_or_init(|| {
             let cells = self.meridians.n.min(glossy::TABLE_CELLS);
@@ -453,16 +557,13 @@ impl Estimator<'_> {
         if !traversed {
             return None;
         }
-        let mut out = Rgb::ZERO;
-        if split.diffuse != Rgb::ZERO {
-            let ns = face_forward(bsdf.shading_normal(), ng).as_dvec3();
-            let e: [f64; 3] = std::array::from_fn(|c| ns.dot(v[c] * m.dphi));
-            out += split.diffuse
-                * Rgb::new(e[0] as f32, e[1] as f32, e[2] as f32).max(Rgb::ZERO)
-                * std::f32::consts::FRAC_1_PI;
-        }
+        let e = if split.diffuse != Rgb::ZERO {
+            irradiance_over_pi(face_forward(bsdf.shading_normal(), ng).as_dvec3(), &v, m.dphi)
+        } else {
+            Rgb::ZERO
+        };
         lsh[..3 * k].iter_mut().for_each(|a| *a *= m.dphi);
-        Some(out + glossy::shade(split, bsdf, si.wo, ng, &lsh[..3 * k]))
+        Some((e, glossy::shade(split, bsdf, si.wo, ng, &lsh[..3 * k])))
     }
 
     /// The infinite lights' radiance from direction `w` (world).
@@ -473,11 +574,64 @@ impl Estimator<'_> {
 }
 
 impl PixelEstimator for Estimator<'_> {
-    type Shared = ();
+    type Shared = SharedPixel<ClusterValue>;
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
         match self.mode {
             Mode::Ao | Mode::Prt => self.ao(ray, scene, stats, aov),
             Mode::Shade => self.shade(ray, scene, sampler, stats, 0),
+        }
+    }
+
+    /// Pixel shading for `ao` and `shade` (`prt`'s transfer channels are per sample).
+    fn shares_pixel_work(&self) -> bool {
+        self.pixel_shading && self.mode != Mode::Prt
+    }
+
+    fn begin_pixel(
+        &self,
+        rays: &[Ray],
+        samples: &[CameraSample],
+        scene: &Scene,
+        stats: &mut ThreadStats,
+    ) -> Option<Self::Shared> {
+        // Only the infinite lights are shared, so no cluster is near a light.
+        Some(SharedPixel::trace(
+            rays,
+            samples,
+            scene,
+            stats,
+            |_| f64::INFINITY,
+            Some(differs),
+            |p: &SurfacePoint, stats: &mut ThreadStats| match self.mode {
+                Mode::Shade => {
+                    let hit = p.with_bsdf(scene)?;
+                    let kind = self.env_kind(scene, &hit)?;
+                    Some(self.env_terms(&kind, &hit, scene, stats))
+                }
+                _ => Some(Some((self.ao_at(&p.si, p.si.wo, scene, stats, &mut []), Rgb::ZERO))),
+            },
+        ))
+    }
+
+    fn li_shared(
+        &self,
+        ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        aov: &mut [f32],
+        shared: &Self::Shared,
+        index: usize,
+    ) -> Rgb {
+        match (self.mode, shared.sample(index)) {
+            (Mode::Shade, (Ok(p), env)) => match p.with_bsdf(scene) {
+                Some(hit) => self.shade_hit(&hit, env, scene, sampler, stats, 0),
+                None => Rgb::ZERO,
+            },
+            (Mode::Shade, (Err(escaped), _)) => *escaped,
+            (_, (Ok(_), Some(Some((ao, _))))) => ao,
+            (_, (Ok(p), _)) => self.ao_at(&p.si, -ray.d, scene, stats, aov),
+            (_, (Err(_), _)) => Rgb::ZERO,
         }
     }
 }
@@ -486,8 +640,9 @@ impl Integrator for Silhouette {
     fn name(&self) -> &str {
         "silhouette"
     }
+    /// Sample shading, or `prt` (whose samples never share).
     fn merges_sample_ranges(&self) -> bool {
-        true
+        !self.pixel_shading || self.mode == Some(Mode::Prt)
     }
     fn requirements(&self) -> Requirements {
         Requirements { accel: true, lights: true, materials: true, dual_edges: true, ..Default::default() }
@@ -533,6 +688,7 @@ impl Integrator for Silhouette {
             table_spacing,
             sh_table: OnceLock::new(),
             counters: Counters::default(),
+            pixel_shading: self.pixel_shading,
         };
         let mut stats = render_pixels(&est, scene, ctx, film)?;
         let c = &est.counters;
