@@ -95,7 +95,7 @@ impl LtcShader<'_> {
                 continue;
             }
             if let Some(cl) = q.separate {
-                if !cl.separated_from(&info.bounds, q.p) {
+                if !cl.separated(&info.bounds, &scene.meshes[o].positions, q.p) {
                     return None;
                 }
             }
@@ -261,6 +261,10 @@ fn clip_to_plane(poly: &[DVec3], o: DVec3, n: DVec3) -> Vec<DVec3> {
     out
 }
 
+/// Objects with at most this many vertices are tested vertex by vertex when their box is not
+/// separated from a convex light ([`ConvexLight::separated`]).
+const SEPARATE_VERTICES: usize = 64;
+
 /// A convex light seen from a point: its front faces' planes and its vertices, to prove an
 /// occluder lies in front of it.
 pub(super) struct ConvexLight<'a> {
@@ -276,10 +280,14 @@ impl<'a> ConvexLight<'a> {
         ConvexLight { front, vertices: &shape.vertices, center: shape.center }
     }
 
-    /// Whether a plane separates the box `b` (with the shading point `p` on its side) from the
-    /// light: then along every ray from `p` the box's content comes before the light. Tried:
-    /// the planes of the front faces, and the plane normal to the centres' offset.
-    fn separated_from(&self, b: &Bounds3, p: DVec3) -> bool {
+    /// Whether a plane separates an object (bounds `b`, vertices `vertices`) from the light,
+    /// with the shading point `p` on the object's side: then along every ray from `p` the
+    /// object comes before the light. The box is tried first; where it is not separated and the
+    /// object has at most [`SEPARATE_VERTICES`] vertices, the vertices themselves (a large quad
+    /// turned off the axes — a floor or wall of a rotated scene — has a box that swallows the
+    /// light, which sent every shading point to the light's triangles one by one: killeroo-simple
+    /// turned, 24², 16 spp, 41 s against 0.41 s unturned).
+    pub(super) fn separated(&self, b: &Bounds3, vertices: &[Vec3], p: DVec3) -> bool {
         let corners: [DVec3; 8] = std::array::from_fn(|k| {
             DVec3::new(
                 if k & 1 == 0 { b.min.x } else { b.max.x } as f64,
@@ -287,16 +295,30 @@ impl<'a> ConvexLight<'a> {
                 if k & 4 == 0 { b.min.z } else { b.max.z } as f64,
             )
         });
-        if self.front.iter().any(|(a, n)| corners.iter().all(|c| (*c - *a).dot(*n) > 0.0)) {
+        let bc = (b.min.as_dvec3() + b.max.as_dvec3()) * 0.5;
+        if self.separated_points(&corners, bc, p) {
             return true;
         }
-        let bc = (b.min.as_dvec3() + b.max.as_dvec3()) * 0.5;
-        let axis = (bc - self.center).normalize_or_zero();
+        if vertices.len() > SEPARATE_VERTICES {
+            return false;
+        }
+        let pts: Vec<DVec3> = vertices.iter().map(|v| v.as_dvec3()).collect();
+        let c = pts.iter().copied().sum::<DVec3>() / pts.len().max(1) as f64;
+        self.separated_points(&pts, c, p)
+    }
+
+    /// [`Self::separated`] for a point set with centre `c`. Tried: the planes of the front
+    /// faces, and the plane normal to the centres' offset.
+    fn separated_points(&self, pts: &[DVec3], c: DVec3, p: DVec3) -> bool {
+        if pts.is_empty() || self.front.iter().any(|(a, n)| pts.iter().all(|v| (*v - *a).dot(*n) > 0.0)) {
+            return true;
+        }
+        let axis = (c - self.center).normalize_or_zero();
         if axis == DVec3::ZERO {
             return false;
         }
         let light_max = self.vertices.iter().map(|v| v.dot(axis)).fold(f64::MIN, f64::max);
-        let box_min = corners.iter().map(|c| c.dot(axis)).fold(f64::MAX, f64::min);
-        box_min > light_max && p.dot(axis) > light_max
+        let min = pts.iter().map(|v| v.dot(axis)).fold(f64::MAX, f64::min);
+        min > light_max && p.dot(axis) > light_max
     }
 }

@@ -322,7 +322,13 @@ impl<'a> LtcShader<'a> {
     ) {
         let p = q.at.p;
         let h = normal.dot(p - origin);
-        if h != 0.0 && (geom.two_sided || h > 0.0) {
+        // A planar light does not light its own surface, nor a point in its plane (which
+        // rounding puts on either side: the light's own top face read as lit by it, 56 where
+        // directlighting has 0, and differently for the scene scaled or turned). The
+        // tolerance is relative, as the occluders' coplanarity test.
+        let extent = outline.iter().map(|v| (*v - origin).length()).fold(0.0, f64::max);
+        let in_plane = q.receiver.mesh == geom.mesh || h.abs() <= 1e-6 * (extent + (p - origin).length());
+        if !in_plane && (geom.two_sided || h > 0.0) {
             let ln = if h > 0.0 { normal } else { -normal };
             let occ = if q.shadows {
                 let pq = PieceQuery {
@@ -392,6 +398,16 @@ impl<'a> LtcShader<'a> {
                 continue;
             }
             let pv = mesh.vertices(tri).map(d3);
+            // A triangle does not light itself nor a point in its plane (see `planar_light`).
+            let tn = (pv[1] - pv[0]).cross(pv[2] - pv[0]);
+            let tn_len = tn.length();
+            let extent = pv.iter().map(|v| (*v - pv[0]).length()).fold(0.0, f64::max);
+            let h = tn.dot(p - pv[0]);
+            if (q.receiver.mesh == geom.mesh && q.receiver.tri == tri)
+                || !(h.abs() > 1e-6 * tn_len * (extent + (p - pv[0]).length()))
+            {
+                continue;
+            }
             if !geom.two_sided {
                 let ne = d3(emitting_normal(mesh, tri));
                 if ne.dot(p - pv[0]) <= 0.0 {
