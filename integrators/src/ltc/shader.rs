@@ -417,10 +417,7 @@ impl<'a> LtcShader<'a> {
             let occ = if q.shadows {
                 // The light triangle's plane, oriented towards p: occluders beyond it cannot
                 // shadow it.
-                let mut ln = (pv[1] - pv[0]).cross(pv[2] - pv[0]);
-                if ln.dot(p - pv[0]) < 0.0 {
-                    ln = -ln;
-                }
+                let ln = if h < 0.0 { -tn } else { tn };
                 let pq = PieceQuery {
                     p,
                     skip: Skip::Triangle(geom.mesh, tri),
