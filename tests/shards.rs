@@ -114,12 +114,12 @@ fn sample_ranges_add_up_to_the_single_render_where_allowed() {
 }
 
 /// The environment-lit paths (silhouette's SH tables, shexp's sphere sets and split lights)
-/// keep sample ranges exact too (silhouette with sample shading: its pixel shading shares
-/// work between a pixel's samples and refuses ranges).
+/// keep sample ranges exact too (with sample shading: their pixel shading shares work between
+/// a pixel's samples and refuses ranges).
 #[test]
 fn environment_lit_sample_ranges_add_up() {
     let d = desc(&scene("suite/env/objects-studio.pbrt")); // halton, box filter
-    for (name, params) in [("silhouette", &["shading=sample"][..]), ("shexp", &[])] {
+    for (name, params) in [("silhouette", &["shading=sample"][..]), ("shexp", &["shading=sample"])] {
         let one = with_params(name, params, 3, |o, w| pipeline::render(&d, o, w).unwrap().image.data);
         let parts: Vec<Shard> = [(0, 1), (1, 2)]
             .iter()

@@ -20,6 +20,16 @@ pub const SHADING: ParamSpec = ParamSpec::choice(
     "shade each surface a pixel sees once (camera samples only anti-alias), or every camera sample",
 );
 
+/// Pixel shading's refinement threshold for noise-free shaders (`silhouette`, `shexp`): two
+/// samples of one surface in a pixel whose values differ by more than this fraction of the
+/// larger in any colour make every sample of it shaded ([`shade_clusters`]' `differs`).
+pub const REFINE: f32 = 0.1;
+
+/// Whether two shaded values differ by more than [`REFINE`] of the larger in any colour.
+pub fn rgb_differs(a: Rgb, b: Rgb) -> bool {
+    ((a - b).abs() - REFINE * a.abs().max(b.abs())).max_element() > 0.0
+}
+
 /// Reads [`SHADING`]: `true` for pixel shading.
 pub fn parse_shading(params: &Params) -> Result<bool, Diagnostic> {
     params.choice("shading", [true, false])

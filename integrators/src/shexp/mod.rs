@@ -43,10 +43,12 @@ pub mod visibility;
 
 use crate::common::direct::{estimate_direct, specular};
 use crate::common::params::{ParamSpec, Params, Range};
+use crate::common::pixel_shading::{parse_shading, rgb_differs, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use glam::DVec3;
 use lighting::EnvLighting;
 use penumbra_core::bxdf::{Bsdf, Bxdf, BxdfFlags};
+use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, Ray};
 use penumbra_core::integrator::{
@@ -55,13 +57,13 @@ use penumbra_core::integrator::{
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
-use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
+use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfacePoint};
 use penumbra_core::sh::ShOrder;
 use penumbra_core::sphereset::{Source, SphereSets};
 use penumbra_core::{Rgb, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use std::cell::RefCell;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use visibility::{ExpChoice, Visibility};
 
 pub struct Shexp {
@@ -81,6 +83,9 @@ pub struct Shexp {
     pub form_factor: reflect::tables::FormFactor,
     /// With `interreflect`, the ground plane reflects too ([`reflect::ground`]).
     pub ground_bounce: bool,
+    /// `"string shading"` `pixel` (default): the environment's Lambertian term once per
+    /// surface a pixel sees ([`crate::common::pixel_shading`]); `sample`: every camera sample.
+    pub pixel_shading: bool,
 }
 
 /// The parameters `shexp` reads.
@@ -125,6 +130,7 @@ pub const PARAMS: &[ParamSpec] = &[
     ),
     max_depth(1024),
     PIXEL_BOUNDS,
+    SHADING,
 ];
 
 impl Shexp {
@@ -146,7 +152,9 @@ impl Shexp {
         let ground_bounce = p.bool("groundbounce")?;
         let max_depth = max_depth_param(&p)?;
         let pixel_bounds = pixel_bounds_param(&p)?;
+        let pixel_shading = parse_shading(&p)?;
         Ok(Box::new(Shexp {
+            pixel_shading,
             order,
             exp,
             spheres,
@@ -191,6 +199,8 @@ struct Estimator<'a> {
     ground: Option<reflect::ground::GroundBounce>,
     warn_lobes: AtomicBool,
     warnings: &'a DiagSink,
+    /// Evaluations of the smooth environment term ([`Estimator::lambertian_irradiance`]).
+    receivers: AtomicU64,
 }
 
 /// Per-thread buffers: visibility scratch, `V`, `LH(N)`, a basis scratch and `LH_below(N)`.
@@ -328,29 +338,69 @@ impl Estimator<'_> {
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
         stats.rays += queries.saturating_sub(1);
-        let hit = match first {
-            Ok(h) => h,
-            Err(escaped) => return escaped,
-        };
-        let SurfaceHit { si, bsdf, le, .. } = &hit;
+        match first {
+            Ok(hit) => self.shade_hit(&hit, None, scene, sampler, stats, depth),
+            Err(escaped) => escaped,
+        }
+    }
+
+    /// The environment's smooth light on the Lambertian lobes at `hit`, over π (the caller
+    /// multiplies it by the albedo): shadowed by the sphere sets, with the ground's and, with
+    /// `interreflect`, the spheres' reflected light. `None` without an environment. The split
+    /// bright regions are not in it ([`Self::bright_irradiance`]).
+    fn lambertian_irradiance(&self, hit: &SurfaceHit, scene: &Scene, stats: &mut ThreadStats) -> Option<Rgb> {
+        self.env.as_ref()?;
+        self.receivers.fetch_add(1, Ordering::Relaxed);
+        let (n, p) = (Self::facing_normal(hit), hit.si.p.as_dvec3());
+        let nd = n.as_dvec3().normalize();
+        let ground = self.ground_radiance(p, nd, scene, &mut stats.shadow_rays);
+        let mut e = self.shadowed(p, nd, hit.si.mesh as usize, ground);
+        if self.reflect.is_some() {
+            for (v, rv) in e.iter_mut().zip(self.reflected(p, nd, hit.si.mesh as usize)) {
+                *v += rv;
+            }
+        }
+        Some(Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32) * std::f32::consts::FRAC_1_PI)
+    }
+
+    /// The split-off bright regions' light on the Lambertian lobes at `hit`, over π: one
+    /// shadow ray each, per sample (their shadows are hard; the other lobes see the whole map
+    /// through directlighting's estimator).
+    fn bright_irradiance(&self, hit: &SurfaceHit, scene: &Scene, stats: &mut ThreadStats) -> Rgb {
+        let mut e = [0.0; 3];
+        self.add_bright(&mut e, &hit.si, (Self::facing_normal(hit), hit.si.wo), scene, &mut stats.shadow_rays);
+        Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32) * std::f32::consts::FRAC_1_PI
+    }
+
+    /// The shading normal turned to the side `wo` is on.
+    fn facing_normal(hit: &SurfaceHit) -> Vec3 {
+        let ns = hit.bsdf.shading_normal();
+        if ns.dot(hit.si.wo) < 0.0 {
+            -ns
+        } else {
+            ns
+        }
+    }
+
+    /// Radiance from `hit`, the `depth`-th surface of a camera ray's specular chain;
+    /// `irradiance` is its pixel cluster's [`Self::lambertian_irradiance`] when pixel shading
+    /// computed it already.
+    fn shade_hit(
+        &self,
+        hit: &SurfaceHit,
+        irradiance: Option<Rgb>,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        depth: u32,
+    ) -> Rgb {
+        let SurfaceHit { si, bsdf, le, .. } = hit;
         let mut l = *le;
         let (kd, rest) = split_lambertian(bsdf);
         let lights = scene.light_list();
         if kd != Rgb::ZERO && self.env.is_some() {
-            let ns = bsdf.shading_normal();
-            let n = if ns.dot(si.wo) < 0.0 { -ns } else { ns };
-            let (p, nd) = (si.p.as_dvec3(), n.as_dvec3().normalize());
-            let ground = self.ground_radiance(p, nd, scene, &mut stats.shadow_rays);
-            let mut e = self.shadowed(p, nd, si.mesh as usize, ground);
-            // The split-off bright regions: one shadow ray each, Lambertian part only (the other
-            // lobes see the whole map through directlighting's estimator below).
-            self.add_bright(&mut e, si, (n, si.wo), scene, &mut stats.shadow_rays);
-            if self.reflect.is_some() {
-                for (v, rv) in e.iter_mut().zip(self.reflected(p, nd, si.mesh as usize)) {
-                    *v += rv;
-                }
-            }
-            l += kd * Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32) * std::f32::consts::FRAC_1_PI;
+            let smooth = irradiance.or_else(|| self.lambertian_irradiance(hit, scene, stats)).unwrap_or(Rgb::ZERO);
+            l += kd * (smooth + self.bright_irradiance(hit, scene, stats));
         }
         if let Some(rest) = &rest {
             if rest.num_components(BxdfFlags::NON_SPECULAR) > 0 && !self.infinite.is_empty() {
@@ -403,7 +453,7 @@ impl Estimator<'_> {
 }
 
 impl PixelEstimator for Estimator<'_> {
-    type Shared = ();
+    type Shared = SharedPixel<Rgb>;
     fn li(
         &self,
         ray: &Ray,
@@ -413,6 +463,46 @@ impl PixelEstimator for Estimator<'_> {
         _aov: &mut [f32],
     ) -> Rgb {
         self.li(ray, scene, sampler, stats, 0)
+    }
+
+    /// Pixel shading where there is an environment to share.
+    fn shares_pixel_work(&self) -> bool {
+        self.shexp.pixel_shading && self.env.is_some()
+    }
+
+    fn begin_pixel(
+        &self,
+        rays: &[Ray],
+        samples: &[CameraSample],
+        scene: &Scene,
+        stats: &mut ThreadStats,
+    ) -> Option<Self::Shared> {
+        // Only the environment's term is shared, so no cluster is near a light.
+        let shade = |p: &SurfacePoint, stats: &mut ThreadStats| {
+            let hit = p.with_bsdf(scene)?;
+            (split_lambertian(&hit.bsdf).0 != Rgb::ZERO).then(|| self.lambertian_irradiance(&hit, scene, stats))?
+        };
+        let differs = |a: &Rgb, b: &Rgb| rgb_differs(*a, *b);
+        Some(SharedPixel::trace(rays, samples, scene, stats, |_| f64::INFINITY, Some(differs), shade))
+    }
+
+    fn li_shared(
+        &self,
+        _ray: &Ray,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        _aov: &mut [f32],
+        shared: &Self::Shared,
+        index: usize,
+    ) -> Rgb {
+        match shared.sample(index) {
+            (Ok(p), e) => match p.with_bsdf(scene) {
+                Some(hit) => self.shade_hit(&hit, e, scene, sampler, stats, 0),
+                None => Rgb::ZERO,
+            },
+            (Err(escaped), _) => *escaped,
+        }
     }
     fn pixel_bounds(&self) -> Option<Bounds2i> {
         self.shexp.pixel_bounds
@@ -429,8 +519,10 @@ impl Integrator for Shexp {
     fn name(&self) -> &str {
         "shexp"
     }
+    /// Sample shading (pixel shading shares the environment's term between a pixel's samples;
+    /// without an environment it shares nothing, but that is known only at render time).
     fn merges_sample_ranges(&self) -> bool {
-        true
+        !self.pixel_shading
     }
     fn requirements(&self) -> Requirements {
         Requirements {
@@ -499,6 +591,7 @@ impl Integrator for Shexp {
             ground: None,
             warn_lobes: AtomicBool::new(false),
             warnings: ctx.warnings,
+            receivers: AtomicU64::new(0),
         };
         let mut pass = (0, 0);
         if let (true, true, Some(env), Some(plane)) = (self.interreflect, self.ground_bounce, &est.env, sets.ground) {
@@ -521,6 +614,7 @@ impl Integrator for Shexp {
         stats.shadow_rays += pass.1;
         stats.counters.insert("leaf spheres".into(), sets.leaf_count() as f64);
         stats.counters.insert("bright lights".into(), est.bright.len() as f64);
+        stats.counters.insert("shexp.receivers".into(), est.receivers.load(Ordering::Relaxed) as f64);
         if let Some(r) = &est.reflect {
             stats.counters.insert("reflecting spheres".into(), r.reflecting() as f64);
         }

@@ -46,7 +46,7 @@
 
 use crate::common::direct::{estimate_direct, specular};
 use crate::common::params::{ParamSpec, Params};
-use crate::common::pixel_shading::{parse_shading, SharedPixel, SHADING};
+use crate::common::pixel_shading::{parse_shading, rgb_differs, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, SH_ORDER};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::camera::CameraSample;
@@ -479,19 +479,11 @@ type EnvTerms = (Rgb, Rgb);
 /// `shade`'s [`EnvTerms`] (`None`: the traversal failed).
 type ClusterValue = Option<EnvTerms>;
 
-/// Pixel shading's refinement threshold: two samples of one surface in a pixel (its most
-/// central and its farthest) whose values differ by more than this fraction of the larger in
-/// any colour make every sample of that surface integrated ([`differs`]).
-const REFINE: f32 = 0.1;
-
 /// Whether a pixel cluster's two shaded samples call for shading every member: a shadow edge
-/// or a highlight crosses the pixel, or the traversal failed at one of them.
+/// or a highlight crosses the pixel ([`rgb_differs`]), or the traversal failed at one of them.
 fn differs(a: &ClusterValue, b: &ClusterValue) -> bool {
     match (a, b) {
-        (Some((e1, g1)), Some((e2, g2))) => {
-            let (x, y) = (*e1 + *g1, *e2 + *g2);
-            ((x - y).abs() - REFINE * x.abs().max(y.abs())).max_element() > 0.0
-        }
+        (Some((e1, g1)), Some((e2, g2))) => rgb_differs(*e1 + *g1, *e2 + *g2),
         (None, None) => false,
         _ => true,
     }
