@@ -9,7 +9,7 @@ use glam::{DVec2, DVec3};
 use penumbra_core::camera::CameraSample;
 use penumbra_core::geometry::Ray;
 use penumbra_core::integrator::ThreadStats;
-use penumbra_core::scene::{Scene, SurfacePoint};
+use penumbra_core::scene::{Scene, SurfaceHit, SurfacePoint};
 use penumbra_core::{Rgb, Vec3};
 use penumbra_parser::Diagnostic;
 
@@ -78,6 +78,15 @@ impl<T: Copy> SharedPixel<T> {
     /// given (the driver's contract for `li_shared`).
     pub fn sample(&self, index: usize) -> (&FirstSurface, Option<T>) {
         (&self.hits[index], self.shaded[index])
+    }
+
+    /// Sample `index` shaded by `shade` from its first surface (with its BSDF; black where it
+    /// has none) and its cluster's value, or the radiance its ray escaped with.
+    pub fn shade_sample(&self, index: usize, scene: &Scene, shade: impl FnOnce(&SurfaceHit, Option<T>) -> Rgb) -> Rgb {
+        match self.sample(index) {
+            (Ok(p), v) => p.with_bsdf(scene).map_or(Rgb::ZERO, |hit| shade(&hit, v)),
+            (Err(escaped), _) => *escaped,
+        }
     }
 }
 

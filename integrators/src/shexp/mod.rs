@@ -496,13 +496,7 @@ impl PixelEstimator for Estimator<'_> {
         shared: &Self::Shared,
         index: usize,
     ) -> Rgb {
-        match shared.sample(index) {
-            (Ok(p), e) => match p.with_bsdf(scene) {
-                Some(hit) => self.shade_hit(&hit, e, scene, sampler, stats, 0),
-                None => Rgb::ZERO,
-            },
-            (Err(escaped), _) => *escaped,
-        }
+        shared.shade_sample(index, scene, |hit, e| self.shade_hit(hit, e, scene, sampler, stats, 0))
     }
     fn pixel_bounds(&self) -> Option<Bounds2i> {
         self.shexp.pixel_bounds

@@ -38,11 +38,13 @@
 //!
 //! `"string shading"` `pixel` (default; `ao` and `shade`): the integrals are noise-free, so a
 //! pixel's camera samples only resolve which surfaces it sees and where their edges run; each
-//! surface seen in a pixel (a cluster of [`crate::common::pixel_shading`]) is integrated once,
-//! at its most central sample, and its samples reuse the value (`shade`: the irradiance over
-//! π, multiplied by each sample's own albedo, and the SH-shaded lobes' radiance; the
-//! estimator's lights, emission and specular recursion stay per sample). `sample`: every
-//! camera sample is integrated, as `prt` always is.
+//! surface seen in a pixel (a cluster of [`crate::common::pixel_shading`]) is integrated at
+//! its most central and its farthest sample, and at every sample where the two differ by more
+//! than [`REFINE`](crate::common::pixel_shading::REFINE) (a shadow edge or highlight crossing
+//! the pixel); the other samples reuse the central value (`shade`: the irradiance over π,
+//! multiplied by each sample's own albedo, and the SH-shaded lobes' radiance; the estimator's
+//! lights, emission and specular recursion stay per sample). `sample`: every camera sample is
+//! integrated, as `prt` always is.
 
 use crate::common::direct::{estimate_direct, specular};
 use crate::common::params::{ParamSpec, Params};
@@ -615,15 +617,13 @@ impl PixelEstimator for Estimator<'_> {
         shared: &Self::Shared,
         index: usize,
     ) -> Rgb {
-        match (self.mode, shared.sample(index)) {
-            (Mode::Shade, (Ok(p), env)) => match p.with_bsdf(scene) {
-                Some(hit) => self.shade_hit(&hit, env, scene, sampler, stats, 0),
-                None => Rgb::ZERO,
-            },
-            (Mode::Shade, (Err(escaped), _)) => *escaped,
-            (_, (Ok(_), Some(Some((ao, _))))) => ao,
-            (_, (Ok(p), _)) => self.ao_at(&p.si, -ray.d, scene, stats, aov),
-            (_, (Err(_), _)) => Rgb::ZERO,
+        if self.mode == Mode::Shade {
+            return shared.shade_sample(index, scene, |hit, env| self.shade_hit(hit, env, scene, sampler, stats, 0));
+        }
+        match shared.sample(index) {
+            (Ok(_), Some(Some((ao, _)))) => ao,
+            (Ok(p), _) => self.ao_at(&p.si, -ray.d, scene, stats, aov),
+            (Err(_), _) => Rgb::ZERO,
         }
     }
 }
