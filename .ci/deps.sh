@@ -6,3 +6,6 @@ set -euo pipefail
 # same test uses to read idiff's numbers at full double precision.
 command -v idiff >/dev/null 2>&1 || (apt-get update && apt-get install -y openimageio-tools)
 python3 -c 'import OpenImageIO' >/dev/null 2>&1 || (apt-get update && apt-get install -y python3-openimageio)
+# Embree 3 for the optional ray-query backend (cargo feature `embree`), whose tests CI runs
+# beside the README's command.
+test -e /usr/include/embree3/rtcore.h || (apt-get update && apt-get install -y libembree-dev)

@@ -71,6 +71,10 @@ pub struct RenderArgs {
     /// costs a few percent).
     #[arg(long)]
     pub phases: bool,
+    /// Ray-query backend, overriding the scene's `Accelerator`: `bvh` (obvhs, the default) or
+    /// `embree` (Embree 3, in builds with the cargo feature `embree`).
+    #[arg(long, value_name = "bvh|embree")]
+    pub accel: Option<String>,
 }
 
 impl RenderArgs {
@@ -185,7 +189,7 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
     args.threads = threads;
     let warnings = DiagSink::new();
     let t0 = Instant::now();
-    let parsed = match pipeline::load_scene(args.scene.as_deref()) {
+    let mut parsed = match pipeline::load_scene(args.scene.as_deref()) {
         Ok(p) => p,
         Err(e) => {
             eprint!("{e}");
@@ -193,7 +197,14 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
         }
     };
     let parse_seconds = t0.elapsed().as_secs_f64();
-    warnings.extend(parsed.warnings);
+    warnings.extend(std::mem::take(&mut parsed.warnings));
+    if let Some(a) = &args.accel {
+        if !matches!(a.as_str(), "bvh" | "embree") {
+            eprintln!("error: --accel must be \"bvh\" or \"embree\", got \"{a}\"");
+            return ExitCode::from(penumbra::exit::USAGE);
+        }
+        parsed.scene.accelerator.kind = a.clone();
+    }
     // A malformed `--param`, one the integrator does not declare, or one of the wrong type is
     // a usage error.
     let params = match cli_params::parse_all(&args.params)

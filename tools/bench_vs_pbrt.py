@@ -1,10 +1,13 @@
 #!/usr/bin/env python3
 """penumbra against pbrt-v3: whole-process wall time, same scene file, same spp, 2 threads each.
 
-Usage: python3 tools/bench_vs_pbrt.py [--runs N] [--rows A,B,...] [--quick] [--json OUT]
+Usage: python3 tools/bench_vs_pbrt.py [--runs N] [--rows A,B,...] [--quick] [--accel LIST] [--json OUT]
   --runs N   runs per program and row (default 3), interleaved: pbrt-v3, penumbra, pbrt-v3, ...
   --rows     comma-separated row names or substrings of them (default: every row; --list shows them)
   --quick    a quarter of the samples and half the resolution of every row (checks the script)
+  --accel    penumbra's ray-query backends to time, comma-separated (`bvh`, `embree`: a build with
+             `--features embree`); each is a column of its own, timed in the same interleaved runs
+             (default: the scene's, i.e. bvh)
   --json     also write every time and figure to OUT
 Environment: PBRT (default ../shared/tools/pbrt-v3/pbrt beside the repository), PENUMBRA
 (default target/release/penumbra: build it first with `cargo build --release`), THREADS (2).
@@ -150,8 +153,11 @@ def main():
     ap.add_argument("--rows", default="")
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--list", action="store_true")
+    ap.add_argument("--accel", default="")
     ap.add_argument("--json")
     args = ap.parse_args()
+    accels = [a for a in args.accel.split(",") if a] or [None]
+    label = lambda a: "penumbra" if a is None else f"penumbra ({a})"  # noqa: E731
     if args.list:
         for r in ROWS:
             print(f"{r[0]:24} {r[1]:17} {r[2]} {r[3]} spp {r[4]}^2")
@@ -181,28 +187,33 @@ def main():
             with open(copy, "w") as f:
                 f.write(rewrite(open(scene).read(), spp, res, pb_img, override, box_filter=False))
             pbrt = [PBRT, "--quiet", "--nthreads", THREADS, copy]
-            ours = [PENUMBRA, "render", copy, "--threads", THREADS, "--quiet", "-o", pe_img]
-            times = {"pbrt-v3": [], "penumbra": []}
+            ours = {a: [PENUMBRA, "render", copy, "--threads", THREADS, "--quiet", "-o", pe_img]
+                    + ([] if a is None else ["--accel", a]) for a in accels}
+            times = {"pbrt-v3": [], **{label(a): [] for a in accels}}
             try:
                 for _ in range(args.runs):
                     times["pbrt-v3"].append(wall(pbrt))
-                    times["penumbra"].append(wall(ours))
-                # One more penumbra run, untimed, recording where its time goes (--phases).
-                wall(ours + ["--phases"])
+                    for a in accels:
+                        times[label(a)].append(wall(ours[a]))
+                # One more run of the first backend, untimed, recording where its time goes (--phases).
+                wall(ours[accels[0]] + ["--phases"])
             finally:
                 os.remove(copy)
             stats = json.load(open(pe_img[: -len(".pfm")] + ".stats.json"))
             med = {k: statistics.median(v) for k, v in times.items()}
+            ratios = {label(a): med[label(a)] / med["pbrt-v3"] for a in accels}
             row = {"name": name, "integrator": integ, "scene": rel, "spp": spp, "resolution": res, "times": times,
-                   "ratio": med["penumbra"] / med["pbrt-v3"], "rmse": rmse(pe_img, pb_img),
+                   "ratio": ratios[label(accels[0])], "ratios": ratios, "rmse": rmse(pe_img, pb_img),
                    "penumbra": penumbra_figures(stats)}
             results.append(row)
-            print(f"{name}: pbrt-v3 {fmt_times(times['pbrt-v3'])}, penumbra {fmt_times(times['penumbra'])}, "
-                  f"ratio {row['ratio']:.2f}, RMSE {row['rmse']:.3g}", flush=True)
-    print("\n| case | spp | pbrt-v3 | penumbra | ratio | RMSE |\n|---|---|---|---|---|---|")
+            ours_txt = ", ".join(f"{k} {fmt_times(times[k])}, ratio {v:.2f}" for k, v in ratios.items())
+            print(f"{name}: pbrt-v3 {fmt_times(times['pbrt-v3'])}, {ours_txt}, RMSE {row['rmse']:.3g}", flush=True)
+    cols = "".join(f" {label(a)} | ratio |" for a in accels)
+    print(f"\n| case | spp | pbrt-v3 |{cols} RMSE |\n|---|---|---|{'---|---|' * len(accels)}---|")
     for r in results:
+        ours_cells = "".join(f" {fmt_times(r['times'][label(a)])} | {r['ratios'][label(a)]:.2f} |" for a in accels)
         print(f"| `{r['integrator']}` {r['name']} {r['resolution']}² | {r['spp']} | {fmt_times(r['times']['pbrt-v3'])} "
-              f"| {fmt_times(r['times']['penumbra'])} | {r['ratio']:.2f} | {r['rmse']:.3g} |")
+              f"|{ours_cells} {r['rmse']:.3g} |")
     print("\npenumbra per phase (an untimed run with --phases: calls, estimated thread-seconds and rate per thread-second)")
     print("| case | parse s | shapes s | BVH s | render s | M rays/s | camera rays | camera-ray hits | closest hits "
           "| shadow | shading s | light sampling s |\n|---|---|---|---|---|---|---|---|---|---|---|---|")

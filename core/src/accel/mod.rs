@@ -15,6 +15,8 @@
 //!
 //! [`objects`]: a small hierarchy over object bounds queried with cones (occluder search).
 
+#[cfg(feature = "embree")]
+mod embree;
 pub mod objects;
 
 use crate::geometry::{gamma, Bounds3, Ray};
@@ -60,8 +62,25 @@ pub struct TriRef {
     pub tri: u32,
 }
 
+/// Which library answers the ray queries (pbrt's `Accelerator` directive, `--accel`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum AccelKind {
+    /// obvhs's compressed wide BVH with the watertight triangle test (the default).
+    #[default]
+    Bvh,
+    /// Embree 3 (cargo feature `embree`); without the feature, the same as `Bvh`.
+    Embree,
+}
+
+impl AccelKind {
+    /// Whether this build of penumbra has the Embree backend.
+    pub const EMBREE_AVAILABLE: bool = cfg!(feature = "embree");
+}
+
 pub struct Accel {
     bvh: CwBvh,
+    #[cfg(feature = "embree")]
+    embree: Option<embree::EmbreeScene>,
     /// Triangles in BVH primitive order, scaled by `scale`.
     tris: Vec<[Vec3A; 3]>,
     refs: Vec<TriRef>,
@@ -158,6 +177,12 @@ impl RayPrecomp {
 impl Accel {
     /// Builds over every triangle of `meshes`, skipping degenerate or non-finite triangles.
     pub fn build(meshes: &[TriangleMesh]) -> Accel {
+        Self::build_with(meshes, AccelKind::Bvh)
+    }
+
+    /// [`build`](Self::build) with the backend `kind`; Embree falls back to the BVH when this
+    /// build lacks it or Embree cannot make a scene ([`kind`](Self::kind) tells which was built).
+    pub fn build_with(meshes: &[TriangleMesh], kind: AccelKind) -> Accel {
         let start = std::time::Instant::now();
         let mut bounds = Bounds3::EMPTY;
         for m in meshes {
@@ -188,6 +213,22 @@ impl Accel {
                 refs.push(TriRef { mesh: mi as u32, tri: ti as u32 });
             }
         }
+        #[cfg(feature = "embree")]
+        if kind == AccelKind::Embree {
+            let tris: Vec<[Vec3A; 3]> = tris.iter().map(|t| t.0).collect();
+            if let Some(scene) = embree::EmbreeScene::build(&tris) {
+                return Accel {
+                    bvh: CwBvh::default(),
+                    embree: Some(scene),
+                    tris,
+                    refs,
+                    scale,
+                    bounds,
+                    build_seconds: start.elapsed().as_secs_f64(),
+                };
+            }
+        }
+        let _ = kind;
         let bvh = if tris.is_empty() {
             CwBvh::default()
         } else {
@@ -198,6 +239,8 @@ impl Accel {
         let refs_ordered = order.iter().map(|&i| refs[i as usize]).collect();
         Accel {
             bvh,
+            #[cfg(feature = "embree")]
+            embree: None,
             tris: tris_ordered,
             refs: refs_ordered,
             scale,
@@ -209,13 +252,37 @@ impl Accel {
     pub fn bounds(&self) -> Bounds3 {
         self.bounds
     }
+    /// The backend that answers this hierarchy's queries.
+    pub fn kind(&self) -> AccelKind {
+        #[cfg(feature = "embree")]
+        if self.embree.is_some() {
+            return AccelKind::Embree;
+        }
+        AccelKind::Bvh
+    }
+
+    /// Embree's answer to a ray query, when Embree is the backend: the ray in BVH space with
+    /// its direction scaled as its origin, so `t` stays the world ray's parameter.
+    #[cfg(feature = "embree")]
+    #[inline]
+    fn embree_ray(&self, ray: &Ray) -> Option<(&embree::EmbreeScene, Vec3A, Vec3A, f32)> {
+        let e = self.embree.as_ref()?;
+        Some((e, Vec3A::from(ray.o * self.scale), Vec3A::from(ray.d * self.scale), ray.t_max))
+    }
+
     pub fn triangle_count(&self) -> usize {
         self.tris.len()
     }
 
+    /// Whether a query can hit anything: triangles to hit, a finite origin and a finite,
+    /// non-zero direction, a `t_max` that is not NaN.
+    #[inline]
+    fn valid_query(&self, ray: &Ray) -> bool {
+        !(self.tris.is_empty() || !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO || ray.t_max.is_nan())
+    }
+
     fn prepare(&self, ray: &Ray) -> Option<(obvhs::ray::Ray, RayPrecomp, f32)> {
-        if self.tris.is_empty() || !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO || ray.t_max.is_nan()
-        {
+        if !self.valid_query(ray) {
             return None;
         }
         // Normalise the direction in BVH space so BACKUP is a distance.
@@ -228,6 +295,15 @@ impl Accel {
 
     /// The closest hit along `ray` with `0 < t < ray.t_max`.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        #[cfg(feature = "embree")]
+        if let Some((e, o, d, t_max)) = self.embree_ray(ray) {
+            if !self.valid_query(ray) {
+                return None;
+            }
+            let (slot, t, b) = e.intersect(o, d, t_max)?;
+            let r = self.refs[slot as usize];
+            return Some(Hit { t, mesh: r.mesh, tri: r.tri, b });
+        }
         let (bray, pre, to_bvh) = self.prepare(ray)?;
         if !traversable(bray.direction) {
             let (slot, t, b) = self.traverse_exact(&bray, &pre, false)?;
@@ -394,6 +470,10 @@ impl Accel {
 
     /// Whether anything blocks `ray` for `0 < t < ray.t_max` (early exit).
     pub fn occluded(&self, ray: &Ray) -> bool {
+        #[cfg(feature = "embree")]
+        if let Some((e, o, d, t_max)) = self.embree_ray(ray) {
+            return self.valid_query(ray) && e.occluded(o, d, t_max);
+        }
         let Some((bray, pre, _)) = self.prepare(ray) else { return false };
         if !traversable(bray.direction) {
             return self.traverse_exact(&bray, &pre, true).is_some();
@@ -427,6 +507,15 @@ pub const DEFAULT_UV: [Vec2; 3] = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec
 mod tests {
     use super::*;
 
+    /// Every backend this build has: each test below runs on each.
+    fn kinds() -> Vec<AccelKind> {
+        if AccelKind::EMBREE_AVAILABLE {
+            vec![AccelKind::Bvh, AccelKind::Embree]
+        } else {
+            vec![AccelKind::Bvh]
+        }
+    }
+
     fn quad(y: f32, scale: f32) -> TriangleMesh {
         let s = scale;
         TriangleMesh {
@@ -443,8 +532,9 @@ mod tests {
 
     #[test]
     fn closest_hit_and_occlusion_at_every_scale() {
-        for scale in [1e-4f32, 1.0, 1e4] {
-            let accel = Accel::build(&[quad(0.0, scale), quad(1.0, scale)]);
+        for (scale, kind) in [1e-4f32, 1.0, 1e4].into_iter().flat_map(|s| kinds().into_iter().map(move |k| (s, k))) {
+            let accel = Accel::build_with(&[quad(0.0, scale), quad(1.0, scale)], kind);
+            assert_eq!(accel.kind(), kind);
             let ray = Ray::new(Vec3::new(0.1, -1.0, 0.2) * scale, Vec3::Y, f32::INFINITY);
             let h = accel.intersect(&ray).expect("hit");
             assert_eq!(h.mesh, 0);
@@ -493,7 +583,13 @@ mod tests {
     /// must hit the sphere at distance ~1, and so must one from outside along an axis.
     #[test]
     fn rays_in_a_box_face_plane_still_hit() {
-        let accel = Accel::build(&[uv_sphere(16, 32)]);
+        for kind in kinds() {
+            rays_in_a_box_face_plane_still_hit_with(kind);
+        }
+    }
+
+    fn rays_in_a_box_face_plane_still_hit_with(kind: AccelKind) {
+        let accel = Accel::build_with(&[uv_sphere(16, 32)], kind);
         let mut misses = 0;
         for k in 0..360 {
             let a = (k as f32).to_radians();
@@ -517,16 +613,18 @@ mod tests {
     #[test]
     fn shared_edges_are_watertight() {
         // Rays through the diagonal shared by the two triangles must hit exactly one of them, never miss.
-        let accel = Accel::build(&[quad(0.0, 1.0)]);
-        let mut misses = 0;
-        for i in 0..1000 {
-            let x = -0.9 + 1.8 * (i as f32 / 999.0);
-            let ray = Ray::new(Vec3::new(x, 1.0, x), -Vec3::Y, f32::INFINITY);
-            if accel.intersect(&ray).is_none() {
-                misses += 1;
+        for kind in kinds() {
+            let accel = Accel::build_with(&[quad(0.0, 1.0)], kind);
+            let mut misses = 0;
+            for i in 0..1000 {
+                let x = -0.9 + 1.8 * (i as f32 / 999.0);
+                let ray = Ray::new(Vec3::new(x, 1.0, x), -Vec3::Y, f32::INFINITY);
+                if accel.intersect(&ray).is_none() {
+                    misses += 1;
+                }
             }
+            assert_eq!(misses, 0, "misses ({kind:?})");
         }
-        assert_eq!(misses, 0, "misses");
     }
 
     #[test]
@@ -586,14 +684,63 @@ mod tests {
         assert!(accel.bundle_candidates(&all, usize::MAX).is_some_and(|c| c.len() > 3));
     }
 
+    /// Embree answers as the BVH does: on a soup of random triangles, with rays in random and
+    /// in axis-parallel directions, the same triangle (rays whose two nearest hits lie within
+    /// 1e-5 of each other aside) at the same distance, and the same occlusion.
+    #[test]
+    fn embree_answers_as_the_bvh() {
+        if !AccelKind::EMBREE_AVAILABLE {
+            return;
+        }
+        let mut rng = crate::rng::Rng::new(5);
+        let mut u = || rng.uniform_f32();
+        let (mut positions, mut indices) = (Vec::new(), Vec::new());
+        for k in 0..3000u32 {
+            let c = Vec3::new(u(), u(), u()) * 20.0 - 10.0;
+            for _ in 0..3 {
+                positions.push(c + (Vec3::new(u(), u(), u()) - 0.5) * 1.5);
+            }
+            indices.push([3 * k, 3 * k + 1, 3 * k + 2]);
+        }
+        let mesh = TriangleMesh { positions, indices, ..Default::default() };
+        let bvh = Accel::build_with(std::slice::from_ref(&mesh), AccelKind::Bvh);
+        let embree = Accel::build_with(std::slice::from_ref(&mesh), AccelKind::Embree);
+        assert_eq!(embree.kind(), AccelKind::Embree);
+        let axes = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
+        let (mut hits, mut differ) = (0, 0);
+        for i in 0..20_000 {
+            let o = Vec3::new(u(), u(), u()) * 24.0 - 12.0;
+            let d = if i % 4 == 0 { axes[i % 6] } else { Vec3::new(u(), u(), u()) * 2.0 - 1.0 };
+            let t_max = if i % 3 == 0 { 5.0 } else { f32::INFINITY };
+            let ray = Ray::new(o, d, t_max);
+            let (a, b) = (bvh.intersect(&ray), embree.intersect(&ray));
+            assert_eq!(bvh.occluded(&ray), embree.occluded(&ray), "ray {ray:?}");
+            assert_eq!(a.is_some(), b.is_some(), "ray {ray:?}: {a:?} {b:?}");
+            let (Some(a), Some(b)) = (a, b) else { continue };
+            hits += 1;
+            assert!((a.t - b.t).abs() <= 1e-4 * a.t.max(1.0), "ray {ray:?}: {a:?} {b:?}");
+            if a.tri != b.tri {
+                differ += 1;
+            } else {
+                assert!(a.b.iter().zip(b.b).all(|(x, y)| (x - y).abs() < 1e-3), "{a:?} {b:?}");
+            }
+        }
+        assert!(hits > 5000, "{hits} hits");
+        assert!(differ <= hits / 1000, "{differ} of {hits} hits on another triangle");
+    }
+
     #[test]
     fn degenerate_input_does_not_panic() {
         let mut m = quad(0.0, 1.0);
         m.positions[1] = Vec3::NAN;
         m.indices.push([0, 0, 0]);
-        let accel = Accel::build(&[m, TriangleMesh::default()]);
-        assert_eq!(accel.triangle_count(), 1);
-        assert!(accel.intersect(&Ray::new(Vec3::ZERO, Vec3::ZERO, 1.0)).is_none());
-        assert!(Accel::build(&[]).intersect(&Ray::new(Vec3::ZERO, Vec3::Y, 1.0)).is_none());
+        for kind in kinds() {
+            let accel = Accel::build_with(&[m.clone(), TriangleMesh::default()], kind);
+            assert_eq!(accel.triangle_count(), 1);
+            assert!(accel.intersect(&Ray::new(Vec3::ZERO, Vec3::ZERO, 1.0)).is_none());
+            assert!(accel.intersect(&Ray::new(Vec3::NAN, Vec3::Y, 1.0)).is_none());
+            assert!(!accel.occluded(&Ray::new(Vec3::ZERO, Vec3::INFINITY, 1.0)));
+            assert!(Accel::build_with(&[], kind).intersect(&Ray::new(Vec3::ZERO, Vec3::Y, 1.0)).is_none());
+        }
     }
 }

@@ -2,7 +2,7 @@
 //! into the [`BuildReport`], each built only when the [`Requirements`] ask for it.
 
 use super::{BuildOptions, BuildReport, Crop, Requirements, Scene};
-use crate::accel::Accel;
+use crate::accel::{Accel, AccelKind};
 use crate::camera::Camera;
 use crate::film::FilmSpec;
 use crate::filter::create_filter;
@@ -56,8 +56,9 @@ impl Scene {
             }
         }
         let accel = if req.accel {
-            let a = Accel::build(&meshes);
-            report.stages.push(("bvh".into(), a.build_seconds, format!("{} triangles", a.triangle_count())));
+            let a = Accel::build_with(&meshes, accel_kind(desc, warnings));
+            let by = if a.kind() == AccelKind::Embree { " (Embree)" } else { "" };
+            report.stages.push(("bvh".into(), a.build_seconds, format!("{} triangles{by}", a.triangle_count())));
             Some(a)
         } else {
             None
@@ -206,6 +207,28 @@ fn sampler(
 }
 
 /// Media are parsed but not rendered: one warning when the scene has any.
+/// The backend the scene's `Accelerator` asks for: `"embree"` is Embree where this build has
+/// it; everything else (pbrt-v3's `"bvh"` and `"kdtree"`) is the BVH, with a warning for
+/// what is not.
+fn accel_kind(desc: &SceneDescription, warnings: &DiagSink) -> AccelKind {
+    let e = &desc.accelerator;
+    match e.kind.as_str() {
+        "bvh" => AccelKind::Bvh,
+        "embree" if AccelKind::EMBREE_AVAILABLE => AccelKind::Embree,
+        "embree" => {
+            warnings.warn(
+                Some(e.loc.clone()),
+                "Accelerator \"embree\": this penumbra was built without Embree (cargo feature \"embree\"): using \"bvh\"",
+            );
+            AccelKind::Bvh
+        }
+        other => {
+            warnings.warn(Some(e.loc.clone()), format!("Accelerator \"{other}\" is not implemented: using \"bvh\""));
+            AccelKind::Bvh
+        }
+    }
+}
+
 fn warn_media(desc: &SceneDescription, warnings: &DiagSink) {
     if !desc.media.is_empty() || desc.shapes.iter().any(|s| s.inside_medium.is_some() || s.outside_medium.is_some()) {
         warnings.warn(
@@ -326,4 +349,64 @@ fn dual_edges(
         ),
     ));
     d
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::CameraSample;
+    use glam::{Vec2, Vec3};
+
+    fn scene(path: &str, accelerator: &str) -> (Scene, DiagSink) {
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path);
+        let mut desc = penumbra_parser::parse_file(&file).unwrap_or_else(|e| panic!("{e}")).scene;
+        desc.accelerator.kind = accelerator.into();
+        let w = DiagSink::new();
+        let req = Requirements { accel: true, ..Default::default() };
+        let opts = BuildOptions { resolution: Some((48, 48)), ..Default::default() };
+        (Scene::build(&desc, req, &opts, &w).unwrap_or_else(|e| panic!("{e}")), w)
+    }
+
+    /// `Accelerator "embree"` builds Embree where this build has it (else the BVH, with a
+    /// warning), and the two answer alike on scenes: the camera rays' first hits, and rays
+    /// spawned from those hits towards a point above (the quad-cube's ground is the plane
+    /// y = 0, whose points have no rounding error, so its rays start exactly on it).
+    #[test]
+    fn embree_scenes_answer_as_the_bvh() {
+        for (path, above) in [
+            ("scenes/suite/ltc/quad-cube.pbrt", Vec3::new(0.1, 2.9, 0.2)),
+            ("scenes/public/mmp-pbrt-v3/scenes/killeroo-simple.pbrt", Vec3::new(0.0, 300.0, 0.0)),
+        ] {
+            let (bvh, _) = scene(path, "bvh");
+            let (other, w) = scene(path, "embree");
+            let accel = other.accel.as_ref().expect("accel");
+            if AccelKind::EMBREE_AVAILABLE {
+                assert_eq!(accel.kind(), AccelKind::Embree);
+            } else {
+                assert_eq!(accel.kind(), AccelKind::Bvh);
+                assert!(w.take().iter().any(|d| d.message.contains("built without Embree")));
+            }
+            let (mut hits, mut shadowed) = (0, 0);
+            for y in 0..48 {
+                for x in 0..48 {
+                    let s = CameraSample {
+                        p_film: Vec2::new(x as f32 + 0.5, y as f32 + 0.5),
+                        p_lens: Vec2::ZERO,
+                        time: 0.0,
+                    };
+                    let ray = bvh.camera.generate_ray(&s);
+                    let (a, b) = (bvh.intersect(&ray), other.intersect(&ray));
+                    assert_eq!(a.map(|h| (h.mesh, h.tri)), b.map(|h| (h.mesh, h.tri)), "{path} pixel ({x}, {y})");
+                    let Some(h) = a else { continue };
+                    hits += 1;
+                    let si = bvh.interaction(&ray, &h);
+                    let up = si.spawn_ray_to(above);
+                    let o = bvh.occluded(&up);
+                    assert_eq!(o, other.occluded(&up), "{path} pixel ({x}, {y}): shadow ray");
+                    shadowed += o as usize;
+                }
+            }
+            assert!(hits > 500 && shadowed < hits / 2, "{path}: {hits} hits, {shadowed} shadowed");
+        }
+    }
 }

@@ -1,0 +1,248 @@
+//! The optional Embree 3 backend of [`Accel`](super::Accel) (cargo feature `embree`, Debian's
+//! `libembree-dev`): the same BVH-space triangles, handed to Embree as one unindexed triangle
+//! geometry, so a hit's `primID` is the triangle's slot in `Accel::tris` and `Accel::refs`.
+//!
+//! Embree's traversal and its triangle test replace obvhs's and the watertight test:
+//! - the scene is built with `RTC_SCENE_FLAG_ROBUST` (no hit lost on shared edges or to
+//!   axis-parallel directions) by a one-thread device, so the hierarchy, and with it which of
+//!   two triangles at exactly the same distance is reported, does not depend on the machine;
+//! - queries run in BVH space (world × the power-of-two `scale`), the direction scaled the
+//!   same way, so Embree's `t` is the world ray's parameter, and start `NEAR` (2⁻²⁰ of the
+//!   scene's extent) along: the rays penumbra spawns leave their surface through
+//!   `offset_ray_origin`, which puts their own triangle behind them or, on an axis-aligned
+//!   face, exactly on it.
+
+use glam::Vec3A;
+use std::ffi::{c_char, c_uint, c_void};
+
+#[allow(non_camel_case_types)]
+type RTCDevice = *mut c_void;
+#[allow(non_camel_case_types)]
+type RTCScene = *mut c_void;
+#[allow(non_camel_case_types)]
+type RTCGeometry = *mut c_void;
+
+const RTC_GEOMETRY_TYPE_TRIANGLE: c_uint = 0;
+const RTC_BUFFER_TYPE_INDEX: c_uint = 0;
+const RTC_BUFFER_TYPE_VERTEX: c_uint = 1;
+const RTC_FORMAT_UINT3: c_uint = 0x5003;
+const RTC_FORMAT_FLOAT3: c_uint = 0x9003;
+const RTC_SCENE_FLAG_ROBUST: c_uint = 1 << 2;
+const RTC_BUILD_QUALITY_MEDIUM: c_uint = 1;
+const RTC_INVALID_GEOMETRY_ID: c_uint = u32::MAX;
+
+/// Where queries start, as a BVH-space distance (the scene's extent is about 1): 2⁻²⁰. A point on
+/// an axis-aligned face has no rounding error, so [`offset_ray_origin`] leaves it on the face
+/// (as pbrt-v3 does) and a ray leaving it finds its own triangle at `t = 0` exactly; obvhs's
+/// path rejects that with pbrt-v3's conservative bound on `t`, Embree's test needs `tnear > 0`.
+///
+/// [`offset_ray_origin`]: crate::geometry::offset_ray_origin
+const NEAR: f32 = 1.0 / (1 << 20) as f32;
+
+#[repr(C, align(16))]
+#[derive(Clone, Copy)]
+struct RtcRay {
+    org: [f32; 3],
+    tnear: f32,
+    dir: [f32; 3],
+    time: f32,
+    tfar: f32,
+    mask: c_uint,
+    id: c_uint,
+    flags: c_uint,
+}
+
+#[repr(C, align(16))]
+#[derive(Clone, Copy)]
+struct RtcHit {
+    ng: [f32; 3],
+    u: f32,
+    v: f32,
+    prim_id: c_uint,
+    geom_id: c_uint,
+    inst_id: [c_uint; 1],
+}
+
+#[repr(C, align(16))]
+struct RtcRayHit {
+    ray: RtcRay,
+    hit: RtcHit,
+}
+
+/// `RTCIntersectContext` as Debian's Embree 3.13 lays it out (`RTC_MAX_INSTANCE_LEVEL_COUNT`
+/// 1, `RTC_MIN_WIDTH` 0).
+#[repr(C)]
+struct RtcIntersectContext {
+    flags: c_uint,
+    filter: *const c_void,
+    inst_id: [c_uint; 1],
+}
+
+impl RtcIntersectContext {
+    /// `rtcInitIntersectContext`: incoherent rays, no filter.
+    fn new() -> Self {
+        RtcIntersectContext { flags: 0, filter: std::ptr::null(), inst_id: [RTC_INVALID_GEOMETRY_ID] }
+    }
+}
+
+#[link(name = "embree3")]
+extern "C" {
+    fn rtcNewDevice(config: *const c_char) -> RTCDevice;
+    fn rtcReleaseDevice(device: RTCDevice);
+    fn rtcGetDeviceError(device: RTCDevice) -> c_uint;
+    fn rtcNewScene(device: RTCDevice) -> RTCScene;
+    fn rtcSetSceneFlags(scene: RTCScene, flags: c_uint);
+    fn rtcSetSceneBuildQuality(scene: RTCScene, quality: c_uint);
+    fn rtcCommitScene(scene: RTCScene);
+    fn rtcReleaseScene(scene: RTCScene);
+    fn rtcNewGeometry(device: RTCDevice, kind: c_uint) -> RTCGeometry;
+    fn rtcSetSharedGeometryBuffer(
+        geometry: RTCGeometry,
+        kind: c_uint,
+        slot: c_uint,
+        format: c_uint,
+        ptr: *const c_void,
+        byte_offset: usize,
+        byte_stride: usize,
+        item_count: usize,
+    );
+    fn rtcCommitGeometry(geometry: RTCGeometry);
+    fn rtcAttachGeometry(scene: RTCScene, geometry: RTCGeometry) -> c_uint;
+    fn rtcReleaseGeometry(geometry: RTCGeometry);
+    fn rtcIntersect1(scene: RTCScene, context: *mut RtcIntersectContext, rayhit: *mut RtcRayHit);
+    fn rtcOccluded1(scene: RTCScene, context: *mut RtcIntersectContext, ray: *mut RtcRay);
+}
+
+/// An Embree scene over `Accel`'s triangles. The vertex and index buffers are shared with
+/// Embree (not copied), so they live here, boxed, as long as the scene.
+pub(super) struct EmbreeScene {
+    device: RTCDevice,
+    scene: RTCScene,
+    _vertices: Box<[Vec3A]>,
+    _indices: Box<[[u32; 3]]>,
+}
+
+// Embree's committed scenes are safe to query from any number of threads at once, and
+// nothing here is mutated after `build`.
+unsafe impl Send for EmbreeScene {}
+unsafe impl Sync for EmbreeScene {}
+
+impl EmbreeScene {
+    /// `None` when Embree cannot make a device or the triangles do not fit its 32-bit ids.
+    pub(super) fn build(tris: &[[Vec3A; 3]]) -> Option<EmbreeScene> {
+        let n = tris.len();
+        if n == 0 || 3 * n >= u32::MAX as usize {
+            return None;
+        }
+        // Vec3A is 16 bytes with 4 readable padding bytes, as Embree's float3 buffers
+        // (read with 16-byte loads) want.
+        let vertices: Box<[Vec3A]> = tris.iter().flatten().copied().collect();
+        let indices: Box<[[u32; 3]]> = (0..n as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        // SAFETY: the FFI calls follow Embree 3's API: every handle is checked before use,
+        // the buffers outlive the scene (owned by the returned value, released in `drop`).
+        unsafe {
+            let device = rtcNewDevice(c"threads=1,verbose=0".as_ptr());
+            if device.is_null() {
+                return None;
+            }
+            let scene = rtcNewScene(device);
+            let geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+            if scene.is_null() || geometry.is_null() {
+                if !scene.is_null() {
+                    rtcReleaseScene(scene);
+                }
+                rtcReleaseDevice(device);
+                return None;
+            }
+            rtcSetSharedGeometryBuffer(
+                geometry,
+                RTC_BUFFER_TYPE_VERTEX,
+                0,
+                RTC_FORMAT_FLOAT3,
+                vertices.as_ptr().cast(),
+                0,
+                std::mem::size_of::<Vec3A>(),
+                vertices.len(),
+            );
+            rtcSetSharedGeometryBuffer(
+                geometry,
+                RTC_BUFFER_TYPE_INDEX,
+                0,
+                RTC_FORMAT_UINT3,
+                indices.as_ptr().cast(),
+                0,
+                std::mem::size_of::<[u32; 3]>(),
+                indices.len(),
+            );
+            rtcCommitGeometry(geometry);
+            rtcAttachGeometry(scene, geometry);
+            rtcReleaseGeometry(geometry);
+            rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+            rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_MEDIUM);
+            rtcCommitScene(scene);
+            if rtcGetDeviceError(device) != 0 {
+                rtcReleaseScene(scene);
+                rtcReleaseDevice(device);
+                return None;
+            }
+            Some(EmbreeScene { device, scene, _vertices: vertices, _indices: indices })
+        }
+    }
+
+    fn ray(o: Vec3A, d: Vec3A, t_max: f32) -> RtcRay {
+        RtcRay {
+            org: o.to_array(),
+            tnear: NEAR / d.length(),
+            dir: d.to_array(),
+            time: 0.0,
+            tfar: t_max,
+            mask: u32::MAX,
+            id: 0,
+            flags: 0,
+        }
+    }
+
+    /// The closest hit with `0 < t < t_max` of the BVH-space ray `o + t d`: the slot, `t`
+    /// and the barycentrics of vertices 0, 1, 2.
+    pub(super) fn intersect(&self, o: Vec3A, d: Vec3A, t_max: f32) -> Option<(u32, f32, [f32; 3])> {
+        let mut rh = RtcRayHit {
+            ray: Self::ray(o, d, t_max),
+            hit: RtcHit {
+                ng: [0.0; 3],
+                u: 0.0,
+                v: 0.0,
+                prim_id: RTC_INVALID_GEOMETRY_ID,
+                geom_id: RTC_INVALID_GEOMETRY_ID,
+                inst_id: [RTC_INVALID_GEOMETRY_ID],
+            },
+        };
+        let mut context = RtcIntersectContext::new();
+        // SAFETY: a committed scene, a properly aligned ray/hit and context.
+        unsafe { rtcIntersect1(self.scene, &mut context, &mut rh) };
+        if rh.hit.geom_id == RTC_INVALID_GEOMETRY_ID {
+            return None;
+        }
+        let (u, v) = (rh.hit.u, rh.hit.v);
+        Some((rh.hit.prim_id, rh.ray.tfar, [1.0 - u - v, u, v]))
+    }
+
+    /// Whether anything lies on the BVH-space ray `o + t d` with `0 < t < t_max`.
+    pub(super) fn occluded(&self, o: Vec3A, d: Vec3A, t_max: f32) -> bool {
+        let mut ray = Self::ray(o, d, t_max);
+        let mut context = RtcIntersectContext::new();
+        // SAFETY: as `intersect`.
+        unsafe { rtcOccluded1(self.scene, &mut context, &mut ray) };
+        // Embree sets tfar to -inf on a hit.
+        ray.tfar < 0.0
+    }
+}
+
+impl Drop for EmbreeScene {
+    fn drop(&mut self) {
+        // SAFETY: the handles were made by `build` and are released once.
+        unsafe {
+            rtcReleaseScene(self.scene);
+            rtcReleaseDevice(self.device);
+        }
+    }
+}
