@@ -11,7 +11,8 @@
 //!   is not bounded by spheres; `shexp` cuts the environment at its horizon instead;
 //! - **shell**: any other open mesh (a wall, a leaf, a partial quadric) cannot be bounded as a
 //!   solid; its surface samples are bounded by spheres fitted without inner points (thick,
-//!   conservative shells: they overshadow rather than vanish), with one warning naming it.
+//!   conservative shells: they overshadow rather than vanish), with one warning naming it; a
+//!   planar one does not shadow its own surface.
 //!
 //! Objects with `"bool occluder" false`, without a material, or without triangles get none.
 
@@ -67,7 +68,9 @@ pub struct SphereSet {
     pub volume: f64,
     pub seconds: f64,
     pub triangles: usize,
-    /// A closed convex solid never shadows its own surface: `shexp` skips the set there.
+    /// A closed convex solid, or a planar open mesh, never shadows its own surface: `shexp`
+    /// skips the set there. (A planar shell's centres lie in its surface's plane, where only
+    /// rounding would decide whether a sphere shadows the surface.)
     pub convex: bool,
 }
 
@@ -335,7 +338,7 @@ pub fn build_for_scene(
             volume: 0.0,
             seconds: t0.elapsed().as_secs_f64(),
             triangles: mesh.triangle_count(),
-            convex: false,
+            convex: plane.is_some(),
         });
     }
     out.sets.sort_by_key(|s| s.object);

@@ -205,6 +205,8 @@ fn ground_plane_and_shells() {
     let shell = sets.sets.iter().find(|s| s.object == 1).unwrap();
     assert_eq!(shell.source, Source::Shell);
     assert_bounds(&wall, &shell.leaves);
+    // A planar shell does not shadow its own surface (its centres are in the wall's plane).
+    assert!(shell.convex);
     assert_eq!(sets.sets.iter().find(|s| s.object == 2).unwrap().source, Source::Fitted);
 }
 

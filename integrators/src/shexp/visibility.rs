@@ -15,8 +15,10 @@ const REL_TOL: f64 = 1e-6;
 /// The sphere to use at receiver `p` with unit normal `n` (seed 003 §4.2, Fig. 4.7), or
 /// `None` when it cannot block: wholly behind the tangent plane, or containing `p`.
 /// - wholly in front (`d ≥ r`, `d = (c − p)·n`): unchanged;
-/// - crossing the plane with its centre in front: replaced by the sphere tangent to the plane
-///   at the centre's foot `q1 = c − d n` and through the top point `q0 = c + r n`;
+/// - crossing the plane with its centre in front (`d` above the tolerance: a centre in the
+///   plane up to rounding, as a planar shell's, counts as behind, so rounding cannot pick the
+///   rule): replaced by the sphere tangent to the plane at the centre's foot `q1 = c − d n`
+///   and through the top point `q0 = c + r n`;
 /// - crossing with the centre behind, `p` outside: that tangent sphere scaled about `q1` by
 ///   `α = min(1, (|p − q1| − ρ)/ρ)` (`ρ = √(r² − d²)`, the radius of the disc the sphere cuts
 ///   from the plane), dropped when `α ≤ 0`, so it shrinks to nothing as `p` nears the disc.
@@ -34,7 +36,7 @@ pub fn adjust(s: &Sphere, p: DVec3, n: DVec3) -> Option<Sphere> {
     }
     let q1 = c - n * d;
     let tangent = Sphere { center: c + n * ((r - d) * 0.5), radius: (r + d) * 0.5 };
-    if d > 0.0 {
+    if d > tol {
         return Some(tangent);
     }
     if p.distance_squared(c) <= (r + tol) * (r + tol) {
@@ -269,7 +271,7 @@ impl Visibility {
 
     /// `V` at `p` on object `object` from every leaf of `sets` the hierarchy does not cull (a
     /// node wholly behind the tangent plane culls its subtree); the receiver's own set is
-    /// skipped when it is convex (it cannot shadow its own surface).
+    /// skipped when it is convex or planar (it cannot shadow its own surface).
     pub fn vector_for_scene(
         &self,
         p: DVec3,
@@ -288,7 +290,7 @@ impl Visibility {
 
 /// Calls `visit(set, leaf)` with every leaf of `sets` that may block at `p` (unit normal `n`)
 /// on object `object`: the hierarchy culls nodes wholly behind the tangent plane, and the
-/// receiver's own set is skipped when it is convex (it cannot shadow its own surface).
+/// receiver's own set is skipped when it is convex or planar (it cannot shadow its own surface).
 pub fn for_each_leaf_seen(sets: &SphereSets, p: DVec3, n: DVec3, object: usize, visit: &mut dyn FnMut(usize, usize)) {
     for (i, set) in sets.sets.iter().enumerate() {
         if set.convex && set.object == object {
