@@ -310,9 +310,18 @@ impl DiffuseAreaLight {
     /// after `Shape::Sample`): direction, solid-angle pdf, emitted radiance toward `ctx`.
     #[inline]
     fn sample_li_from(&self, ctx: &LightContext, point: &AreaLightPoint) -> Option<LightLiSample> {
+        let (wi, pdf, li) = self.li_from(ctx.p, point)?;
         let &AreaLightPoint { p, p_error, n } = point;
+        Some(LightLiSample { li, wi, pdf, p_light: p, p_light_error: p_error, n_light: n, delta: false })
+    }
+
+    /// The direction, solid-angle pdf and radiance of [`Light::sample_li_from`]'s sample at
+    /// the point `at` (`None` where that gives none).
+    #[inline(always)]
+    pub fn li_from(&self, at: Vec3, point: &AreaLightPoint) -> Option<(Vec3, f32, Rgb)> {
+        let &AreaLightPoint { p, n, .. } = point;
         let g = &self.geom;
-        let d = p - ctx.p;
+        let d = p - at;
         let d2 = d.length_squared();
         if !(d2 > 0.0) || !d2.is_finite() {
             return None;
@@ -326,7 +335,7 @@ impl DiffuseAreaLight {
         if li == Rgb::ZERO {
             return None;
         }
-        Some(LightLiSample { li, wi, pdf, p_light: p, p_light_error: p_error, n_light: n, delta: false })
+        Some((wi, pdf, li))
     }
 }
 

@@ -168,16 +168,25 @@ impl SpatialLightDistribution {
         let lights = scene.light_list();
         let prepared = self.area_points.get_or_init(|| self.prepare(lights)).as_deref();
         let mut contrib = vec![0.0f32; lights.len()];
-        for (i, pt) in self.points.iter().enumerate() {
-            let p = (Vec3::ONE - pt.t) * p0 + pt.t * p1;
-            let ctx = LightContext { p, p_error: Vec3::ZERO, n: Vec3::ZERO };
-            for (k, (c, light)) in contrib.iter_mut().zip(lights).enumerate() {
-                let sample = match prepared.map(|v| v[k * self.points.len() + i]) {
-                    Some(Prepared::Area(None)) => None,
-                    Some(Prepared::Area(Some(point))) => light.sample_li_from(&ctx, &point),
-                    Some(Prepared::Other) | None => light.sample_li(&ctx, pt.u, &scene.meshes),
-                };
-                if let Some(ls) = sample {
+        let at: Vec<Vec3> = self.points.iter().map(|pt| (Vec3::ONE - pt.t) * p0 + pt.t * p1).collect();
+        // Light by light, each light's points in order (so each sum adds in the order it
+        // always did); an area light's kept points without `Light::sample_li_from`'s dispatch
+        // and sample record, the same numbers (a tenth of the instructions).
+        for (k, (c, light)) in contrib.iter_mut().zip(lights).enumerate() {
+            let kept = prepared.map(|v| &v[k * self.points.len()..(k + 1) * self.points.len()]);
+            if let (Light::Area(area), Some(kept)) = (light, kept) {
+                for (p, point) in at.iter().zip(kept) {
+                    if let Prepared::Area(Some(point)) = point {
+                        if let Some((_, pdf, li)) = area.li_from(*p, point) {
+                            *c += luminance(li) / pdf;
+                        }
+                    }
+                }
+                continue;
+            }
+            for (p, pt) in at.iter().zip(&self.points) {
+                let ctx = LightContext { p: *p, p_error: Vec3::ZERO, n: Vec3::ZERO };
+                if let Some(ls) = light.sample_li(&ctx, pt.u, &scene.meshes) {
                     if ls.pdf > 0.0 {
                         *c += luminance(ls.li) / ls.pdf;
                     }

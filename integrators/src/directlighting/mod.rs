@@ -13,6 +13,7 @@
 use crate::common::direct::{estimate_direct, sample_one_light, specular};
 use crate::common::params::{ParamSpec, Params};
 use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
+use glam::Vec2;
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, Ray};
@@ -21,7 +22,7 @@ use penumbra_core::integrator::{
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::sampler::Sampler;
-use penumbra_core::scene::{Requirements, Scene, SurfaceHit};
+use penumbra_core::scene::{Requirements, Scene};
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 
@@ -69,12 +70,15 @@ impl Estimator<'_> {
     fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
         let lights = scene.light_list();
         // Surfaces without a material are passed through without counting depth, as pbrt-v3 does.
-        let (first, queries) = scene.first_surface(ray);
+        // (`first_point` and the BSDF built here rather than `first_surface`: the same surface,
+        // without moving the BSDF through two more return values.)
+        let (first, queries) = scene.first_point(ray);
         stats.add_continued(queries);
-        let SurfaceHit { si, bsdf, le, .. } = match first {
-            Ok(h) => h,
+        let (si, le) = match first {
+            Ok(p) => (p.si, p.le),
             Err(escaped) => return escaped,
         };
+        let Some(bsdf) = scene.bsdf(&si) else { return Rgb::ZERO };
         let mut l = le;
         if !lights.is_empty() {
             l += match self.dl.strategy {
@@ -101,19 +105,30 @@ impl Estimator<'_> {
         stats: &mut ThreadStats,
     ) -> Rgb {
         let mut l = Rgb::ZERO;
-        let mut ul = Vec::new();
+        // The light array, copied out of the sampler before the scattering array is asked for:
+        // on the stack for the usual few samples, else on the heap.
+        let mut ul_small = [Vec2::ZERO; 16];
+        let mut ul_large = Vec::new();
         for (i, light) in scene.light_list().iter().enumerate() {
             let n = self.n_light_samples[i];
             // pbrt-v3 takes the light array first, then the scattering array;
             // when either is exhausted, one sample from the plain 2D dimensions.
-            ul.clear();
-            if let Some(a) = sampler.get_2d_array(n) {
-                ul.extend_from_slice(a);
-            }
+            let ul: &[Vec2] = match sampler.get_2d_array(n) {
+                Some(a) if a.len() <= ul_small.len() => {
+                    ul_small[..a.len()].copy_from_slice(a);
+                    &ul_small[..a.len()]
+                }
+                Some(a) => {
+                    ul_large.clear();
+                    ul_large.extend_from_slice(a);
+                    &ul_large
+                }
+                None => &[],
+            };
             match sampler.get_2d_array(n) {
                 Some(us) if ul.len() == n as usize => {
                     let mut ld = Rgb::ZERO;
-                    for (u_scatter, u_light) in us.iter().zip(&ul) {
+                    for (u_scatter, u_light) in us.iter().zip(ul) {
                         ld += estimate_direct(si, bsdf, *u_scatter, i, light, *u_light, scene, stats);
                     }
                     l += ld / n as f32;
