@@ -10,7 +10,9 @@ Usage: python3 tools/bench_vs_pbrt.py [--runs N] [--rows A,B,...] [--quick] [--a
              (default: the scene's, i.e. bvh)
   --json     also write every time and figure to OUT
 Environment: PBRT (default ../shared/tools/pbrt-v3/pbrt beside the repository), PENUMBRA
-(default target/release/penumbra: build it first with `cargo build --release`), THREADS (2).
+(default target/dist/penumbra, else target/release/penumbra: build it first with
+`cargo build --profile dist --features embree`, or without the feature when Embree is not
+installed and --accel is not given), THREADS (2).
 
 Each row is a temporary copy of a scene written beside it (so relative paths resolve) with the
 `Sampler` count, the `Film` (resolution, a .pfm file) and, where the row says so, the
@@ -33,7 +35,9 @@ from pbrt_scene import rewrite  # noqa: E402
 
 ROOT = os.path.dirname(TOOLS)
 PBRT = os.environ.get("PBRT", os.path.join(ROOT, "..", "shared", "tools", "pbrt-v3", "pbrt"))
-PENUMBRA = os.environ.get("PENUMBRA", os.path.join(ROOT, "target", "release", "penumbra"))
+PENUMBRA = os.environ.get("PENUMBRA") or next(
+    (p for p in (os.path.join(ROOT, "target", d, "penumbra") for d in ("dist", "release")) if os.access(p, os.X_OK)),
+    os.path.join(ROOT, "target", "release", "penumbra"))
 THREADS = os.environ.get("THREADS", "2")
 AO1 = '"ambientocclusion" "integer nsamples" [ 1 ]'
 
