@@ -11,6 +11,7 @@
 //! grid (cell volume × inner points inside `S`). Deterministic: no random numbers, so the
 //! same mesh always gives the same set (and the cache key is the mesh).
 
+use super::canonical::{argmax_tol, argmin_tol, TIE};
 use super::Sphere;
 use crate::mesh::TriangleMesh;
 use glam::DVec3;
@@ -68,7 +69,11 @@ fn r2(i: usize) -> (f64, f64) {
     ((0.5 + a1 * i as f64).fract(), (0.5 + a2 * i as f64).fract())
 }
 
-/// Every distinct vertex, then about `count` samples spread over the triangles by area.
+/// Every distinct vertex, then about `count` samples spread over the triangles by area. A
+/// triangle gets `⌊count · area / total + d_t⌋` samples, `d_t` a fixed dither in [0, 1) per
+/// triangle (golden-ratio sequence): unlike a carried remainder, equal triangles (tessellated
+/// quadrics) do not sum to exact integers that rounding decides, and one triangle's count
+/// does not depend on the others' rounding.
 pub fn surface_samples(mesh: &TriangleMesh, count: usize) -> Vec<DVec3> {
     let mut out: Vec<DVec3> = Vec::new();
     let mut seen = std::collections::HashSet::new();
@@ -77,16 +82,18 @@ pub fn surface_samples(mesh: &TriangleMesh, count: usize) -> Vec<DVec3> {
             out.push(p.as_dvec3());
         }
     }
-    let total = mesh.total_area();
+    let area = |t: usize| {
+        let [a, b, c] = mesh.vertices(t).map(|p| p.as_dvec3());
+        0.5 * (b - a).cross(c - a).length()
+    };
+    let total: f64 = (0..mesh.triangle_count()).map(area).sum();
     if !(total > 0.0) || count == 0 {
         return out;
     }
-    let mut carry = 0.0;
+    const PHI: f64 = 0.618_033_988_749_894_8;
     let mut seq = 0usize;
     for t in 0..mesh.triangle_count() {
-        let want = mesh.area(t) as f64 / total * count as f64 + carry;
-        let n = want.floor() as usize;
-        carry = want - n as f64;
+        let n = (area(t) / total * count as f64 + (0.5 + PHI * t as f64).fract()).floor() as usize;
         let [a, b, c] = mesh.vertices(t).map(|p| p.as_dvec3());
         for _ in 0..n {
             let (u, v) = r2(seq);
@@ -237,11 +244,24 @@ impl Problem<'_> {
         self.surface.iter().map(|p| p.distance_squared(c)).fold(f64::INFINITY, f64::min).sqrt()
     }
 
-    /// `Vol(S \ O)` for a sphere (grid estimate, never below 0).
+    /// `Vol(S \ O)` for a sphere (grid estimate, never below 0). An inner point counts fully
+    /// when at least a quarter cell inside the sphere, not at all a quarter cell outside, and
+    /// linearly in between: the estimate is continuous in the centre and radius, so that
+    /// rounding (a scaled or turned mesh) moves it by rounding instead of by a whole cell,
+    /// which would send Nelder–Mead elsewhere.
     fn outside(&self, c: DVec3, r: f64) -> f64 {
-        let r2 = r * r;
-        let n = self.inner_points().iter().filter(|p| p.distance_squared(c) <= r2).count();
-        (4.0 / 3.0 * PI * r * r * r - n as f64 * self.cell).max(0.0)
+        let band = 0.25 * self.cell.cbrt();
+        let (lo2, hi2) = ((r - band).max(0.0).powi(2), (r + band).powi(2));
+        let mut n = 0.0;
+        for p in self.inner_points() {
+            let d2 = p.distance_squared(c);
+            if d2 <= lo2 {
+                n += 1.0;
+            } else if d2 < hi2 {
+                n += (r + band - d2.sqrt()) / (2.0 * band);
+            }
+        }
+        (4.0 / 3.0 * PI * r * r * r - n * self.cell).max(0.0)
     }
 
     /// Assigns every point to the sphere whose outside volume grows least (its distance
@@ -250,14 +270,8 @@ impl Problem<'_> {
         let w: Vec<f64> = centres.iter().map(|c| self.clearance(*c)).collect();
         let mut sets = vec![Vec::new(); centres.len()];
         for (pi, p) in self.points.iter().enumerate() {
-            let mut best = (f64::INFINITY, 0);
-            for (i, c) in centres.iter().enumerate() {
-                let cost = p.distance(*c) - w[i];
-                if cost < best.0 {
-                    best = (cost, i);
-                }
-            }
-            sets[best.1].push(pi as u32);
+            let best = argmin_tol(centres.iter().zip(&w).map(|(c, w)| p.distance(*c) - w), TIE).unwrap_or(0);
+            sets[best].push(pi as u32);
         }
         sets
     }
@@ -306,7 +320,8 @@ fn initial_centres(problem: &Problem, k: usize) -> Vec<DVec3> {
     let mut gap = vec![f64::INFINITY; cand.len()];
     while chosen.len() < k.min(cand.len()) {
         let score = |i: usize| if chosen.is_empty() { clear[i] } else { gap[i] * (clear[i] + 1e-12) };
-        let Some(best) = (0..cand.len()).max_by(|&a, &b| score(a).total_cmp(&score(b))) else { break };
+        let top = (0..cand.len()).map(score).fold(0.0, f64::max);
+        let Some(best) = argmax_tol((0..cand.len()).map(score), TIE * top) else { break };
         if !chosen.is_empty() && !(gap[best] > 0.0) {
             break;
         }
@@ -359,8 +374,11 @@ pub fn fit(mesh: &TriangleMesh, params: &FitParams) -> Fit {
         }
         let ov = overlaps(&problem, &spheres);
         let out: Vec<f64> = spheres.iter().map(|s| problem.outside(s.center, s.radius)).collect();
-        let Some(remove) = (0..spheres.len()).max_by(|&a, &b| ov[a].total_cmp(&ov[b])) else { break };
-        let Some(split) = (0..spheres.len()).filter(|&i| i != remove).max_by(|&a, &b| out[a].total_cmp(&out[b])) else {
+        // Overlaps are whole cells; outside volumes tie within TIE of the largest.
+        let Some(remove) = argmax_tol(ov.iter().copied(), 0.5 * cell) else { break };
+        let top = out.iter().copied().fold(0.0, f64::max);
+        let others = out.iter().enumerate().map(|(i, v)| if i == remove { f64::NEG_INFINITY } else { *v });
+        let Some(split) = argmax_tol(others, TIE * top).filter(|&i| i != remove) else {
             break;
         };
         // The two farthest-apart points of the split sphere (two sweeps).
@@ -370,7 +388,8 @@ pub fn fit(mesh: &TriangleMesh, params: &FitParams) -> Fit {
             continue;
         }
         let far = |from: DVec3| {
-            set.iter().map(|&i| points[i as usize]).max_by(|a, b| a.distance(from).total_cmp(&b.distance(from)))
+            argmax_tol(set.iter().map(|&i| points[i as usize].distance(from)), TIE * scale)
+                .map(|j| points[set[j] as usize])
         };
         let (Some(a), Some(b)) = (far(spheres[split].center), far(far(spheres[split].center).unwrap_or_default()))
         else {
@@ -400,20 +419,14 @@ pub fn fit(mesh: &TriangleMesh, params: &FitParams) -> Fit {
 /// contains the point (with a relative margin of 1e-6).
 pub fn cover(spheres: &mut [Sphere], points: &[DVec3]) {
     const MARGIN: f64 = 1.0 + 1e-6;
+    // Growths within TIE of the largest radius tie (lowest index wins).
+    let tol = TIE * spheres.iter().map(|s| s.radius).fold(0.0, f64::max);
     for p in points {
-        let mut best = (f64::INFINITY, usize::MAX);
-        for (i, s) in spheres.iter().enumerate() {
-            let d = p.distance(s.center);
-            if d <= s.radius {
-                best = (0.0, i);
-                break;
-            }
-            if d - s.radius < best.0 {
-                best = (d - s.radius, i);
-            }
+        if spheres.iter().any(|s| p.distance(s.center) <= s.radius) {
+            continue;
         }
-        if best.0 > 0.0 && best.1 != usize::MAX {
-            let s = &mut spheres[best.1];
+        if let Some(i) = argmin_tol(spheres.iter().map(|s| p.distance(s.center) - s.radius), tol) {
+            let s = &mut spheres[i];
             s.radius = p.distance(s.center) * MARGIN;
         }
     }

@@ -17,6 +17,7 @@
 //! Objects with `"bool occluder" false`, without a material, or without triangles get none.
 
 pub mod cache;
+pub mod canonical;
 pub mod fit;
 pub mod hierarchy;
 
@@ -192,7 +193,27 @@ fn single_sphere(mesh: &TriangleMesh, volume: f64, params: &FitParams) -> Fit {
 }
 
 /// A closed mesh's leaves: the variational fit, or one sphere when that sticks out less.
+/// Fitted in the mesh's [canonical frame](canonical) and mapped back, so that a uniformly
+/// scaled or turned mesh gets the same spheres, scaled and turned, up to rounding; the leaves
+/// then bound every world-space vertex.
 pub fn fit_closed(mesh: &TriangleMesh, params: &FitParams) -> Fit {
+    let world: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+    let frame = canonical::Frame::of(&world);
+    let local = TriangleMesh {
+        positions: world.iter().map(|p| frame.to_local(*p).as_vec3()).collect(),
+        indices: mesh.indices.clone(),
+        ..Default::default()
+    };
+    let mut f = fit_closed_local(&local, params);
+    f.spheres.iter_mut().for_each(|s| *s = frame.sphere_to_world(*s));
+    fit::cover(&mut f.spheres, &world);
+    let cube = frame.scale.powi(3);
+    f.outside_volume *= cube;
+    f.volume *= cube;
+    f
+}
+
+fn fit_closed_local(mesh: &TriangleMesh, params: &FitParams) -> Fit {
     let volume = fit::mesh_volume(mesh);
     let one = single_sphere(mesh, volume, params);
     if params.spheres <= 1 {
@@ -327,7 +348,11 @@ pub fn build_for_scene(
         let t0 = Instant::now();
         let mesh = &meshes[i];
         let surface = fit::surface_samples(mesh, params.surface_points as usize);
-        let spheres = shell(&surface, params.spheres.max(1) as usize);
+        // In the canonical frame, so that the ties below are scale-free.
+        let frame = canonical::Frame::of(&surface);
+        let local: Vec<DVec3> = surface.iter().map(|p| frame.to_local(*p)).collect();
+        let spheres: Vec<Sphere> =
+            shell(&local, params.spheres.max(1) as usize).into_iter().map(|s| frame.sphere_to_world(s)).collect();
         let outside_volume = spheres.iter().map(Sphere::volume).sum();
         out.sets.push(SphereSet {
             object: i,
@@ -345,27 +370,29 @@ pub fn build_for_scene(
     out
 }
 
-/// `k` spheres bounding surface samples: Lloyd (k-means) clusters seeded by farthest points,
-/// each bounded by its smallest enclosing sphere about its centroid.
+/// `k` spheres bounding surface samples (given in units of their extent): Lloyd (k-means)
+/// clusters seeded by farthest points, each bounded by its smallest enclosing sphere about its
+/// centroid. Distances within [`canonical::TIE`] tie, and ties go to the lowest index.
 fn shell(points: &[DVec3], k: usize) -> Vec<Sphere> {
+    use canonical::{argmax_tol, argmin_tol, TIE};
     if points.is_empty() {
         return Vec::new();
     }
     let k = k.min(points.len());
     let mut seeds = vec![points[0]];
-    let mut gap: Vec<f64> = points.iter().map(|p| p.distance_squared(points[0])).collect();
+    let mut gap: Vec<f64> = points.iter().map(|p| p.distance(points[0])).collect();
     while seeds.len() < k {
-        let Some(i) = (0..points.len()).max_by(|&a, &b| gap[a].total_cmp(&gap[b])) else { break };
+        let Some(i) = argmax_tol(gap.iter().copied(), TIE) else { break };
         seeds.push(points[i]);
         for (g, p) in gap.iter_mut().zip(points) {
-            *g = g.min(p.distance_squared(points[i]));
+            *g = g.min(p.distance(points[i]));
         }
     }
     let mut groups = vec![Vec::new(); k];
     for _ in 0..10 {
         groups = vec![Vec::new(); k];
         for p in points {
-            let g = (0..k).min_by(|&a, &b| seeds[a].distance_squared(*p).total_cmp(&seeds[b].distance_squared(*p)));
+            let g = argmin_tol(seeds.iter().map(|s| s.distance(*p)), TIE);
             groups[g.unwrap_or(0)].push(*p);
         }
         for (s, g) in seeds.iter_mut().zip(&groups) {

@@ -238,3 +238,74 @@ fn cache_round_trip_and_unwritable_dir() {
     assert_eq!(blocked.sets[0].leaves, first.sets[0].leaves);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An open cylinder about +z (radius `r`, height `h`, `n` segments, `m` rings): a shell.
+fn open_cylinder(r: f32, h: f32, n: u32, m: u32) -> TriangleMesh {
+    let mut p = Vec::new();
+    for j in 0..=m {
+        for i in 0..n {
+            let u = 2.0 * std::f32::consts::PI * i as f32 / n as f32;
+            p.push(Vec3::new(r * u.cos(), r * u.sin(), h * j as f32 / m as f32));
+        }
+    }
+    let mut idx = Vec::new();
+    for j in 0..m {
+        for i in 0..n {
+            let (a, b) = (j * n + i, j * n + (i + 1) % n);
+            idx.push([a, b, b + n]);
+            idx.push([a, b + n, a + n]);
+        }
+    }
+    mesh(p, idx)
+}
+
+/// A mesh scaled by `s` and turned 37° about (1, 2, 3) gets the same spheres, scaled and
+/// turned, up to rounding. Before the canonical frame, the tie-robust choices, the dithered
+/// surface sampling and the continuous inner-point count, rounding alone (the f32 positions of
+/// the transformed mesh) moved leaves by up to a full radius: the variational fit's grid is
+/// axis-aligned, a tessellated quadric's equal triangles made the carried sample count an
+/// exact integer that rounding decided, and symmetric shapes tie everywhere.
+#[test]
+fn fits_and_shells_do_not_depend_on_scale_or_orientation() {
+    let moved = |m: &TriangleMesh, f: &dyn Fn(DVec3) -> DVec3| TriangleMesh {
+        positions: m.positions.iter().map(|p| f(p.as_dvec3()).as_vec3()).collect(),
+        ..m.clone()
+    };
+    let offset = DVec3::new(2.0, -1.0, 0.5);
+    let torus = moved(&torus(1.0, 0.3, 24, 12), &|p| p + offset);
+    let cylinder = moved(&open_cylinder(0.75, 2.0, 24, 4), &|p| p - offset);
+    let objs = [object("trianglemesh"), object("trianglemesh")];
+    let fitted = |meshes: [TriangleMesh; 2]| build_for_scene(&meshes, &objs, &small(), None);
+    let base = fitted([torus.clone(), cylinder.clone()]);
+    assert_eq!(base.sets.iter().map(|s| s.source).collect::<Vec<_>>(), [Source::Fitted, Source::Shell]);
+    let rot = glam::DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 37f64.to_radians());
+    type Map = Box<dyn Fn(DVec3) -> DVec3>;
+    type Back = Box<dyn Fn(Sphere) -> Sphere>;
+    let variants: [(&str, Map, Back); 3] = [
+        ("scale 1e-4", Box::new(|p| p * 1e-4), Box::new(|s| Sphere { center: s.center * 1e4, radius: s.radius * 1e4 })),
+        ("scale 1e4", Box::new(|p| p * 1e4), Box::new(|s| Sphere { center: s.center * 1e-4, radius: s.radius * 1e-4 })),
+        ("turned", Box::new(move |p| rot * p), Box::new(move |s| Sphere { center: rot.transpose() * s.center, ..s })),
+    ];
+    let mut worst: Vec<String> = Vec::new();
+    for (name, forward, back) in &variants {
+        let v = fitted([moved(&torus, forward), moved(&cylinder, forward)]);
+        for (a, b) in base.sets.iter().zip(&v.sets) {
+            let ext = a.leaves.iter().map(|s| s.radius).fold(0.0, f64::max);
+            assert_eq!(a.leaves.len(), b.leaves.len(), "{name}, object {}", a.object);
+            let d = a
+                .leaves
+                .iter()
+                .zip(&b.leaves)
+                .map(|(x, y)| {
+                    let y = back(*y);
+                    (x.center.distance(y.center) + (x.radius - y.radius).abs()) / ext
+                })
+                .fold(0.0, f64::max);
+            eprintln!("{name}, object {} ({:?}): leaves moved by {d:.1e} of the largest radius", a.object, a.source);
+            if !(d < 1e-4) {
+                worst.push(format!("{name}, object {}: {d:.1e}", a.object));
+            }
+        }
+    }
+    assert!(worst.is_empty(), "{worst:?}");
+}
