@@ -8,7 +8,8 @@
 //! split the one sticking out most; kept only when the total outside volume drops).
 //!
 //! Outside volume `Vol(S \ O) = Vol(S) − Vol(S ∩ O)`, with `Vol(S ∩ O)` counted on the inner
-//! grid (cell volume × inner points inside `S`). Deterministic: no random numbers, so the
+//! grid (cell volume × inner points inside `S`, those within a quarter cell of its surface
+//! counted in part). Deterministic: no random numbers, so the
 //! same mesh always gives the same set (and the cache key is the mesh).
 
 use super::canonical::{argmax_tol, argmin_tol, TIE};
