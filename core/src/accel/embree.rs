@@ -113,12 +113,11 @@ extern "C" {
     fn rtcOccluded1(scene: RTCScene, context: *mut RtcIntersectContext, ray: *mut RtcRay);
 }
 
-/// An Embree scene over `Accel`'s triangles. The vertex and index buffers are shared with
-/// Embree (not copied), so they live here, boxed, as long as the scene.
+/// An Embree scene over `Accel`'s triangles. Both buffers are shared with Embree (not
+/// copied): the vertices are `Accel::tris` itself, the index buffer lives here, boxed.
 pub(super) struct EmbreeScene {
     device: RTCDevice,
     scene: RTCScene,
-    _vertices: Box<[Vec3A]>,
     _indices: Box<[[u32; 3]]>,
 }
 
@@ -129,17 +128,22 @@ unsafe impl Sync for EmbreeScene {}
 
 impl EmbreeScene {
     /// `None` when Embree cannot make a device or the triangles do not fit its 32-bit ids.
-    pub(super) fn build(tris: &[[Vec3A; 3]]) -> Option<EmbreeScene> {
+    ///
+    /// # Safety
+    /// Embree reads `tris` in place for every query: the caller keeps that memory alive and
+    /// unchanged until the returned scene is dropped (`Accel` holds both, the scene dropped
+    /// first).
+    pub(super) unsafe fn build(tris: &[[Vec3A; 3]]) -> Option<EmbreeScene> {
         let n = tris.len();
         if n == 0 || 3 * n >= u32::MAX as usize {
             return None;
         }
-        // Vec3A is 16 bytes with 4 readable padding bytes, as Embree's float3 buffers
-        // (read with 16-byte loads) want.
-        let vertices: Box<[Vec3A]> = tris.iter().flatten().copied().collect();
+        // The triangles' vertices in a row, 16 bytes each (Vec3A, with 4 readable padding
+        // bytes, as Embree's float3 buffers, read with 16-byte loads, want).
+        let vertices: &[Vec3A] = tris.as_flattened();
         let indices: Box<[[u32; 3]]> = (0..n as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
-        // SAFETY: the FFI calls follow Embree 3's API: every handle is checked before use,
-        // the buffers outlive the scene (owned by the returned value, released in `drop`).
+        // SAFETY: the FFI calls follow Embree 3's API: every handle is checked before use; the
+        // index buffer is owned by the returned value, the vertices by the caller (see above).
         unsafe {
             let device = rtcNewDevice(c"threads=1,verbose=0".as_ptr());
             if device.is_null() {
@@ -185,7 +189,7 @@ impl EmbreeScene {
                 rtcReleaseDevice(device);
                 return None;
             }
-            Some(EmbreeScene { device, scene, _vertices: vertices, _indices: indices })
+            Some(EmbreeScene { device, scene, _indices: indices })
         }
     }
 

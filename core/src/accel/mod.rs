@@ -79,6 +79,8 @@ impl AccelKind {
 
 pub struct Accel {
     bvh: CwBvh,
+    /// Embree's scene, which reads `tris` in place: declared before `tris` so it is dropped
+    /// first.
     #[cfg(feature = "embree")]
     embree: Option<embree::EmbreeScene>,
     /// Triangles in BVH primitive order, scaled by `scale`.
@@ -216,7 +218,9 @@ impl Accel {
         #[cfg(feature = "embree")]
         if kind == AccelKind::Embree {
             let tris: Vec<[Vec3A; 3]> = tris.iter().map(|t| t.0).collect();
-            if let Some(scene) = embree::EmbreeScene::build(&tris) {
+            // SAFETY: `tris` moves into the returned `Accel` (its heap buffer stays where it
+            // is) and is never changed; `embree` is declared before it, so dropped first.
+            if let Some(scene) = unsafe { embree::EmbreeScene::build(&tris) } {
                 return Accel {
                     bvh: CwBvh::default(),
                     embree: Some(scene),
