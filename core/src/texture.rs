@@ -844,6 +844,8 @@ fn image_rgb(img: &crate::image::Image) -> Result<Vec<Rgb>, String> {
 }
 
 fn has_ext(name: &str, ext: &str) -> bool {
+    // On bytes: a name ending in a multi-byte character must not be sliced inside it (found by the fuzz smoke).
+    let (name, ext) = (name.as_bytes(), ext.as_bytes());
     name.len() >= ext.len() && name[name.len() - ext.len()..].eq_ignore_ascii_case(ext)
 }
 
