@@ -9,7 +9,9 @@
 //!   the receiver-inside rules; caps wider than `"float bigblocker"` are multiplied explicitly;
 //! - `LH(N)`: the exact order-n projection of `L · max(0, N·ω)`, with the environment cut at
 //!   the ground plane's horizon when the scene has one (an open planar mesh under everything);
-//! - the result is clamped to `[0, LH(N)·1]` (between black and unshadowed).
+//! - the result is clamped to `[0, LH(N)·1]` (between black and unshadowed);
+//! - plus, when the ground plane is finite, the environment below the horizon that passes
+//!   its edge ([`horizon`], in closed form along each azimuth; not shadowed by the spheres).
 //!
 //! Open occluders other than the ground plane are bounded by conservative sphere shells (one
 //! warning names each). What SH at low order cannot carry, and what is not Lambertian, goes
@@ -25,10 +27,15 @@
 //! - `"float bigblocker"` 45: caps wider than this (degrees) are multiplied explicitly.
 //! - `"integer lhresolution"` 32: normal cubemap texels per face edge for `LH(N)`.
 //! - `"integer maxdepth"` 5: specular recursion depth, as `directlighting`.
-//! - `"integer brightlights"` 4: at most this many bright compact regions of each map become
-//!   directional lights with shadow rays ([`bright`]; 0: the whole map is projected to SH).
-//! - `"float brightratio"` 4, `"float brightradius"` 45: a region is split off while its peak
+//! - `"integer brightlights"` 4: at most this many bright compact regions of each map are
+//!   shaded with shadow rays instead of SH ([`bright`]; 0: the whole map is projected to SH).
+//! - `"float brightratio"` 2, `"float brightradius"` 75: a region is split off while its peak
 //!   is at least this many times the map's mean luminance; its largest radius (degrees).
+//! - `"integer brightsamples"` 1: shadow rays per split region and camera sample.
+//! - `"string brightestimator"` `"ratio"`: a split region's light is its unshadowed irradiance
+//!   (tabulated over the normal) times the visible share of directions drawn by power × cosine
+//!   (unbiased, and exact wherever the region is wholly seen or hidden); `"plain"`: directions
+//!   drawn by power, each weighted by its cosine.
 //! - `"bool interreflect"` false: the thesis's one-bounce diffuse reflection off the closed
 //!   objects' sphere sets ([`reflect`]): `ρ/π · E^R` is added to the Lambertian part.
 //! - `"string formfactor"` `"exact"`: how a reflecting sphere's radiance reaches a receiver
@@ -37,6 +44,7 @@
 //!   light onto what stands on it ([`reflect::ground`]; not in the thesis).
 
 pub mod bright;
+pub mod horizon;
 pub mod lighting;
 pub mod reflect;
 pub mod visibility;
@@ -73,8 +81,14 @@ pub struct Shexp {
     /// Radians.
     pub big_theta: f64,
     pub lh_resolution: usize,
-    /// Bright regions split off each environment map as directional lights.
+    /// Bright regions split off each environment map and shaded with shadow rays.
     pub bright: bright::SplitRule,
+    /// Shadow rays per split region per camera sample.
+    pub bright_samples: u32,
+    /// `"string brightestimator"` `ratio` (default): the region's unshadowed irradiance times
+    /// the visible share of directions drawn by power × cosine; `plain`: power-sampled
+    /// directions weighted by their cosine.
+    pub bright_ratio: bool,
     pub max_depth: u32,
     pub pixel_bounds: Option<Bounds2i>,
     /// One bounce of diffuse reflection off the sphere-set objects ([`reflect`]).
@@ -106,12 +120,24 @@ pub const PARAMS: &[ParamSpec] = &[
         .range(0, 64),
     ParamSpec::float(
         "brightratio",
-        4.0,
+        bright::PEAK_RATIO as f32,
         "a bright region is split off only if its peak is this many times the map's mean luminance",
     )
     .within(Range::PositiveFinite),
-    ParamSpec::float("brightradius", 45.0, "largest angular radius (degrees) of a split bright region")
+    ParamSpec::float("brightradius", 75.0, "largest angular radius (degrees) of a split bright region")
         .within(Range::LeftOpen(0.0, 90.0)),
+    ParamSpec::int(
+        "brightsamples",
+        1,
+        "shadow rays per split bright region and camera sample, in directions drawn over the region",
+    )
+    .range(1, 1024),
+    ParamSpec::choice(
+        "brightestimator",
+        &["ratio", "plain"],
+        "split regions: unshadowed irradiance × visible share of power·cosine-drawn directions (exact where all or none is seen), or power-drawn directions × cosine",
+    )
+    .strict(),
     ParamSpec::bool(
         "interreflect",
         false,
@@ -146,6 +172,8 @@ impl Shexp {
             peak_ratio: p.float("brightratio")? as f64,
             max_radius: (p.float("brightradius")? as f64).to_radians(),
         };
+        let bright_samples = p.count("brightsamples")?;
+        let bright_ratio = p.choice("brightestimator", [true, false])?;
         let interreflect = p.bool("interreflect")?;
         let form_factor =
             p.choice("formfactor", [reflect::tables::FormFactor::Exact, reflect::tables::FormFactor::Thesis])?;
@@ -161,6 +189,8 @@ impl Shexp {
             big_theta: (big as f64).to_radians(),
             lh_resolution,
             bright,
+            bright_samples,
+            bright_ratio,
             max_depth,
             pixel_bounds,
             interreflect,
@@ -191,6 +221,8 @@ struct Estimator<'a> {
     shexp: &'a Shexp,
     vis: Visibility,
     env: Option<EnvLighting>,
+    /// The environment under the horizon beyond the ground plane's edge ([`horizon`]).
+    gap: Option<horizon::HorizonGap>,
     sets: &'a SphereSets,
     infinite: Vec<usize>,
     others: Vec<usize>,
@@ -238,6 +270,11 @@ impl Estimator<'_> {
                 let unshadowed = lh[0][c] * penumbra_core::sh::SQRT_4PI;
                 out[c] = if shadowed.is_finite() { shadowed.clamp(0.0, unshadowed.max(0.0)) } else { 0.0 };
             }
+            if let Some(gap) = &self.gap {
+                for (o, e) in out.iter_mut().zip(gap.irradiance(p, n)) {
+                    *o += e;
+                }
+            }
             if let (Some(g), Some(radiance)) = (&self.ground, ground) {
                 for (o, e) in out.iter_mut().zip(g.irradiance((p, n), radiance, v, below, tmp)) {
                     *o += e;
@@ -281,7 +318,10 @@ impl Estimator<'_> {
     }
 
     /// Adds to `e` the irradiance per channel from the split-off bright regions at `si` (unit
-    /// shading normal `n`, on the side of `side` by the geometric normal): one shadow ray each.
+    /// shading normal `n`, on the side of `side` by the geometric normal). With `sampler`:
+    /// `"brightsamples"` shadow rays per region in directions drawn over it
+    /// ([`bright::BrightLight::sample`]), so a wide region casts soft shadows; without (the
+    /// bounce's precomputations): one ray towards its power's centroid.
     fn add_bright(
         &self,
         e: &mut [f64; 3],
@@ -289,17 +329,51 @@ impl Estimator<'_> {
         (n, side): (Vec3, Vec3),
         scene: &Scene,
         shadow_rays: &mut u64,
+        mut sampler: Option<&mut dyn Sampler>,
     ) {
-        for b in &self.bright {
-            let d = b.dir.as_vec3();
-            let c = n.dot(d);
-            if c <= 0.0 || si.n.dot(d) * si.n.dot(side) <= 0.0 {
-                continue;
+        // Whether direction `d` reaches the region (above both normals' sides, unoccluded).
+        let visible = |d: Vec3, shadow_rays: &mut u64| {
+            if n.dot(d) <= 0.0 || si.n.dot(d) * si.n.dot(side) <= 0.0 {
+                return false;
             }
             *shadow_rays += 1;
-            if !scene.occluded(&si.spawn_ray(d)) {
-                for (ch, v) in e.iter_mut().enumerate() {
-                    *v += b.irradiance[ch] * c as f64;
+            !scene.occluded(&si.spawn_ray(d))
+        };
+        let nd = n.as_dvec3().normalize();
+        for b in &self.bright {
+            match sampler.as_deref_mut() {
+                Some(sampler) => {
+                    let k = self.shexp.bright_samples.max(1);
+                    if self.shexp.bright_ratio {
+                        for _ in 0..k {
+                            let u = sampler.get_2d();
+                            let x = b.estimate(nd, [u.x, u.y], &mut |d| visible(d.as_vec3(), shadow_rays));
+                            for (v, x) in e.iter_mut().zip(x) {
+                                *v += x / k as f64;
+                            }
+                        }
+                    } else {
+                        for _ in 0..k {
+                            let u = sampler.get_2d();
+                            let (d, w) = b.sample([u.x, u.y]);
+                            let d = d.as_vec3();
+                            if visible(d, shadow_rays) {
+                                let c = n.dot(d) as f64;
+                                for (v, x) in e.iter_mut().zip(w) {
+                                    *v += x * c / k as f64;
+                                }
+                            }
+                        }
+                    }
+                }
+                None => {
+                    let d = b.dir.as_vec3();
+                    if visible(d, shadow_rays) {
+                        let c = n.dot(d) as f64;
+                        for (v, x) in e.iter_mut().zip(b.irradiance) {
+                            *v += x * c;
+                        }
+                    }
                 }
             }
         }
@@ -331,7 +405,7 @@ impl Estimator<'_> {
         let si = &sample.si;
         let mut e = self.shadowed(si.p.as_dvec3(), sample.n, si.mesh as usize, None);
         let n = sample.n.as_vec3();
-        self.add_bright(&mut e, si, (n, n), scene, shadow_rays);
+        self.add_bright(&mut e, si, (n, n), scene, shadow_rays, None);
         e.map(|v| v * std::f64::consts::FRAC_1_PI)
     }
 
@@ -366,9 +440,16 @@ impl Estimator<'_> {
     /// The split-off bright regions' light on the Lambertian lobes at `hit`, over π: one
     /// shadow ray each, per sample (their shadows are hard; the other lobes see the whole map
     /// through directlighting's estimator).
-    fn bright_irradiance(&self, hit: &SurfaceHit, scene: &Scene, stats: &mut ThreadStats) -> Rgb {
+    fn bright_irradiance(
+        &self,
+        hit: &SurfaceHit,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+    ) -> Rgb {
         let mut e = [0.0; 3];
-        self.add_bright(&mut e, &hit.si, (Self::facing_normal(hit), hit.si.wo), scene, &mut stats.shadow_rays);
+        let side = (Self::facing_normal(hit), hit.si.wo);
+        self.add_bright(&mut e, &hit.si, side, scene, &mut stats.shadow_rays, Some(sampler));
         Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32) * std::f32::consts::FRAC_1_PI
     }
 
@@ -400,7 +481,7 @@ impl Estimator<'_> {
         let lights = scene.light_list();
         if kd != Rgb::ZERO && self.env.is_some() {
             let smooth = irradiance.or_else(|| self.lambertian_irradiance(hit, scene, stats)).unwrap_or(Rgb::ZERO);
-            l += kd * (smooth + self.bright_irradiance(hit, scene, stats));
+            l += kd * (smooth + self.bright_irradiance(hit, scene, sampler, stats));
         }
         if let Some(rest) = &rest {
             if rest.num_components(BxdfFlags::NON_SPECULAR) > 0 && !self.infinite.is_empty() {
@@ -559,6 +640,7 @@ impl Integrator for Shexp {
         let vis = Visibility::new(self.order, self.exp, self.big_theta)
             .map_err(|e| RenderError::Failed(format!("shexp: {e}")))?;
         let mut bright_lights = Vec::new();
+        let mut gap = None;
         let env = if infinite.is_empty() {
             None
         } else {
@@ -571,12 +653,16 @@ impl Integrator for Shexp {
                 }
             }
             let ground = sets.ground.map(|g| g.normal);
+            gap = sets
+                .ground
+                .and_then(|g| scene.meshes.get(g.object).and_then(|m| horizon::HorizonGap::build(&sources, g, m)));
             Some(with_threads(ctx.threads, || EnvLighting::build(&sources, ground, self.order, self.lh_resolution))?)
         };
         let mut est = Estimator {
             shexp: self,
             vis,
             env,
+            gap,
             sets,
             infinite,
             others,
