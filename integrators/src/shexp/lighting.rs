@@ -15,8 +15,8 @@ use super::bright::EnvSource;
 use glam::DVec3;
 use penumbra_core::light::Light;
 use penumbra_core::sh::{self, quadrature::gauss_legendre, ShOrder, SQRT_4PI};
-use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::sync::OnceLock;
 
 /// Gauss–Legendre nodes in z per normal and part of the hemisphere (for the ground cut of the
 /// mean radiance; φ is exact).
@@ -24,7 +24,7 @@ pub(crate) const NZ: usize = 24;
 /// The environment's non-constant part is summed over blocks of texels, at most this many
 /// blocks across the map's width (and half as many down its height).
 const MAX_BLOCKS: usize = 256;
-/// Normal-cubemap texels summed together over the blocks.
+/// Normal-cubemap texels integrated together (and computed on first use together).
 const TILE: usize = 32;
 
 pub struct EnvLighting {
@@ -34,8 +34,81 @@ pub struct EnvLighting {
     mean: [f64; 3],
     /// Clamped-cosine ZH.
     h: Vec<f64>,
-    /// `6 · res² · n²` residual coefficients (empty: `R ≡ 0`).
-    residual: Vec<[f64; 3]>,
+    /// The residual's texels, computed on first use (`None`: `R ≡ 0`).
+    residual: Option<Residual>,
+}
+
+/// `R(N)` on the normal cubemap, [`TILE`] texels at a time as receivers first need them: only
+/// the normals a scene shows are integrated (flat-shaded meshes show a few hundred), and the
+/// values do not depend on which thread asks first.
+struct Residual {
+    order: ShOrder,
+    res: usize,
+    mean: [f64; 3],
+    h: Vec<f64>,
+    ground: Option<DVec3>,
+    /// Block directions and, per block, its weight times its basis values, channel-major.
+    dirs: Vec<DVec3>,
+    wys: Vec<f64>,
+    zq: (Vec<f64>, Vec<f64>),
+    /// Per tile, `TILE · n²` coefficients.
+    tiles: Vec<OnceLock<Vec<[f64; 3]>>>,
+}
+
+impl Residual {
+    /// The coefficients of texel `t` (`n²`).
+    fn texel(&self, t: usize) -> &[[f64; 3]] {
+        let k = self.order.coeffs();
+        let tile = self.tiles[t / TILE].get_or_init(|| self.tile(t / TILE));
+        &tile[(t % TILE) * k..(t % TILE + 1) * k]
+    }
+
+    /// Integrates one tile: each block once over the tile's normals (it streams from memory
+    /// once per tile), each texel summing its blocks in order.
+    fn tile(&self, tile: usize) -> Vec<[f64; 3]> {
+        let (k, res) = (self.order.coeffs(), self.res);
+        let ts = tile * TILE..((tile + 1) * TILE).min(6 * res * res);
+        let normals: Vec<DVec3> = ts
+            .map(|t| {
+                let (face, j, i) = (t / (res * res), (t / res) % res, t % res);
+                texel_dir(face, i, j, res)
+            })
+            .collect();
+        let mut acc = vec![0.0; normals.len() * 3 * k];
+        for (d, wy) in self.dirs.iter().zip(self.wys.chunks_exact(3 * k)) {
+            for (n, a) in normals.iter().zip(acc.chunks_exact_mut(3 * k)) {
+                let c = n.dot(*d);
+                if c <= 0.0 {
+                    continue;
+                }
+                for (o, v) in a.iter_mut().zip(wy) {
+                    *o += c * v;
+                }
+            }
+        }
+        let mut out = Vec::with_capacity(normals.len() * k);
+        for (&n, a) in normals.iter().zip(acc.chunks_exact(3 * k)) {
+            let mut q = vec![[0.0; 3]; k];
+            if let Some(g) = self.ground {
+                // The mean radiance over the cut hemisphere, minus the analytic uncut part.
+                let cut = cut_hemisphere(self.order, n, g, (&self.zq.0, &self.zq.1));
+                let mut hn = vec![0.0; k];
+                let _ = sh::zonal::rotate_zh(&self.h, n, &mut hn);
+                for ((qi, c), hi) in q.iter_mut().zip(&cut).zip(&hn) {
+                    for (o, m) in qi.iter_mut().zip(self.mean) {
+                        *o = m * (c - hi);
+                    }
+                }
+            }
+            for (i, qi) in q.iter_mut().enumerate() {
+                for (c, o) in qi.iter_mut().enumerate() {
+                    *o += a[c * k + i];
+                }
+            }
+            out.extend(q);
+        }
+        out
+    }
 }
 
 /// A block of environment texels: the world direction of its centre, and its radiance minus
@@ -234,7 +307,6 @@ impl EnvLighting {
     /// `sources`: the environments; `ground`: the unit normal of the plane whose lower side is
     /// cut off; `res`: normal cubemap texels per face edge.
     pub fn build(sources: &[EnvSource], ground: Option<DVec3>, order: ShOrder, res: usize) -> EnvLighting {
-        let k = order.coeffs();
         let mut mean = [0.0; 3];
         let mut all_blocks = Vec::new();
         for il in sources {
@@ -255,15 +327,13 @@ impl EnvLighting {
             }
         }
         let h = sh::zonal::clamped_cosine(order);
-        let mut env = EnvLighting { order, res: res.max(1), mean, h, residual: Vec::new() };
+        let mut env = EnvLighting { order, res: res.max(1), mean, h, residual: None };
         if all_blocks.is_empty() && ground.is_none() {
             return env;
         }
         let res = env.res;
         // Blocks under the ground's horizon never reach a receiver.
         all_blocks.retain(|b| !ground.is_some_and(|g| g.dot(b.d) <= 0.0));
-        // Per block, its weight times its basis values, channel-major (`3 k` contiguous values),
-        // so each block is one contiguous multiply-add into a texel's sums.
         let wys: Vec<f64> = all_blocks
             .iter()
             .flat_map(|b| {
@@ -271,58 +341,17 @@ impl EnvLighting {
                 (0..3).flat_map(move |c| y.iter().map(move |yi| b.weight[c] * yi).collect::<Vec<_>>())
             })
             .collect();
-        let (zs, zw) = gauss_legendre(NZ);
-        let texels = 6 * res * res;
-        // Texels in tiles, so that the blocks (megabytes) stream from memory once per tile
-        // rather than once per texel; each texel still sums its blocks in order.
-        let tiles: Vec<Vec<[f64; 3]>> = (0..texels.div_ceil(TILE))
-            .into_par_iter()
-            .map(|tile| {
-                let ts = tile * TILE..((tile + 1) * TILE).min(texels);
-                let normals: Vec<DVec3> = ts
-                    .clone()
-                    .map(|t| {
-                        let (face, j, i) = (t / (res * res), (t / res) % res, t % res);
-                        texel_dir(face, i, j, res)
-                    })
-                    .collect();
-                let mut acc = vec![0.0; normals.len() * 3 * k];
-                for (b, wy) in all_blocks.iter().zip(wys.chunks_exact(3 * k)) {
-                    for (n, a) in normals.iter().zip(acc.chunks_exact_mut(3 * k)) {
-                        let c = n.dot(b.d);
-                        if c <= 0.0 {
-                            continue;
-                        }
-                        for (o, v) in a.iter_mut().zip(wy) {
-                            *o += c * v;
-                        }
-                    }
-                }
-                let mut out = Vec::with_capacity(normals.len() * k);
-                for (&n, a) in normals.iter().zip(acc.chunks_exact(3 * k)) {
-                    let mut q = vec![[0.0; 3]; k];
-                    if let Some(g) = ground {
-                        // The mean radiance over the cut hemisphere, minus the analytic uncut part.
-                        let cut = cut_hemisphere(order, n, g, (&zs, &zw));
-                        let mut hn = vec![0.0; k];
-                        let _ = sh::zonal::rotate_zh(&env.h, n, &mut hn);
-                        for ((qi, c), hi) in q.iter_mut().zip(&cut).zip(&hn) {
-                            for (o, m) in qi.iter_mut().zip(env.mean) {
-                                *o = m * (c - hi);
-                            }
-                        }
-                    }
-                    for (i, qi) in q.iter_mut().enumerate() {
-                        for (c, o) in qi.iter_mut().enumerate() {
-                            *o += a[c * k + i];
-                        }
-                    }
-                    out.extend(q);
-                }
-                out
-            })
-            .collect();
-        env.residual = tiles.into_iter().flatten().collect();
+        env.residual = Some(Residual {
+            order,
+            res,
+            mean,
+            h: env.h.clone(),
+            ground,
+            dirs: all_blocks.iter().map(|b| b.d).collect(),
+            wys,
+            zq: gauss_legendre(NZ),
+            tiles: (0..(6 * res * res).div_ceil(TILE)).map(|_| OnceLock::new()).collect(),
+        });
         env
     }
 
@@ -337,9 +366,7 @@ impl EnvLighting {
         for (o, hi) in out.iter_mut().zip(&scratch[..k]) {
             *o = [self.mean[0] * hi, self.mean[1] * hi, self.mean[2] * hi];
         }
-        if self.residual.is_empty() {
-            return;
-        }
+        let Some(residual) = &self.residual else { return };
         let res = self.res;
         let (face, u, v) = face_coords(n, res);
         let clamp = |x: f64| x.clamp(0.0, (res - 1) as f64);
@@ -348,7 +375,7 @@ impl EnvLighting {
         let (i1, j1) = ((i0 + 1).min(res - 1), (j0 + 1).min(res - 1));
         let (fu, fv) = (u - i0 as f64, v - j0 as f64);
         let base = face * res * res;
-        let texel = |i: usize, j: usize| &self.residual[(base + j * res + i) * k..(base + j * res + i + 1) * k];
+        let texel = |i: usize, j: usize| residual.texel(base + j * res + i);
         let corners = [
             (texel(i0, j0), (1.0 - fu) * (1.0 - fv)),
             (texel(i1, j0), fu * (1.0 - fv)),
