@@ -116,7 +116,7 @@ pub const PARAMS: &[ParamSpec] = &[
         .within(Range::LeftOpen(0.0, 90.0)),
     ParamSpec::int("lhresolution", 32, "normal-cubemap texels per face for the projection of L·max(0, N·ω)")
         .range(1, 256),
-    ParamSpec::int("brightlights", 4, "bright compact regions of each environment map split off as directional lights")
+    ParamSpec::int("brightlights", 4, "bright compact regions of each environment map split off and shaded with shadow rays")
         .range(0, 64),
     ParamSpec::float(
         "brightratio",
