@@ -13,7 +13,7 @@ use glam::DVec3;
 use std::path::{Path, PathBuf};
 
 /// Bumped whenever the fit changes what it produces.
-pub const FIT_VERSION: u64 = 2;
+pub const FIT_VERSION: u64 = 3;
 
 /// The default cache directory (see the module doc), `None` when disabled or unknown.
 pub fn default_dir() -> Option<PathBuf> {

@@ -232,6 +232,8 @@ struct Problem<'a> {
     points: &'a [DVec3],
     inner: usize,
     surface: &'a [DVec3],
+    /// `surface` sorted by x (for [`Problem::clearance`]).
+    surface_by_x: Vec<DVec3>,
     cell: f64,
 }
 
@@ -240,9 +242,43 @@ impl Problem<'_> {
         &self.points[..self.inner]
     }
 
-    /// Distance from `c` to the nearest surface sample (the clearance of a centre).
+    /// The inner points within `reach` of `x`, and perhaps a few more: they are sorted by x
+    /// ([`fit`]), so this is one contiguous run of them in their order (a sum over it equals
+    /// the sum over all, the others adding nothing).
+    fn inner_near_x(&self, x: f64, reach: f64) -> &[DVec3] {
+        let pts = self.inner_points();
+        if !(reach.is_finite() && x.is_finite()) {
+            return pts;
+        }
+        // A margin far above the rounding of the distance test.
+        let reach = reach * (1.0 + 1e-9) + 1e-300;
+        let lo = pts.partition_point(|p| p.x < x - reach);
+        let hi = pts.partition_point(|p| p.x <= x + reach);
+        &pts[lo..hi.max(lo)]
+    }
+
+    /// Distance from `c` to the nearest surface sample (the clearance of a centre): a scan
+    /// outwards from `c.x` over the samples sorted by x, stopping where x alone is farther
+    /// than the nearest found (the same minimum as over all of them).
     fn clearance(&self, c: DVec3) -> f64 {
-        self.surface.iter().map(|p| p.distance_squared(c)).fold(f64::INFINITY, f64::min).sqrt()
+        let s = &self.surface_by_x;
+        let mid = s.partition_point(|p| p.x < c.x);
+        let mut best = f64::INFINITY;
+        for p in &s[mid..] {
+            let dx = p.x - c.x;
+            if dx * dx > best {
+                break;
+            }
+            best = best.min(p.distance_squared(c));
+        }
+        for p in s[..mid].iter().rev() {
+            let dx = c.x - p.x;
+            if dx * dx > best {
+                break;
+            }
+            best = best.min(p.distance_squared(c));
+        }
+        best.sqrt()
     }
 
     /// `Vol(S \ O)` for a sphere (grid estimate, never below 0). An inner point counts fully
@@ -254,7 +290,7 @@ impl Problem<'_> {
         let band = 0.25 * self.cell.cbrt();
         let (lo2, hi2) = ((r - band).max(0.0).powi(2), (r + band).powi(2));
         let mut n = 0.0;
-        for p in self.inner_points() {
+        for p in self.inner_near_x(c.x, r + band) {
             let d2 = p.distance_squared(c);
             if d2 <= lo2 {
                 n += 1.0;
@@ -338,13 +374,15 @@ fn initial_centres(problem: &Problem, k: usize) -> Vec<DVec3> {
 /// Volume shared with other spheres, counted on the inner grid.
 fn overlaps(problem: &Problem, spheres: &[Sphere]) -> Vec<f64> {
     let mut out = vec![0.0; spheres.len()];
+    let inside = |p: &DVec3, s: &Sphere| p.distance_squared(s.center) <= s.radius.powi(2);
     for p in problem.inner_points() {
-        let inside: Vec<usize> = (0..spheres.len())
-            .filter(|&i| p.distance_squared(spheres[i].center) <= spheres[i].radius.powi(2))
-            .collect();
-        if inside.len() > 1 {
-            for i in inside {
-                out[i] += problem.cell;
+        // Only points in two spheres or more count (no list built per point).
+        if spheres.iter().filter(|s| inside(p, s)).nth(1).is_none() {
+            continue;
+        }
+        for (o, s) in out.iter_mut().zip(spheres) {
+            if inside(p, s) {
+                *o += problem.cell;
             }
         }
     }
@@ -355,7 +393,11 @@ fn overlaps(problem: &Problem, spheres: &[Sphere]) -> Vec<f64> {
 pub fn fit(mesh: &TriangleMesh, params: &FitParams) -> Fit {
     let volume = mesh_volume(mesh);
     let surface = surface_samples(mesh, params.surface_points as usize);
-    let (inner, cell) = inner_grid(mesh, params.inner_points as usize, volume);
+    let (mut inner, cell) = inner_grid(mesh, params.inner_points as usize, volume);
+    // By x, the fitting frame's longest axis (a stable sort: each grid column keeps its order,
+    // and columns lie a whole cell apart, so rounding cannot reorder them): a sphere's inner
+    // points are then one contiguous run ([`Problem::inner_near_x`]).
+    inner.sort_by(|a, b| a.x.total_cmp(&b.x));
     let mut points = inner.clone();
     points.extend_from_slice(&surface);
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
@@ -364,7 +406,9 @@ pub fn fit(mesh: &TriangleMesh, params: &FitParams) -> Fit {
         hi = hi.max(*p);
     }
     let scale = (hi - lo).length().max(f64::MIN_POSITIVE);
-    let problem = Problem { points: &points, inner: inner.len(), surface: &surface, cell };
+    let mut surface_by_x = surface.clone();
+    surface_by_x.sort_by(|a, b| a.x.total_cmp(&b.x));
+    let problem = Problem { points: &points, inner: inner.len(), surface: &surface, surface_by_x, cell };
     let k = (params.spheres.max(1) as usize).min(points.len().max(1));
     let init = initial_centres(&problem, k);
     let (mut spheres, mut total, mut sets) = problem.optimise(init, params.iterations, scale);
