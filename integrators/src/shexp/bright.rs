@@ -161,6 +161,18 @@ impl BrightLight {
         out
     }
 
+    /// [`Self::estimate`]'s plain counterpart (`"brightestimator" "plain"`): a direction drawn
+    /// by power ([`Self::sample`]), its weight times its cosine if `visible`.
+    pub fn estimate_plain(&self, n: DVec3, u: [f32; 2], visible: &mut dyn FnMut(DVec3) -> bool) -> [f64; 3] {
+        let (d, w) = self.sample(u);
+        let c = n.dot(d);
+        if c > 0.0 && visible(d) {
+            w.map(|v| v * c)
+        } else {
+            [0.0; 3]
+        }
+    }
+
     /// One sample of the region's shadowed irradiance at unit normal `n`, `∫ ΔL V max(0, n·ω) dω`
     /// per channel, with `visible(ω)` the shadow test. A direction is drawn with density
     /// proportional to the removed luminance times `max(0, n·ω)` (by [`Self::sample`] and
@@ -195,13 +207,7 @@ impl BrightLight {
             }
             uu = [next() as f32, next() as f32].map(|x| x.min(1.0 - f32::EPSILON));
         }
-        let (d, w) = self.sample(uu);
-        let c = n.dot(d);
-        if c > 0.0 && visible(d) {
-            w.map(|v| v * c)
-        } else {
-            [0.0; 3]
-        }
+        self.estimate_plain(n, uu, visible)
     }
 
     /// A direction over the region, drawn in proportion to its removed power (a texel by its

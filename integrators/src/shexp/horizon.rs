@@ -21,6 +21,7 @@
 //! radiance is box-filtered over the bin.
 
 use super::bright::EnvSource;
+use super::lighting::frame;
 use glam::{DVec3, Vec2};
 use penumbra_core::mesh::TriangleMesh;
 use penumbra_core::sphereset::GroundPlane;
@@ -109,13 +110,6 @@ fn hull_segments(mut pts: Vec<[f64; 2]>) -> Vec<[f64; 4]> {
         h.pop();
     }
     (0..h.len()).map(|i| [h[i][0], h[i][1], h[(i + 1) % h.len()][0], h[(i + 1) % h.len()][1]]).collect()
-}
-
-/// An orthonormal frame (e1, e2) around unit `g`.
-fn frame(g: DVec3) -> (DVec3, DVec3) {
-    let t = if g.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
-    let e1 = (t - g * g.dot(t)).normalize();
-    (e1, g.cross(e1))
 }
 
 /// The summed radiance of `sources` towards world direction `d`.

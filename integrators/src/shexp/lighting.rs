@@ -195,7 +195,7 @@ pub(crate) fn face_coords(d: DVec3, res: usize) -> (usize, f64, f64) {
 }
 
 /// An orthonormal frame (t, b) around unit `n`.
-fn frame(n: DVec3) -> (DVec3, DVec3) {
+pub(crate) fn frame(n: DVec3) -> (DVec3, DVec3) {
     let t = if n.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
     let t = (t - n * n.dot(t)).normalize();
     (t, n.cross(t))

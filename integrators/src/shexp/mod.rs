@@ -344,25 +344,16 @@ impl Estimator<'_> {
             match sampler.as_deref_mut() {
                 Some(sampler) => {
                     let k = self.shexp.bright_samples.max(1);
-                    if self.shexp.bright_ratio {
-                        for _ in 0..k {
-                            let u = sampler.get_2d();
-                            let x = b.estimate(nd, [u.x, u.y], &mut |d| visible(d.as_vec3(), shadow_rays));
-                            for (v, x) in e.iter_mut().zip(x) {
-                                *v += x / k as f64;
-                            }
-                        }
-                    } else {
-                        for _ in 0..k {
-                            let u = sampler.get_2d();
-                            let (d, w) = b.sample([u.x, u.y]);
-                            let d = d.as_vec3();
-                            if visible(d, shadow_rays) {
-                                let c = n.dot(d) as f64;
-                                for (v, x) in e.iter_mut().zip(w) {
-                                    *v += x * c / k as f64;
-                                }
-                            }
+                    for _ in 0..k {
+                        let u = sampler.get_2d();
+                        let mut vis = |d: DVec3| visible(d.as_vec3(), shadow_rays);
+                        let x = if self.shexp.bright_ratio {
+                            b.estimate(nd, [u.x, u.y], &mut vis)
+                        } else {
+                            b.estimate_plain(nd, [u.x, u.y], &mut vis)
+                        };
+                        for (v, x) in e.iter_mut().zip(x) {
+                            *v += x / k as f64;
                         }
                     }
                 }
