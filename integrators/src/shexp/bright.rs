@@ -5,8 +5,8 @@
 //! region's power centroid). A region grows from the brightest remaining texel over its
 //! 4-neighbours (φ wraps) while they stay above a tenth of that peak and within
 //! [`MAX_RADIUS`] of it; its texels are lowered to the mean of the texels bordering it, and the
-//! light carries exactly what was removed (`Σ (L − L_border) dω`). Regions are split while their peak exceeds [`PEAK_RATIO`] times the
-//! map's mean luminance.
+//! light carries exactly what was removed (`Σ (L − L_border) dω`). Regions are split while
+//! their peak exceeds [`PEAK_RATIO`] times the map's mean luminance.
 
 use glam::DVec3;
 use glam::Mat3;
@@ -54,14 +54,13 @@ pub struct EnvSource {
 pub struct BrightLight {
     pub dir: DVec3,
     pub irradiance: [f64; 3],
-    /// The region's texels with removed power: `(s, t)`, the removed power per channel, and
-    /// the cumulative share of the region's (luminance) power up to and including it.
+    /// The region's texels with removed power: `(s, t)` and the removed power per channel.
     texels: Vec<RegionTexel>,
     /// The map's size, and the light's frame.
     size: (usize, usize),
     world_from_light: glam::DMat3,
-    /// `texels[i].cdf`, contiguous, and its guide table: `guide[j]` is the first texel whose
-    /// `cdf` exceeds `j/len` of the total.
+    /// The region's (luminance) power up to and including each texel, and its guide table:
+    /// `guide[j]` is the first texel whose `cdf` exceeds `j/len` of the total.
     cdf: Vec<f64>,
     guide: Vec<u32>,
     /// A cone around `dir` holding every direction of the region: the cosine and sine of its
@@ -79,11 +78,12 @@ pub struct BrightLight {
 pub const IRR_RES: usize = 64;
 /// Map texels merged (per side) into one block when tabulating a region's irradiance.
 const IRR_BLOCK: u32 = 4;
-/// Draws of [`BrightLight::sample_cosine`] before it gives up (the region is then almost all
-/// behind the receiver's tangent plane and its light there negligible).
+/// Draws of [`BrightLight::estimate`] before it falls back to a power-drawn direction (the
+/// region is then almost all behind the receiver's tangent plane).
 const MAX_DRAWS: usize = 32;
 
-/// SplitMix64: the acceptance tests of [`BrightLight::sample_cosine`], seeded by the sample.
+/// SplitMix64: the retries and acceptance tests of [`BrightLight::estimate`], seeded by the
+/// sample.
 fn mix(mut z: u64) -> u64 {
     z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -128,7 +128,6 @@ struct RegionTexel {
     s: u32,
     t: u32,
     power: [f64; 3],
-    cdf: f64,
     /// `cos θ` at the texel's upper and lower edges.
     z: (f64, f64),
 }
@@ -136,25 +135,9 @@ struct RegionTexel {
 impl BrightLight {
     /// The region's unshadowed irradiance per channel at unit normal `n` (interpolated).
     pub fn irradiance_at(&self, n: DVec3) -> [f64; 3] {
-        let res = IRR_RES;
-        if self.irr.len() != 6 * res * res {
-            return self.irradiance.map(|v| v * n.dot(self.dir).max(0.0));
-        }
-        let (face, u, v) = super::lighting::face_coords(n, res);
-        let clamp = |x: f64| x.clamp(0.0, (res - 1) as f64);
-        let (u, v) = (clamp(u), clamp(v));
-        let (i0, j0) = (u.floor() as usize, v.floor() as usize);
-        let (i1, j1) = ((i0 + 1).min(res - 1), (j0 + 1).min(res - 1));
-        let (fu, fv) = (u - i0 as f64, v - j0 as f64);
-        let at = |i: usize, j: usize| self.irr[face * res * res + j * res + i];
         let mut out = [0.0; 3];
-        for (t, w) in [
-            (at(i0, j0), (1.0 - fu) * (1.0 - fv)),
-            (at(i1, j0), fu * (1.0 - fv)),
-            (at(i0, j1), (1.0 - fu) * fv),
-            (at(i1, j1), fu * fv),
-        ] {
-            for (o, x) in out.iter_mut().zip(t) {
+        for (t, w) in super::lighting::cubemap_bilinear(n, IRR_RES) {
+            for (o, x) in out.iter_mut().zip(self.irr[t]) {
                 *o += w * x;
             }
         }
@@ -214,8 +197,8 @@ impl BrightLight {
     /// luminance power, then uniformly in solid angle inside it), with the estimator's weight
     /// per channel: `∫ ΔL(ω) f(ω) dω ≈ weight · f(ω)`. `u` ∈ [0, 1)².
     pub fn sample(&self, u: [f32; 2]) -> (DVec3, [f64; 3]) {
-        let Some(last) = self.texels.last() else { return (self.dir, self.irradiance) };
-        let x = u[0] as f64 * last.cdf;
+        let Some(&total) = self.cdf.last() else { return (self.dir, self.irradiance) };
+        let x = u[0] as f64 * total;
         // A guide table (the cutpoint method) starts a short linear search near the answer.
         let m = self.guide.len();
         let g = ((u[0] as f64 * m as f64) as usize).min(m.saturating_sub(1));
@@ -223,11 +206,11 @@ impl BrightLight {
         while i + 1 < self.cdf.len() && self.cdf[i] <= x {
             i += 1;
         }
-        let tx = self.texels[i];
-        let prev = if i == 0 { 0.0 } else { self.texels[i - 1].cdf };
-        let p = (tx.cdf - prev) / last.cdf;
+        let (tx, cdf) = (self.texels[i], self.cdf[i]);
+        let prev = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        let p = (cdf - prev) / total;
         // Reuse the first dimension inside the chosen texel (stratification carries over).
-        let u0 = if tx.cdf > prev { ((x - prev) / (tx.cdf - prev)).clamp(0.0, 1.0) } else { 0.5 };
+        let u0 = if cdf > prev { ((x - prev) / (cdf - prev)).clamp(0.0, 1.0) } else { 0.5 };
         let (w, _) = self.size;
         let phi = 2.0 * PI * (tx.s as f64 + u0) / w as f64;
         let (c0, c1) = tx.z;
@@ -323,8 +306,7 @@ pub fn split_map(map: &RgbMap, world_from_light: Mat3, rule: SplitRule) -> (EnvS
             }
         }
         let (mut e, mut d) = ([0.0f64; 3], DVec3::ZERO);
-        let mut texels = Vec::new();
-        let mut cdf = 0.0;
+        let (mut texels, mut cdf) = (Vec::new(), Vec::new());
         region.sort_unstable();
         for &i in &region {
             let c = map.texels[i].to_array();
@@ -337,10 +319,10 @@ pub fn split_map(map: &RgbMap, world_from_light: Mat3, rule: SplitRule) -> (EnvS
                 removed += x / 3.0;
             }
             if removed > 0.0 {
-                cdf += removed;
+                cdf.push(cdf.last().copied().unwrap_or(0.0) + removed);
                 let t = i / w;
                 let z = ((PI * t as f64 / h as f64).cos(), (PI * (t + 1) as f64 / h as f64).cos());
-                texels.push(RegionTexel { s: (i % w) as u32, t: t as u32, power, cdf, z });
+                texels.push(RegionTexel { s: (i % w) as u32, t: t as u32, power, z });
             }
             d += texel_dir(i % w, i / w, w, h) * removed;
             map.texels[i] = Rgb::new(
@@ -365,7 +347,6 @@ pub fn split_map(map: &RgbMap, world_from_light: Mat3, rule: SplitRule) -> (EnvS
                 .fold(0.0, f64::max);
             let half = (far + pad).min(PI);
             let cone = (half.cos(), half.sin());
-            let cdf: Vec<f64> = texels.iter().map(|t| t.cdf).collect();
             let total = cdf.last().copied().unwrap_or(0.0);
             let guide = (0..cdf.len())
                 .map(|j| cdf.partition_point(|&c| c <= total * j as f64 / cdf.len() as f64).min(cdf.len() - 1) as u32)

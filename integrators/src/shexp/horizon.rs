@@ -24,6 +24,7 @@ use super::bright::EnvSource;
 use super::lighting::frame;
 use glam::{DVec3, Vec2};
 use penumbra_core::mesh::TriangleMesh;
+use penumbra_core::sh::quadrature::gauss_legendre;
 use penumbra_core::sphereset::GroundPlane;
 use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -35,8 +36,7 @@ const DEPRESSIONS: usize = 128;
 /// Radiance samples per table cell: across the azimuth bin, and Gauss–Legendre nodes per
 /// depression step.
 const AZ_SUB: usize = 4;
-const E_NODES: [(f64, f64); 3] =
-    [(-0.774_596_669_241_483_4, 5.0 / 9.0), (0.0, 8.0 / 9.0), (0.774_596_669_241_483_4, 5.0 / 9.0)];
+const E_NODES: usize = 3;
 /// Outlines with more boundary segments than this are replaced by their convex hull (each
 /// receiver tests every segment along every azimuth).
 pub const MAX_SEGMENTS: usize = 512;
@@ -113,7 +113,7 @@ fn hull_segments(mut pts: Vec<[f64; 2]>) -> Vec<[f64; 4]> {
 }
 
 /// The summed radiance of `sources` towards world direction `d`.
-fn radiance(sources: &[(EnvSource, glam::Mat3)], d: DVec3) -> [f64; 3] {
+fn radiance(sources: &[(&EnvSource, glam::Mat3)], d: DVec3) -> [f64; 3] {
     let mut out = [0.0; 3];
     for (src, light_from_world) in sources {
         let w = (*light_from_world * d.as_vec3()).normalize_or_zero();
@@ -154,8 +154,8 @@ impl HorizonGap {
         if hull {
             segments = hull_segments(edges.iter().flat_map(|&(a, b)| [to2(a), to2(b)]).collect());
         }
-        let light: Vec<(EnvSource, glam::Mat3)> =
-            sources.iter().map(|s| (s.clone(), s.world_from_light.inverse())).collect();
+        let light: Vec<(&EnvSource, glam::Mat3)> = sources.iter().map(|s| (s, s.world_from_light.inverse())).collect();
+        let (ex, ew) = gauss_legendre(E_NODES);
         let dirs: Vec<(f64, f64)> = (0..AZIMUTHS)
             .map(|k| {
                 let phi = 2.0 * PI * (k as f64 + 0.5) / AZIMUTHS as f64;
@@ -176,7 +176,7 @@ impl HorizonGap {
                 .collect();
             let (mut sa, mut sb) = ([0.0; 3], [0.0; 3]);
             for j in 0..DEPRESSIONS {
-                for (x, w) in E_NODES {
+                for (&x, &w) in ex.iter().zip(&ew) {
                     let e = de * (j as f64 + 0.5 * (x + 1.0));
                     let (se, ce) = e.sin_cos();
                     let mut l = [0.0; 3];
@@ -328,7 +328,7 @@ mod tests {
     /// The gap by brute force: a fine grid over the lower hemisphere, each direction's ray
     /// tested against the mesh's triangles.
     fn brute(sources: &[EnvSource], mesh: &TriangleMesh, p: DVec3, n: DVec3) -> [f64; 3] {
-        let light: Vec<(EnvSource, Mat3)> = sources.iter().map(|s| (s.clone(), s.world_from_light.inverse())).collect();
+        let light: Vec<(&EnvSource, Mat3)> = sources.iter().map(|s| (s, s.world_from_light.inverse())).collect();
         let (nphi, ne) = (720, 720);
         let mut out = [0.0; 3];
         for i in 0..nphi {

@@ -42,10 +42,6 @@ pub struct EnvLighting {
 /// the normals a scene shows are integrated (flat-shaded meshes show a few hundred), and the
 /// values do not depend on which thread asks first.
 struct Residual {
-    order: ShOrder,
-    res: usize,
-    mean: [f64; 3],
-    h: Vec<f64>,
     ground: Option<DVec3>,
     /// Block directions and, per block, its weight times its basis values, channel-major.
     dirs: Vec<DVec3>,
@@ -56,17 +52,17 @@ struct Residual {
 }
 
 impl Residual {
-    /// The coefficients of texel `t` (`n²`).
-    fn texel(&self, t: usize) -> &[[f64; 3]] {
-        let k = self.order.coeffs();
-        let tile = self.tiles[t / TILE].get_or_init(|| self.tile(t / TILE));
+    /// The coefficients of texel `t` (`n²`) of `env`'s residual (`self`).
+    fn texel(&self, env: &EnvLighting, t: usize) -> &[[f64; 3]] {
+        let k = env.order.coeffs();
+        let tile = self.tiles[t / TILE].get_or_init(|| self.tile(env, t / TILE));
         &tile[(t % TILE) * k..(t % TILE + 1) * k]
     }
 
     /// Integrates one tile: each block once over the tile's normals (it streams from memory
     /// once per tile), each texel summing its blocks in order.
-    fn tile(&self, tile: usize) -> Vec<[f64; 3]> {
-        let (k, res) = (self.order.coeffs(), self.res);
+    fn tile(&self, env: &EnvLighting, tile: usize) -> Vec<[f64; 3]> {
+        let (k, res) = (env.order.coeffs(), env.res);
         let ts = tile * TILE..((tile + 1) * TILE).min(6 * res * res);
         let normals: Vec<DVec3> = ts
             .map(|t| {
@@ -91,11 +87,11 @@ impl Residual {
             let mut q = vec![[0.0; 3]; k];
             if let Some(g) = self.ground {
                 // The mean radiance over the cut hemisphere, minus the analytic uncut part.
-                let cut = cut_hemisphere(self.order, n, g, (&self.zq.0, &self.zq.1));
+                let cut = cut_hemisphere(env.order, n, g, (&self.zq.0, &self.zq.1));
                 let mut hn = vec![0.0; k];
-                let _ = sh::zonal::rotate_zh(&self.h, n, &mut hn);
+                let _ = sh::zonal::rotate_zh(&env.h, n, &mut hn);
                 for ((qi, c), hi) in q.iter_mut().zip(&cut).zip(&hn) {
-                    for (o, m) in qi.iter_mut().zip(self.mean) {
+                    for (o, m) in qi.iter_mut().zip(env.mean) {
                         *o = m * (c - hi);
                     }
                 }
@@ -171,7 +167,7 @@ pub(crate) fn texel_dir(face: usize, i: usize, j: usize, res: usize) -> DVec3 {
 }
 
 /// The face and continuous texel coordinates of direction `d` (inverse of [`texel_dir`]).
-pub(crate) fn face_coords(d: DVec3, res: usize) -> (usize, f64, f64) {
+fn face_coords(d: DVec3, res: usize) -> (usize, f64, f64) {
     let a = d.abs();
     let (face, u, v) = if a.x >= a.y && a.x >= a.z {
         if d.x > 0.0 {
@@ -334,18 +330,15 @@ impl EnvLighting {
         let res = env.res;
         // Blocks under the ground's horizon never reach a receiver.
         all_blocks.retain(|b| !ground.is_some_and(|g| g.dot(b.d) <= 0.0));
-        let wys: Vec<f64> = all_blocks
-            .iter()
-            .flat_map(|b| {
-                let y = sh::basis::eval_vec(order, b.d);
-                (0..3).flat_map(move |c| y.iter().map(move |yi| b.weight[c] * yi).collect::<Vec<_>>())
-            })
-            .collect();
+        // Per block, its weight times its basis values, channel-major.
+        let mut wys = Vec::with_capacity(all_blocks.len() * 3 * order.coeffs());
+        for b in &all_blocks {
+            let y = sh::basis::eval_vec(order, b.d);
+            for w in b.weight {
+                wys.extend(y.iter().map(|yi| w * yi));
+            }
+        }
         env.residual = Some(Residual {
-            order,
-            res,
-            mean,
-            h: env.h.clone(),
             ground,
             dirs: all_blocks.iter().map(|b| b.d).collect(),
             wys,
@@ -367,29 +360,33 @@ impl EnvLighting {
             *o = [self.mean[0] * hi, self.mean[1] * hi, self.mean[2] * hi];
         }
         let Some(residual) = &self.residual else { return };
-        let res = self.res;
-        let (face, u, v) = face_coords(n, res);
-        let clamp = |x: f64| x.clamp(0.0, (res - 1) as f64);
-        let (u, v) = (clamp(u), clamp(v));
-        let (i0, j0) = (u.floor() as usize, v.floor() as usize);
-        let (i1, j1) = ((i0 + 1).min(res - 1), (j0 + 1).min(res - 1));
-        let (fu, fv) = (u - i0 as f64, v - j0 as f64);
-        let base = face * res * res;
-        let texel = |i: usize, j: usize| residual.texel(base + j * res + i);
-        let corners = [
-            (texel(i0, j0), (1.0 - fu) * (1.0 - fv)),
-            (texel(i1, j0), fu * (1.0 - fv)),
-            (texel(i0, j1), (1.0 - fu) * fv),
-            (texel(i1, j1), fu * fv),
-        ];
-        for (c, w) in corners {
-            for (o, r) in out.iter_mut().zip(c) {
+        for (t, w) in cubemap_bilinear(n, self.res) {
+            for (o, r) in out.iter_mut().zip(residual.texel(self, t)) {
                 for ch in 0..3 {
                     o[ch] += w * r[ch];
                 }
             }
         }
     }
+}
+
+/// Bilinear interpolation on a normal cubemap of `res`² texels per face (texel index
+/// `face · res² + j · res + i`, centres at [`texel_dir`]): the four texels around unit `n` with
+/// their weights, clamped at the face's edges.
+pub(crate) fn cubemap_bilinear(n: DVec3, res: usize) -> [(usize, f64); 4] {
+    let (face, u, v) = face_coords(n, res);
+    let clamp = |x: f64| x.clamp(0.0, (res - 1) as f64);
+    let (u, v) = (clamp(u), clamp(v));
+    let (i0, j0) = (u.floor() as usize, v.floor() as usize);
+    let (i1, j1) = ((i0 + 1).min(res - 1), (j0 + 1).min(res - 1));
+    let (fu, fv) = (u - i0 as f64, v - j0 as f64);
+    let at = |i: usize, j: usize| face * res * res + j * res + i;
+    [
+        (at(i0, j0), (1.0 - fu) * (1.0 - fv)),
+        (at(i1, j0), fu * (1.0 - fv)),
+        (at(i0, j1), (1.0 - fu) * fv),
+        (at(i1, j1), fu * fv),
+    ]
 }
 
 #[cfg(test)]

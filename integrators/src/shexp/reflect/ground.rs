@@ -14,7 +14,7 @@
 //! into the spheres' pass 1 (that would be a second bounce).
 
 use super::super::bright::BrightLight;
-use super::super::lighting::{cut_hemisphere, EnvLighting, NZ};
+use super::super::lighting::{cut_hemisphere, frame, EnvLighting, NZ};
 use super::super::split_lambertian;
 use glam::{DMat3, DVec3, Vec3};
 use penumbra_core::accel::Hit;
@@ -59,9 +59,8 @@ impl BelowTable {
             table.extend(cut_hemisphere(order, n, -DVec3::Z, (&zs, &zw)));
         }
         let e3 = g.normalize();
-        let t = if e3.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
-        let e1 = (t - e3 * e3.dot(t)).normalize();
-        let frame = DMat3::from_cols(e1, e3.cross(e1), e3);
+        let (e1, e2) = frame(e3);
+        let frame = DMat3::from_cols(e1, e2, e3);
         Ok(BelowTable { order, table, frame, to_world: ShRotation::new(order, frame)? })
     }
 
