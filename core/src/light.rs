@@ -205,8 +205,9 @@ pub struct DiffuseAreaLight {
 }
 
 /// An emitting triangle as [`DiffuseAreaLight::sample_point`] reads it: its vertices, its
-/// winding normal (normalised, after the mesh's flip) and its vertex shading normals (missing
-/// ones zero), the values [`sampled_normal`] computes from the mesh at every sample.
+/// winding normal (normalised) and its vertex normals (missing ones zero; negated where pbrt-v3
+/// negates them for a sample), the values [`TriangleMesh::sample_normal`] computes from the
+/// mesh at every sample.
 #[derive(Clone, Debug, PartialEq)]
 struct LightTriangle {
     pv: [Vec3; 3],
@@ -216,19 +217,17 @@ struct LightTriangle {
 
 impl LightTriangle {
     fn new(mesh: &TriangleMesh, tri: usize, pv: [Vec3; 3]) -> Self {
-        let mut n = (pv[1] - pv[0]).cross(pv[2] - pv[0]).normalize_or_zero();
-        if mesh.flip_normals {
-            n = -n;
-        }
+        let n = (pv[1] - pv[0]).cross(pv[2] - pv[0]).normalize_or_zero();
+        let sign = mesh.sample_normal_sign();
         let shading = match (&mesh.normals, mesh.indices.get(tri)) {
-            (Some(ns), Some(idx)) => Some(idx.map(|i| ns.get(i as usize).copied().unwrap_or(Vec3::ZERO))),
+            (Some(ns), Some(idx)) => Some(idx.map(|i| sign * ns.get(i as usize).copied().unwrap_or(Vec3::ZERO))),
             _ => None,
         };
         LightTriangle { pv, n, shading }
     }
 
-    /// The normal pbrt-v3's `Triangle::Sample` gives the point with barycentrics `b`: the
-    /// winding normal, face-forwarded to the interpolated shading normal when there is one.
+    /// The normal pbrt-v3's `Shape::Sample` gives the point with barycentrics `b` (flat, on
+    /// the emitting side; [`TriangleMesh::sample_normal`]).
     #[inline]
     fn normal_at(&self, b: [f32; 3]) -> Vec3 {
         if let Some(nv) = self.shading {
@@ -492,10 +491,8 @@ fn tri_vertices(mesh: &TriangleMesh, tri: usize) -> Option<[Vec3; 3]> {
     )
 }
 
-/// The normal pbrt-v3's `Triangle::Sample` gives the point with barycentrics `b`:
-/// the winding normal, face-forwarded to the interpolated shading normal when the
-/// mesh has normals, else flipped by `ReverseOrientation` xor handedness (as
-/// `Scene::interaction` orients hits).
+/// The normal pbrt-v3's `Shape::Sample` gives the point with barycentrics `b`
+/// ([`TriangleMesh::sample_normal`], through the light's cached triangle).
 fn sampled_normal(mesh: &TriangleMesh, tri: usize, pv: [Vec3; 3], b: [f32; 3]) -> Vec3 {
     LightTriangle::new(mesh, tri, pv).normal_at(b)
 }
@@ -1217,11 +1214,7 @@ mod tests {
             }
         }
         let (t, tri) = best?;
-        let v = mesh.vertices(tri);
-        let mut n = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
-        if mesh.flip_normals {
-            n = -n;
-        }
+        let (n, _) = mesh.hit_normals(tri, [1.0 / 3.0; 3]);
         Some((t, o + d * t as f32, n))
     }
 
@@ -1432,7 +1425,8 @@ mod tests {
                 for facing in [true, false] {
                     let mut mesh = facing_triangle(p, v);
                     if !facing {
-                        mesh.flip_normals = true;
+                        // The winding is the emitting side of a mesh without normals.
+                        mesh.indices[0].swap(1, 2);
                     }
                     let meshes = [mesh];
                     let area = entity("diffuse", vec![param("twosided", ParamValue::Bool(vec![two_sided]))]);

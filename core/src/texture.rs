@@ -31,9 +31,9 @@ use std::sync::{Arc, OnceLock};
 // Evaluation context and mappings
 // ---------------------------------------------------------------------------
 
-/// The geometry a texture is evaluated at. Screen-space differentials may all be
-/// zero (no ray differentials): image textures then use a bilinear lookup of the
-/// finest MIP level and the antialiased procedural textures point-sample.
+/// The geometry a texture is evaluated at. Screen-space differentials are zero where the
+/// ray had no offset rays: image textures then use a bilinear lookup of the finest MIP level
+/// and the antialiased procedural textures take every octave, as pbrt-v3 does.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TextureEvalContext {
     pub p: Vec3,
@@ -48,47 +48,21 @@ pub struct TextureEvalContext {
 }
 
 impl TextureEvalContext {
-    /// The context at a surface point with no ray differentials.
+    /// The context at a surface point, with its differentials (pbrt-v3's `SurfaceInteraction`
+    /// as textures see it).
     pub fn from_si(si: &SurfaceInteraction) -> Self {
-        TextureEvalContext { p: si.p, n: si.n, uv: si.uv, ..Default::default() }
-    }
-
-    /// The context with screen-space differentials from the offset rays `(origin, direction)`
-    /// for one pixel step in x and y, as pbrt-v3's `SurfaceInteraction::ComputeDifferentials`
-    /// (intersect each offset ray with the tangent plane, then solve for ∂u/∂x… by least
-    /// squares in the two best-conditioned axes). Falls back to zero differentials.
-    pub fn with_ray_differentials(si: &SurfaceInteraction, rx: (Vec3, Vec3), ry: (Vec3, Vec3)) -> Self {
-        let mut c = Self::from_si(si);
-        let n = si.n;
-        let d = n.dot(si.p);
-        let hit = |(o, dir): (Vec3, Vec3)| {
-            let t = -(n.dot(o) - d) / n.dot(dir);
-            t.is_finite().then(|| o + t * dir)
-        };
-        let (Some(px), Some(py)) = (hit(rx), hit(ry)) else { return c };
-        c.dpdx = px - si.p;
-        c.dpdy = py - si.p;
-        let a = n.abs();
-        let dim = if a.x > a.y && a.x > a.z {
-            [1, 2]
-        } else if a.y > a.z {
-            [0, 2]
-        } else {
-            [0, 1]
-        };
-        let m = [[si.dpdu[dim[0]], si.dpdv[dim[0]]], [si.dpdu[dim[1]], si.dpdv[dim[1]]]];
-        let solve = |b: [f32; 2]| -> Option<(f32, f32)> {
-            let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
-            if det.abs() < 1e-10 {
-                return None;
-            }
-            let x0 = (m[1][1] * b[0] - m[0][1] * b[1]) / det;
-            let x1 = (m[0][0] * b[1] - m[1][0] * b[0]) / det;
-            (x0.is_finite() && x1.is_finite()).then_some((x0, x1))
-        };
-        (c.dudx, c.dvdx) = solve([c.dpdx[dim[0]], c.dpdx[dim[1]]]).unwrap_or((0.0, 0.0));
-        (c.dudy, c.dvdy) = solve([c.dpdy[dim[0]], c.dpdy[dim[1]]]).unwrap_or((0.0, 0.0));
-        c
+        let d = &si.diff;
+        TextureEvalContext {
+            p: si.p,
+            n: si.n,
+            uv: si.uv,
+            dpdx: d.dpdx,
+            dpdy: d.dpdy,
+            dudx: d.dudx,
+            dudy: d.dudy,
+            dvdx: d.dvdx,
+            dvdy: d.dvdy,
+        }
     }
 }
 

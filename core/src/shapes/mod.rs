@@ -28,7 +28,7 @@ pub mod ply;
 mod quadrics;
 mod trianglemesh;
 
-use crate::mesh::{AlphaSpec, TriangleMesh};
+use crate::mesh::{AlphaSpec, NormalRule, TriangleMesh};
 use crate::parser::{DiagSink, Diagnostic, FileLoc, SceneDescription, ShapeDesc};
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
@@ -112,7 +112,11 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
             format!("shape \"{kind}\" has an animated transform; using its start transform"),
         );
     }
-    finish(obj, desc).map(Some)
+    let mut mesh = finish(obj, desc)?;
+    if matches!(kind, "sphere" | "disk" | "cylinder" | "cone" | "paraboloid" | "hyperboloid") {
+        mesh.normal_rule = NormalRule::Quadric;
+    }
+    Ok(Some(mesh))
 }
 
 /// Object-space mesh data before transformation.
@@ -222,6 +226,7 @@ fn finish(obj: ObjMesh, desc: &ShapeDesc) -> Result<TriangleMesh, Diagnostic> {
         winding_reversed: reverse,
         alpha: obj.alpha,
         shadow_alpha: obj.shadow_alpha,
+        normal_rule: NormalRule::Triangle,
     })
 }
 

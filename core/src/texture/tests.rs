@@ -513,31 +513,31 @@ fn perlin_noise_properties() {
 
 #[test]
 fn ray_differentials_give_uv_derivatives() {
-    use crate::geometry::Frame;
+    use crate::geometry::{Ray, RayDifferential, RayOffsets};
     // Plane z = 0 with u = x/2, v = y/4: ∂p/∂u = (2,0,0), ∂p/∂v = (0,4,0).
-    let si = SurfaceInteraction {
+    let mut si = SurfaceInteraction {
         p: Vec3::new(1.0, 1.0, 0.0),
-        p_error: Vec3::ZERO,
-        n: Vec3::Z,
         uv: Vec2::new(0.5, 0.25),
         dpdu: Vec3::new(2.0, 0.0, 0.0),
         dpdv: Vec3::new(0.0, 4.0, 0.0),
-        shading: Frame::from_z(Vec3::Z),
-        wo: Vec3::Z,
-        mesh: 0,
-        tri: 0,
+        ..Default::default()
     };
     let down = Vec3::new(0.0, 0.0, -1.0);
-    let c = TextureEvalContext::with_ray_differentials(
-        &si,
-        (Vec3::new(1.1, 1.0, 3.0), down),
-        (Vec3::new(1.0, 1.2, 3.0), down),
-    );
+    let ray = |rx: (Vec3, Vec3), ry: (Vec3, Vec3)| RayDifferential {
+        ray: Ray::new(Vec3::new(1.0, 1.0, 3.0), down, f32::INFINITY),
+        offsets: Some(RayOffsets { rx_o: rx.0, rx_d: rx.1, ry_o: ry.0, ry_d: ry.1 }),
+    };
+    si.compute_differentials(&ray((Vec3::new(1.1, 1.0, 3.0), down), (Vec3::new(1.0, 1.2, 3.0), down)));
+    let c = TextureEvalContext::from_si(&si);
     assert!((c.dpdx - Vec3::new(0.1, 0.0, 0.0)).length() < 1e-5);
     assert!((c.dudx - 0.05).abs() < 1e-5 && c.dvdx.abs() < 1e-6);
     assert!((c.dvdy - 0.05).abs() < 1e-5 && c.dudy.abs() < 1e-6);
     // Parallel offset rays: no differentials.
     let side = Vec3::X;
-    let c = TextureEvalContext::with_ray_differentials(&si, (Vec3::ONE, side), (Vec3::ONE, side));
+    si.compute_differentials(&ray((Vec3::ONE, side), (Vec3::ONE, side)));
+    let c = TextureEvalContext::from_si(&si);
     assert_eq!((c.dudx, c.dvdy, c.dpdx), (0.0, 0.0, Vec3::ZERO));
+    // No offset rays: no differentials.
+    si.compute_differentials(&RayDifferential::plain(Ray::new(Vec3::ZERO, down, 1.0)));
+    assert_eq!(si.diff, Default::default());
 }

@@ -4,7 +4,7 @@
 //! `directlighting`, `path` and `whitted`.
 
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
-use penumbra_core::geometry::Ray;
+use penumbra_core::geometry::{Ray, RayDifferential, RayOffsets};
 use penumbra_core::integrator::ThreadStats;
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{Light, LightContext, LightLiSample};
@@ -141,42 +141,89 @@ pub fn sample_one_light(
 
 /// pbrt-v3's `SamplerIntegrator::SpecularReflect`/`SpecularTransmit` (`kind` is
 /// `REFLECTION` or `TRANSMISSION`): samples the perfectly specular lobes of that kind with one
-/// 2D sample and weights the radiance `trace` returns along the new ray.
+/// 2D sample and weights the radiance `trace` returns along the new ray, which carries offset
+/// rays when `ray` (the ray that reached `si`) did ([`specular_ray`]).
 pub fn specular(
     si: &SurfaceInteraction,
     bsdf: &Bsdf,
+    ray: &RayDifferential,
     sampler: &mut dyn Sampler,
     stats: &mut ThreadStats,
     kind: BxdfFlags,
-    trace: impl FnOnce(&Ray, &mut dyn Sampler, &mut ThreadStats) -> Rgb,
+    trace: impl FnOnce(&RayDifferential, &mut dyn Sampler, &mut ThreadStats) -> Rgb,
 ) -> Rgb {
-    let Some(s) = specular_ray(si, bsdf, sampler, stats, kind) else { return Rgb::ZERO };
+    let Some(s) = specular_ray(si, bsdf, ray, sampler, stats, kind) else { return Rgb::ZERO };
     s.f * trace(&s.ray, sampler, stats) * s.scale
 }
 
 /// The step of [`specular`] before tracing: the new ray and its weight `f · scale` (`f` the
 /// BSDF value, `scale` = |cos θ| / pdf), counted as a ray; `None` when the lobes of that kind
 /// give nothing. For an integrator whose radiance along the ray is more than one value.
+/// When `ray` has offset rays, the new ray's are pbrt-v3's: reflected or refracted about the
+/// shading normal as it turns over the pixel footprint (`∂n/∂x = ∂n/∂u ∂u/∂x + ∂n/∂v ∂v/∂x`).
 pub fn specular_ray(
     si: &SurfaceInteraction,
     bsdf: &Bsdf,
+    ray: &RayDifferential,
     sampler: &mut dyn Sampler,
     stats: &mut ThreadStats,
     kind: BxdfFlags,
 ) -> Option<SpecularRay> {
     let u = sampler.get_2d();
     let s = bsdf.sample_f(si.wo, u, kind | BxdfFlags::SPECULAR)?;
-    let cos = s.wi.dot(bsdf.shading_normal()).abs();
+    let ns = bsdf.shading_normal();
+    let cos = s.wi.dot(ns).abs();
     if !(s.pdf > 0.0) || s.f == Rgb::ZERO || cos == 0.0 {
         return None;
     }
     stats.rays += 1;
-    Some(SpecularRay { ray: si.spawn_ray(s.wi), f: s.f, scale: cos / s.pdf })
+    let offsets = ray.offsets.and_then(|o| specular_offsets(si, ns, bsdf.eta, &o, s.wi, kind));
+    Some(SpecularRay { ray: RayDifferential { ray: si.spawn_ray(s.wi), offsets }, f: s.f, scale: cos / s.pdf })
+}
+
+/// pbrt-v3's ray differentials of a perfectly specular reflection or transmission to `wi`
+/// at `si` (shading normal `ns`, the BSDF's relative index of refraction `eta`), from the
+/// offset rays `o` of the ray that arrived.
+fn specular_offsets(
+    si: &SurfaceInteraction,
+    ns: Vec3,
+    eta: f32,
+    o: &RayOffsets,
+    wi: Vec3,
+    kind: BxdfFlags,
+) -> Option<RayOffsets> {
+    let d = &si.diff;
+    let wo = si.wo;
+    let mut dndx = si.dndu * d.dudx + si.dndv * d.dvdx;
+    let mut dndy = si.dndu * d.dudy + si.dndv * d.dvdy;
+    let (dwodx, dwody) = (-o.rx_d - wo, -o.ry_d - wo);
+    let (rx_d, ry_d) = if kind.contains(BxdfFlags::TRANSMISSION) {
+        // pbrt-v3 assumes the ray enters (relative index 1/eta) and flips the normal and its
+        // derivatives when it leaves.
+        let (mut eta, mut ns) = (1.0 / eta, ns);
+        if wo.dot(ns) < 0.0 {
+            eta = 1.0 / eta;
+            ns = -ns;
+            dndx = -dndx;
+            dndy = -dndy;
+        }
+        let ddn_dx = dwodx.dot(ns) + wo.dot(dndx);
+        let ddn_dy = dwody.dot(ns) + wo.dot(dndy);
+        let mu = eta * wo.dot(ns) - wi.dot(ns).abs();
+        let k = eta - (eta * eta * wo.dot(ns)) / wi.dot(ns).abs();
+        (wi - eta * dwodx + (mu * dndx + k * ddn_dx * ns), wi - eta * dwody + (mu * dndy + k * ddn_dy * ns))
+    } else {
+        let ddn_dx = dwodx.dot(ns) + wo.dot(dndx);
+        let ddn_dy = dwody.dot(ns) + wo.dot(dndy);
+        (wi - dwodx + 2.0 * (wo.dot(ns) * dndx + ddn_dx * ns), wi - dwody + 2.0 * (wo.dot(ns) * dndy + ddn_dy * ns))
+    };
+    let r = RayOffsets { rx_o: si.p + d.dpdx, rx_d, ry_o: si.p + d.dpdy, ry_d };
+    [r.rx_o, r.rx_d, r.ry_o, r.ry_d].iter().all(|v| v.is_finite()).then_some(r)
 }
 
 /// A ray [`specular_ray`] sampled, and its weight `f · scale`.
 pub struct SpecularRay {
-    pub ray: Ray,
+    pub ray: RayDifferential,
     pub f: Rgb,
     pub scale: f32,
 }
