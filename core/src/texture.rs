@@ -436,10 +436,13 @@ impl<T: Texel> MipMap<T> {
     }
 
     /// Filtered lookup: trilinear when `trilinear`, else EWA with eccentricity clamped to `max_aniso`.
+    /// The trilinear filter width is the largest footprint component, not twice it: pbrt-v3's
+    /// commit aaa552a ("Fix trilinear filtering", in the 13d871f the references were made with)
+    /// dropped the factor 2, since each level's bilinear lookup already widens the filter.
     pub fn lookup(&self, st: Vec2, mut d0: Vec2, mut d1: Vec2, trilinear: bool, max_aniso: f32) -> T {
         if trilinear {
             let w = d0.x.abs().max(d0.y.abs()).max(d1.x.abs().max(d1.y.abs()));
-            return self.lookup_width(st, 2.0 * w);
+            return self.lookup_width(st, w);
         }
         if d0.length_squared() < d1.length_squared() {
             std::mem::swap(&mut d0, &mut d1);

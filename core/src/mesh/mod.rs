@@ -66,6 +66,52 @@ pub enum NormalRule {
     Quadric,
 }
 
+/// The parameters of a pbrt-v3 quadric that area lights sample analytically, as pbrt-v3's
+/// shape classes hold them (object space, after pbrt-v3's clamping; angles in radians).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum QuadricShape {
+    Sphere { radius: f64, z_min: f64, z_max: f64, phi_max: f64 },
+    Disk { height: f64, radius: f64, inner_radius: f64, phi_max: f64 },
+    Cylinder { radius: f64, z_min: f64, z_max: f64, phi_max: f64 },
+}
+
+impl QuadricShape {
+    /// pbrt-v3's `Shape::Area()`: in object space, whatever the transform.
+    pub fn area(&self) -> f64 {
+        match *self {
+            QuadricShape::Sphere { radius, z_min, z_max, phi_max } => phi_max * radius * (z_max - z_min),
+            QuadricShape::Disk { radius, inner_radius, phi_max, .. } => {
+                phi_max * 0.5 * (radius * radius - inner_radius * inner_radius)
+            }
+            QuadricShape::Cylinder { radius, z_min, z_max, phi_max } => (z_max - z_min) * radius * phi_max,
+        }
+    }
+
+    /// Whether pbrt-v3's `Shape::Sample(u)` covers exactly this surface (it samples a whole
+    /// sphere or a whole disk whatever `zmin`, `zmax`, `phimax` or `innerradius` cut away).
+    pub fn sampled_whole(&self) -> bool {
+        let full = |phi_max: f64| phi_max >= std::f64::consts::TAU;
+        match *self {
+            QuadricShape::Sphere { radius, z_min, z_max, phi_max } => {
+                full(phi_max) && z_min <= -radius && z_max >= radius
+            }
+            QuadricShape::Disk { inner_radius, phi_max, .. } => full(phi_max) && inner_radius <= 0.0,
+            QuadricShape::Cylinder { .. } => true,
+        }
+    }
+}
+
+/// A quadric's own description beside its tessellation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Quadric {
+    pub shape: QuadricShape,
+    /// The shape's object-to-world transform.
+    pub world_from_object: penumbra_parser::Transform,
+    /// How far (object space) the tessellation may lie from the analytic surface (see
+    /// `crate::shapes`): a point sampled on the analytic surface is this close to the mesh.
+    pub deviation: f64,
+}
+
 /// A triangle mesh in world (render) space.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriangleMesh {
@@ -97,6 +143,9 @@ pub struct TriangleMesh {
     pub shadow_alpha: Option<AlphaSpec>,
     /// Which pbrt-v3 shape the mesh stands for, as far as its normals go.
     pub normal_rule: NormalRule,
+    /// For a sphere, disk or cylinder: its parameters, for what pbrt-v3 computes on the
+    /// analytic shape (area-light sampling).
+    pub quadric: Option<Quadric>,
 }
 
 impl TriangleMesh {

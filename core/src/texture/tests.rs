@@ -331,6 +331,10 @@ fn mipmap_filters_average_large_footprints_and_resample_keeps_constants() {
         let z = Vec2::ZERO;
         assert_eq!(m.lookup(st, z, z, true, 8.0), m.bilerp(0, st));
         assert_eq!(m.lookup(st, z, z, false, 8.0), m.bilerp(0, st));
+        // Trilinear: the level is log2 of the largest footprint component (pbrt-v3 after its
+        // aaa552a), here a half of the texture: level 1 of 3 exactly, bilinear there.
+        let half = (Vec2::new(0.5, 0.1), Vec2::new(-0.2, 0.3));
+        assert_eq!(m.lookup(st, half.0, half.1, true, 8.0), m.bilerp(1, st));
         // EWA with a small footprint stays close to the bilinear value.
         let e = m.lookup(Vec2::new(0.5, 0.5), Vec2::new(0.01, 0.0), Vec2::new(0.0, 0.01), false, 8.0);
         assert!((e - m.bilerp(0, Vec2::new(0.5, 0.5))).abs() < 0.6, "{e}");
