@@ -760,7 +760,9 @@ fn shape_sampling_param(p: &ParamSet, owner: &str, loc: &FileLoc, warnings: &Dia
         other => {
             warnings.warn(
                 Some(p.loc_of("shapesampling").unwrap_or(loc).clone()),
-                format!("{owner}: \"shapesampling\" \"{other}\" unknown (\"pbrt-v3\" or \"physical\"): using \"pbrt-v3\""),
+                format!(
+                    "{owner}: \"shapesampling\" \"{other}\" unknown (\"pbrt-v3\" or \"physical\"): using \"pbrt-v3\""
+                ),
             );
             ShapeSampling::Pbrt
         }

@@ -308,7 +308,11 @@ mod tests {
             for (mode, factor) in [(ShapeSampling::Pbrt, pbrt_factor), (ShapeSampling::Physical, 1.0)] {
                 let s = QuadricSampler::new(&q, false, mode).unwrap();
                 let e = irradiance(&s, &ctx, 400_000, 3);
-                assert!((e / (e_true * factor) - 1.0).abs() < 0.01, "scale {scale} {mode:?}: {e} vs {}", e_true * factor);
+                assert!(
+                    (e / (e_true * factor) - 1.0).abs() < 0.01,
+                    "scale {scale} {mode:?}: {e} vs {}",
+                    e_true * factor
+                );
             }
         }
         // Reverse orientation: the sampled normals face inward, nothing reaches an outside point.
@@ -324,7 +328,12 @@ mod tests {
         let ctx = at(Vec3::new(0.0, 0.0, 2.0), -Vec3::Z);
         let e_true = std::f64::consts::PI / 5.0;
         for (scale, factor) in [(1.0f64, 1.0f64), (0.5, 4.0)] {
-            let shape = QuadricShape::Disk { height: 0.0, radius: 1.0 / scale, inner_radius: 0.0, phi_max: std::f64::consts::TAU };
+            let shape = QuadricShape::Disk {
+                height: 0.0,
+                radius: 1.0 / scale,
+                inner_radius: 0.0,
+                phi_max: std::f64::consts::TAU,
+            };
             let q = quadric(shape, Transform::scale([scale; 3]).unwrap());
             let s = QuadricSampler::new(&q, false, ShapeSampling::Pbrt).unwrap();
             let e = irradiance(&s, &ctx, 400_000, 5);
