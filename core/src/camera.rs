@@ -283,4 +283,58 @@ mod tests {
         let up = e.generate_ray(&sample(0.0, 0.0));
         assert!((up.d - Vec3::Y).length() < 1e-5);
     }
+
+    /// The offset rays of each projection, turned into the differentials of a plane facing the
+    /// camera at distance 5 with u = x/2, v = y/3: the pixel footprint on the plane in closed
+    /// form (one pixel of the screen window at that distance, over √spp).
+    #[test]
+    fn differentials_on_a_facing_plane_are_the_pixel_footprint() {
+        use crate::interaction::SurfaceInteraction;
+        let res = 64u32;
+        let spp = 16u32;
+        let plane_hit = |r: &RayDifferential| {
+            let t = -r.o.z / r.d.z;
+            let p = r.o + t * r.d;
+            let mut si = SurfaceInteraction {
+                p,
+                n: -Vec3::Z,
+                uv: Vec2::new(p.x / 2.0, p.y / 3.0),
+                dpdu: Vec3::new(2.0, 0.0, 0.0),
+                dpdv: Vec3::new(0.0, 3.0, 0.0),
+                ..Default::default()
+            };
+            si.compute_differentials(r);
+            si.diff
+        };
+        let mut fov90 = ParamSet::new();
+        fov90.add(Param::new("fov", ParamValue::Float(vec![90.0]), penumbra_parser::FileLoc::builtin()));
+        // Perspective, fov 90 on a square image: the screen window [-1, 1]² spans 10 at distance 5.
+        let mut ortho = ParamSet::new();
+        ortho.add(Param::new(
+            "screenwindow",
+            ParamValue::Float(vec![-2.0, 2.0, -2.0, 2.0]),
+            penumbra_parser::FileLoc::builtin(),
+        ));
+        for (kind, params, span) in [("perspective", fov90, 10.0f32), ("orthographic", ortho, 4.0)] {
+            let c = cam(kind, params, (res, res));
+            let centre = sample(res as f32 / 2.0, res as f32 / 2.0);
+            let d = plane_hit(&c.sample_ray(&centre, spp));
+            let step = span / res as f32 / (spp as f32).sqrt();
+            let close = |a: f32, b: f32| (a.abs() - b).abs() <= 2e-3 * b;
+            assert!(close(d.dpdx.length(), step) && close(d.dpdy.length(), step), "{kind}: {d:?} vs {step}");
+            assert!(close(d.dudx, step / 2.0) && close(d.dvdy, step / 3.0), "{kind}: {d:?}");
+            assert!(d.dvdx.abs() < 1e-6 && d.dudy.abs() < 1e-6, "{kind}: {d:?}");
+            // Without scaling: one whole pixel.
+            let full = plane_hit(&c.generate_ray_differential(&centre));
+            assert!(close(full.dpdx.length(), span / res as f32), "{kind}: {full:?}");
+        }
+        // The environment camera's offsets are a 0.05-pixel finite difference of its directions:
+        // at the equator, one pixel in x turns the direction by 2π/width.
+        let e = cam("environment", ParamSet::new(), (128, 64));
+        let r = e.generate_ray_differential(&sample(17.3, 32.0));
+        let o = r.offsets.unwrap();
+        let turn = (o.rx_d - r.d).length();
+        assert!((turn - std::f32::consts::TAU / 128.0).abs() < 2e-3 * turn, "{turn}");
+        assert!((o.ry_d - r.d).length() > 0.0 && o.rx_o == r.o);
+    }
 }

@@ -232,3 +232,93 @@ pub struct SpecularRay {
 pub fn has_specular(bsdf: &Bsdf) -> bool {
     bsdf.bxdfs().iter().any(|b| b.flags().is_specular())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use penumbra_core::interaction::Differentials;
+
+    /// The interaction where a ray meets the sphere of radius `r` at the origin (parametrised
+    /// p = r (cos u sin v, sin u sin v, cos v)), with its analytic ∂n/∂u, ∂n/∂v and the
+    /// differentials of the offset rays `o`.
+    fn sphere_hit(r: f32, ray: &RayDifferential) -> SurfaceInteraction {
+        let t = {
+            let (b, c) = (ray.o.dot(ray.d), ray.o.length_squared() - r * r);
+            -b - (b * b - c).sqrt()
+        };
+        let p = ray.at(t);
+        let (u, v) = (p.y.atan2(p.x), (p.z / r).acos());
+        let dpdu = Vec3::new(-p.y, p.x, 0.0);
+        let dpdv = r * Vec3::new(u.cos() * v.cos(), u.sin() * v.cos(), -v.sin());
+        let n = p / r;
+        let mut si = SurfaceInteraction {
+            p,
+            n,
+            uv: Vec2::new(u, v),
+            dpdu,
+            dpdv,
+            dndu: dpdu / r,
+            dndv: dpdv / r,
+            wo: -ray.d,
+            ..Default::default()
+        };
+        si.compute_differentials(ray);
+        si
+    }
+
+    fn reflect(wo: Vec3, n: Vec3) -> Vec3 {
+        -wo + 2.0 * wo.dot(n) * n
+    }
+
+    fn refract(wo: Vec3, n: Vec3, eta: f32) -> Vec3 {
+        // eta: relative index (incident over transmitted); wo on n's side.
+        let cos_i = wo.dot(n);
+        let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
+        let cos_t = (1.0 - sin2_t).sqrt();
+        -eta * wo + (eta * cos_i - cos_t) * n
+    }
+
+    /// pbrt-v3's reflected and refracted differentials are first-order exact: the offset ray's
+    /// own reflection (refraction) off the sphere where it really hits it differs from the
+    /// predicted offset direction by second-order terms only.
+    #[test]
+    fn specular_differentials_follow_the_offset_rays_to_first_order() {
+        let r = 1.0f32;
+        let o = Vec3::new(0.3, -4.0, 0.5);
+        let d = (Vec3::new(0.2, 0.0, 0.3) - o).normalize();
+        let eps = 0.01f32;
+        let (dx, dy) = (Vec3::new(eps, 0.0, 0.0), Vec3::new(0.0, 0.0, eps));
+        let ray = RayDifferential {
+            ray: Ray::new(o, d, f32::INFINITY),
+            offsets: Some(RayOffsets { rx_o: o, rx_d: (d + dx).normalize(), ry_o: o, ry_d: (d + dy).normalize() }),
+        };
+        let si = sphere_hit(r, &ray);
+        let offs = ray.offsets.unwrap();
+        let eta_bsdf = 1.5f32;
+        for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
+            let scatter = |wo: Vec3, n: Vec3| {
+                if kind == BxdfFlags::REFLECTION {
+                    reflect(wo, n)
+                } else {
+                    refract(wo, n, 1.0 / eta_bsdf)
+                }
+            };
+            let wi = scatter(si.wo, si.n);
+            let pred = specular_offsets(&si, si.n, eta_bsdf, &offs, wi, kind).unwrap();
+            for (od, pd) in [(offs.rx_d, pred.rx_d), (offs.ry_d, pred.ry_d)] {
+                let h = sphere_hit(r, &RayDifferential::plain(Ray::new(o, od, f32::INFINITY)));
+                let truth = scatter(h.wo, h.n);
+                let first_order = (truth - wi).length();
+                assert!(first_order > 1e-3, "{kind:?}: the offset must turn the ray");
+                assert!((pd - truth).length() < 0.05 * first_order, "{kind:?}: {pd} vs {truth} (change {first_order})");
+            }
+            // The offset origins are on the tangent plane, one footprint away.
+            assert_eq!(pred.rx_o, si.p + si.diff.dpdx);
+        }
+        // Without curvature (a flat mirror) the reflected offsets are the mirror images.
+        let flat = SurfaceInteraction { dndu: Vec3::ZERO, dndv: Vec3::ZERO, diff: Differentials::default(), ..si };
+        let wi = reflect(flat.wo, flat.n);
+        let pred = specular_offsets(&flat, flat.n, 1.0, &offs, wi, BxdfFlags::REFLECTION).unwrap();
+        assert!((pred.rx_d - reflect(-offs.rx_d, flat.n)).length() < 1e-5);
+    }
+}
