@@ -709,10 +709,15 @@ pub enum TextureNode<P, V: Texel> {
         tex1: P,
         tex2: P,
     },
+    /// pbrt-v3's `dots`, whose constructor takes `(outside, inside)` but is called with the
+    /// `"inside"` and `"outside"` parameters in that order: the dots show `"outside"` and the
+    /// space between them `"inside"`. penumbra renders what pbrt-v3 renders.
     Dots {
         mapping: Mapping2D,
-        inside: P,
-        outside: P,
+        /// The `"outside"` parameter (default 0).
+        in_dots: P,
+        /// The `"inside"` parameter (default 1).
+        between_dots: P,
     },
     Fbm {
         mapping: Mapping3D,
@@ -1093,8 +1098,8 @@ impl Textures {
             )?,
             "dots" => TextureNode::Dots {
                 mapping: m2(warnings),
-                inside: self.get_float_param(p, "inside", 1.0, warnings)?,
-                outside: self.get_float_param(p, "outside", 0.0, warnings)?,
+                between_dots: self.get_float_param(p, "inside", 1.0, warnings)?,
+                in_dots: self.get_float_param(p, "outside", 0.0, warnings)?,
             },
             "fbm" => TextureNode::Fbm {
                 mapping: Mapping3D::new(xf),
@@ -1169,8 +1174,8 @@ impl Textures {
             )?,
             "dots" => TextureNode::Dots {
                 mapping: m2(warnings),
-                inside: self.get_spectrum_param(p, "inside", one, warnings)?,
-                outside: self.get_spectrum_param(p, "outside", Vec3::ZERO, warnings)?,
+                between_dots: self.get_spectrum_param(p, "inside", one, warnings)?,
+                in_dots: self.get_spectrum_param(p, "outside", Vec3::ZERO, warnings)?,
             },
             "fbm" => TextureNode::Fbm {
                 mapping: Mapping3D::new(xf),
@@ -1407,7 +1412,7 @@ impl<P: TextureParam<Value = V>, V: Texel + FromScalar> TextureNode<P, V> {
                     tex2.eval(tx, ctx)
                 }
             }
-            TextureNode::Dots { mapping, inside, outside } => {
+            TextureNode::Dots { mapping, in_dots, between_dots } => {
                 let (st, _, _) = mapping.map(ctx);
                 let s_cell = (st.x + 0.5).floor();
                 let t_cell = (st.y + 0.5).floor();
@@ -1418,10 +1423,10 @@ impl<P: TextureParam<Value = V>, V: Texel + FromScalar> TextureNode<P, V> {
                     let sc = s_cell + max_shift * n2(s_cell + 1.5, t_cell + 2.8);
                     let tc = t_cell + max_shift * n2(s_cell + 4.5, t_cell + 9.8);
                     if (st - Vec2::new(sc, tc)).length_squared() < radius * radius {
-                        return inside.eval(tx, ctx);
+                        return in_dots.eval(tx, ctx);
                     }
                 }
-                outside.eval(tx, ctx)
+                between_dots.eval(tx, ctx)
             }
             TextureNode::Fbm { mapping, octaves, omega } => {
                 let (p, dx, dy) = mapping.map(ctx);

@@ -129,6 +129,31 @@ fn checkerboard_texture_point_and_filtered() {
     assert!((v - 3.5).abs() < 1e-5, "{v}");
 }
 
+/// pbrt-v3's `dots` shows its `"outside"` texture in the dots and `"inside"` between them
+/// (its constructor's parameters are swapped), as the real pbrt-v3 renders
+/// `textures/dots.pbrt` of the pbrt-v3 scene collection.
+#[test]
+fn dots_show_outside_in_the_dots_as_pbrt_v3() {
+    let p = params(vec![("inside", ParamValue::Float(vec![2.0])), ("outside", ParamValue::Float(vec![7.0]))]);
+    let desc = scene(vec![tex("d", TextureKind::Float, "dots", p)], vec![], PathBuf::new());
+    let mut t = Textures::new(&desc);
+    t.ensure(0, &DiagSink::new()).unwrap();
+    let n2 = |x: f32, y: f32| noise(Vec3::new(x, y, 0.5));
+    let (mut dots, mut between) = (0, 0);
+    for cell in 0..64 {
+        let (sc, tc) = ((cell % 8) as f32, (cell / 8) as f32);
+        // A dot's centre (its cell's noise decides whether it has one) and a cell corner.
+        let centre = Vec2::new(sc + 0.15 * n2(sc + 1.5, tc + 2.8), tc + 0.15 * n2(sc + 4.5, tc + 9.8));
+        if n2(sc + 0.5, tc + 0.5) > 0.0 {
+            assert_eq!(t.eval_float(FloatParam::Tex(0), &ctx_uv(centre.x, centre.y)), 7.0);
+            dots += 1;
+        }
+        assert_eq!(t.eval_float(FloatParam::Tex(0), &ctx_uv(sc + 0.5, tc + 0.5)), 2.0);
+        between += 1;
+    }
+    assert!(dots > 10 && between == 64);
+}
+
 #[test]
 fn checkerboard_3d_uses_point_parity() {
     let p = params(vec![("dimension", ParamValue::Int(vec![3]))]);
