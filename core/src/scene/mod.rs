@@ -40,6 +40,9 @@ pub struct Requirements {
     /// Sphere-set approximations of the occluders with this many leaves per fitted object
     /// (`shexp`; see [`crate::sphereset`]).
     pub sphere_sets: Option<u32>,
+    /// The integrator renders BSSRDFs ([`Scene::bssrdf`]; `path`). Otherwise the build warns
+    /// once per material type that has one: only its interface is rendered.
+    pub subsurface: bool,
 }
 
 /// A crop given on the command line: fractions (pbrt-v3's `cropwindow`) or pixel bounds.
@@ -231,6 +234,22 @@ impl Scene {
                 textures,
             )
         }))
+    }
+
+    /// The BSSRDF under `si`, whose BSDF (built with `opts`) is `bsdf`; `None` when its material
+    /// has none (see [`Material::bssrdf`]).
+    pub fn bssrdf(
+        &self,
+        si: &SurfaceInteraction,
+        bsdf: &Bsdf,
+        opts: BsdfOptions,
+    ) -> Option<crate::bssrdf::SeparableBssrdf<'_>> {
+        let index = self.objects.get(si.mesh as usize)?.material?;
+        let (mat, _, textures) = self.material_of(si)?;
+        if !mat.may_have_bssrdf() {
+            return None;
+        }
+        mat.bssrdf(si, &TextureEvalContext::from_si(si), bsdf, opts, textures, index)
     }
 
     /// The material at `si`, with the material and texture tables (`None` as for [`bsdf`](Self::bsdf)).

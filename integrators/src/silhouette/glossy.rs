@@ -17,7 +17,7 @@
 //! estimate with `s ≈ 2/α²`), so `N = ⌈C/α⌉ + 1` bands keep the same fraction of it for any
 //! `α`, capped at `"integer glossyorder"`; Oren–Nayar is smooth (order 3).
 
-use penumbra_core::bxdf::{Bsdf, Bxdf};
+use penumbra_core::bxdf::{Bsdf, Bxdf, DisneyLobe};
 use penumbra_core::geometry::Frame;
 use penumbra_core::sh::{basis, quadrature::gauss_legendre, ShOrder};
 use penumbra_core::{Rgb, Vec3};
@@ -33,6 +33,9 @@ pub const TABLE_CELLS: usize = 128;
 /// falls 0.0163, 0.0134, 0.0084, 0.0066, 0.0057, 0.0054, 0.0053 at orders 2, 4, 6, 8, 10, 12,
 /// 16; C = 3 gives order 11 there.
 pub const ORDER_PER_INVERSE_ALPHA: f32 = 3.0;
+
+/// The SH order of `disney`'s diffuse, fake-subsurface, retro-reflection and sheen lobes.
+pub const DISNEY_DIFFUSE_ORDER: usize = 8;
 
 /// How one surface's non-specular reflection splits: its Lambertian albedo (integrated
 /// exactly by the caller), the other lobes (by SH), and the order they need.
@@ -65,8 +68,16 @@ impl Split {
                 Bxdf::SpecularReflection { .. } | Bxdf::SpecularTransmission { .. } | Bxdf::FresnelSpecular { .. } => {
                     continue
                 }
-                Bxdf::LambertianTransmission { .. } | Bxdf::MicrofacetTransmission { .. } => return None,
+                Bxdf::LambertianTransmission { .. }
+                | Bxdf::MicrofacetTransmission { .. }
+                | Bxdf::Hair(_)
+                | Bxdf::Fourier(_)
+                | Bxdf::SubsurfaceExit { .. } => return None,
                 Bxdf::OrenNayar { .. } => 3.min(max.n()),
+                // Polynomials of degree ≤ 8 in the directions' components (Schlick's fifth
+                // powers times cosines), but for the sheen's `(1 − cos θ_d)^5`.
+                Bxdf::Disney(DisneyLobe::Clearcoat { gloss, .. }) => order_for_alpha(*gloss, max),
+                Bxdf::Disney(_) => DISNEY_DIFFUSE_ORDER.min(max.n()),
                 Bxdf::MicrofacetReflection { distribution, .. } | Bxdf::FresnelBlend { distribution, .. } => {
                     let (ax, ay) = distribution.alphas();
                     order_for_alpha(ax.min(ay), max)
