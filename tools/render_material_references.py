@@ -24,12 +24,12 @@ CASES = [
     ("disney-reflection-path", "disney-reflection", 'Integrator "path"', 4096),
     ("disney-transmission-dl", "disney-transmission", 'Integrator "directlighting"', 4096),
     ("disney-transmission-path", "disney-transmission", 'Integrator "path"', 4096),
-    ("fourier-dl", "fourier", 'Integrator "directlighting"', 4096),
-    ("fourier-path", "fourier", 'Integrator "path"', 4096),
+    ("fourier-dl", "fourier", 'Integrator "directlighting"', 2048),
+    ("fourier-path", "fourier", 'Integrator "path"', 2048),
     ("hair-dl", "hair", 'Integrator "directlighting"', 4096),
-    ("hair-path", "hair", 'Integrator "path"', 4096),
-    ("subsurface-dl", "subsurface", 'Integrator "directlighting"', 4096),
-    ("subsurface-path", "subsurface", 'Integrator "path"', 8192),
+    ("hair-path", "hair", 'Integrator "path"', 2048),
+    ("subsurface-dl", "subsurface", 'Integrator "directlighting"', 2048),
+    ("subsurface-path", "subsurface", 'Integrator "path"', 4096),
 ]
 
 
@@ -63,11 +63,12 @@ def main():
             os.remove(copy)
         rows[name] = f"{name}\t{scene}\t{integrator.split()[1].strip(chr(34))}\t{spp}\t{seconds:.1f}"
         print(rows[name], flush=True)
-    with open(tsv, "w") as f:
-        f.write("name\tscene\tintegrator\tspp\tpbrt_seconds\n")
-        for name, *_ in CASES:
-            if name in rows:
-                f.write(rows[name] + "\n")
+        # After every case, so that an interrupted run keeps what it finished.
+        with open(tsv, "w") as f:
+            f.write("name\tscene\tintegrator\tspp\tpbrt_seconds\n")
+            for case, *_ in CASES:
+                if case in rows:
+                    f.write(rows[case] + "\n")
 
 
 if __name__ == "__main__":

@@ -760,14 +760,16 @@ impl Material {
     }
 
     /// Whether a BSDF of this material may have a perfectly specular lobe: `false` is a
-    /// guarantee (matte, plastic, metal, substrate, translucent; uber with constant black `Kr`
-    /// and `Kt` and constant opacity 1), `true` a maybe (mirror, glass, mix, other uber). For
+    /// guarantee (matte, plastic, metal, substrate, translucent, fourier, hair; uber with
+    /// constant black `Kr` and `Kt` and constant opacity 1; disney without a scatter distance),
+    /// `true` a maybe (mirror, glass, mix, subsurface, other uber and disney). For
     /// an integrator that builds the BSDF only to follow specular lobes.
     pub fn may_be_specular(&self) -> bool {
         match *self {
             Material::Mirror { .. } | Material::Glass { .. } | Material::Mix { .. } => true,
-            // Smooth interfaces; `disney`'s only with a scatter distance.
-            Material::Subsurface(_) | Material::Disney(_) => true,
+            // A smooth interface; `disney`'s only over a BSSRDF.
+            Material::Subsurface(_) => true,
+            Material::Disney(_) => self.may_have_bssrdf(),
             Material::Uber { kr, kt, opacity, .. } => {
                 kr != SpectrumParam::Const(Rgb::ZERO)
                     || kt != SpectrumParam::Const(Rgb::ZERO)
@@ -833,8 +835,11 @@ impl Material {
 
     /// The material as a diffuse albedo plus an optional isotropic GGX lobe, for
     /// analytic (LTC) integrators; `None` when it is not of that form (Oren–Nayar
-    /// matte, anisotropic roughness, mirror, glass, mix, translucent). For `uber`
-    /// only its diffuse and glossy parts are described.
+    /// matte, anisotropic roughness, mirror, glass, mix, translucent, fourier, hair,
+    /// subsurface, and disney at every setting: Burley's diffuse is not Lambertian and its
+    /// retro-reflection lobe is always present, its specular masking term is separable, not
+    /// the height-correlated one the LTC tables were fitted to, and its Fresnel is its own).
+    /// For `uber` only its diffuse and glossy parts are described.
     pub fn ltc_lobes(&self, si: &SurfaceInteraction, textures: &Textures) -> Option<LtcDescription> {
         let ctx = TextureEvalContext::from_si(si);
         let geom = ShadingGeometry::infer(si);

@@ -244,8 +244,15 @@ impl Scene {
         bsdf: &Bsdf,
         opts: BsdfOptions,
     ) -> Option<crate::bssrdf::SeparableBssrdf<'_>> {
-        let index = self.objects.get(si.mesh as usize)?.material?;
-        let (mat, _, textures) = self.material_of(si)?;
+        let mut index = self.objects.get(si.mesh as usize)?.material?;
+        let (mut mat, materials, textures) = self.material_of(si)?;
+        // pbrt-v3's `mix` keeps its first material's BSSRDF, whose probes then look for the
+        // surfaces of that material (not the mix's: a mixed BSSRDF finds no exit and ends the path).
+        for _ in 0..16 {
+            let Material::Mix { m1, .. } = mat else { break };
+            index = *m1;
+            mat = materials.get(index)?;
+        }
         if !mat.may_have_bssrdf() {
             return None;
         }

@@ -163,3 +163,31 @@ pub fn shade(split: &Split, bsdf: &Bsdf, wo: Vec3, ng: Vec3, lsh: &[f64]) -> Rgb
     let dot = |c: usize| lsh[c * k..(c + 1) * k].iter().zip(&g[c * k..(c + 1) * k]).map(|(a, b)| a * b).sum::<f64>();
     Rgb::new(dot(0) as f32, dot(1) as f32, dot(2) as f32).max(Rgb::ZERO)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use penumbra_core::bxdf::{Fresnel, HairBxdf};
+    use penumbra_core::microfacet::MicrofacetDistribution;
+
+    /// Disney's lobes are all reflection: the diffuse family at [`DISNEY_DIFFUSE_ORDER`], the
+    /// clearcoat and specular by their roughness; a lobe that transmits (hair, and so fourier)
+    /// leaves the whole BSDF to the estimator.
+    #[test]
+    fn disney_lobes_are_projected_and_hair_falls_back() {
+        let max = ShOrder::new(12).unwrap();
+        let mut b = Bsdf::new(Vec3::Z, Vec3::X, Vec3::Z, 1.0);
+        b.add(Bxdf::Disney(DisneyLobe::Diffuse { r: Rgb::splat(0.5) })).unwrap();
+        b.add(Bxdf::Disney(DisneyLobe::Sheen { r: Rgb::splat(0.5) })).unwrap();
+        let split = Split::of(&b, max).unwrap();
+        assert_eq!((split.order.n(), split.lobes, split.diffuse), (DISNEY_DIFFUSE_ORDER, 0b11, Rgb::ZERO));
+        let fresnel = Fresnel::Disney { r0: Rgb::splat(0.04), metallic: 0.0, eta: 1.5 };
+        b.add(Bxdf::microfacet_reflection(Rgb::ONE, MicrofacetDistribution::disney(0.5, 0.5), fresnel)).unwrap();
+        b.add(Bxdf::Disney(DisneyLobe::Clearcoat { weight: Rgb::ONE, gloss: 0.1 })).unwrap();
+        let split = Split::of(&b, max).unwrap();
+        assert_eq!((split.order.n(), split.lobes), (order_for_alpha(0.1, max), 0b1111));
+        let mut h = Bsdf::new(Vec3::Z, Vec3::X, Vec3::Z, 1.55);
+        h.add(Bxdf::Hair(HairBxdf::new(0.0, 1.55, Rgb::splat(0.2), 0.3, 0.3, 2.0))).unwrap();
+        assert!(Split::of(&h, max).is_none());
+    }
+}
