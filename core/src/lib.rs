@@ -17,7 +17,6 @@ pub mod integrator;
 pub mod interaction;
 pub mod interpolation;
 pub mod light;
-pub mod ltc;
 pub mod material;
 pub mod mesh;
 #[rustfmt::skip]
@@ -33,10 +32,7 @@ pub mod scene;
 pub mod sh;
 pub mod shapes;
 pub mod shard;
-pub mod silhouette;
 pub mod spectrum;
-pub mod sphereset;
-pub mod spherical;
 pub mod stats;
 pub mod texture;
 
