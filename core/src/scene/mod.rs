@@ -37,6 +37,9 @@ pub struct Requirements {
     /// At least this many camera samples per pixel, and the integrator's reason (said in the
     /// warning when the scene's or the command line's count is raised).
     pub min_pixel_samples: Option<(u32, &'static str)>,
+    /// The integrator renders BSSRDFs ([`Scene::bssrdf`]; `path`). Otherwise the build warns
+    /// once per material type that has one: only its interface is rendered.
+    pub subsurface: bool,
 }
 
 /// A crop given on the command line: fractions (pbrt-v3's `cropwindow`) or pixel bounds.
@@ -243,6 +246,29 @@ impl Scene {
                 textures,
             )
         }))
+    }
+
+    /// The BSSRDF under `si`, whose BSDF (built with `opts`) is `bsdf`; `None` when its material
+    /// has none (see [`Material::bssrdf`]).
+    pub fn bssrdf(
+        &self,
+        si: &SurfaceInteraction,
+        bsdf: &Bsdf,
+        opts: BsdfOptions,
+    ) -> Option<crate::bssrdf::SeparableBssrdf<'_>> {
+        let mut index = self.objects.get(si.mesh as usize)?.material?;
+        let (mut mat, materials, textures) = self.material_of(si)?;
+        // pbrt-v3's `mix` keeps its first material's BSSRDF, whose probes then look for the
+        // surfaces of that material (not the mix's: a mixed BSSRDF finds no exit and ends the path).
+        for _ in 0..16 {
+            let Material::Mix { m1, .. } = mat else { break };
+            index = *m1;
+            mat = materials.get(index)?;
+        }
+        if !mat.may_have_bssrdf() {
+            return None;
+        }
+        mat.bssrdf(si, &TextureEvalContext::from_si(si), bsdf, opts, textures, index)
     }
 
     /// The material at `si`, with the material and texture tables (`None` as for [`bsdf`](Self::bsdf)).

@@ -250,6 +250,7 @@ impl Integrator for LtcIntegrator {
             adjacency: self.mode != Mode::PerTriangle || (self.shadows && self.merge_occluders),
             min_pixel_samples: (self.pixel_shading && self.coverage_samples > 1)
                 .then_some((self.coverage_samples, COVERAGE_REASON)),
+            ..Default::default()
         }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {

@@ -57,6 +57,7 @@
 //! parameters and the estimator.
 
 use crate::common::direct::{estimate_direct, specular};
+use crate::common::other_lights::FallbackWarning;
 use crate::common::params::{ParamSpec, Params};
 use crate::common::pixel_shading::{parse_shading, rgb_differs, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, SH_ORDER};
@@ -226,6 +227,8 @@ struct Estimator<'a> {
     sh_table: OnceLock<ShTable>,
     counters: Counters,
     pixel_shading: bool,
+    /// Names the materials whose lobes take the infinite lights through the estimator.
+    fallback: FallbackWarning<'a>,
 }
 
 impl Estimator<'_> {
@@ -435,7 +438,14 @@ impl Estimator<'_> {
             .filter(|d| d.specular.is_none());
         match lambertian {
             Some(d) => Some(EnvKind::Lambertian { albedo: d.diffuse, n: d.n }),
-            None => glossy::Split::of(&hit.bsdf, self.glossy_order).map(EnvKind::Split),
+            None => {
+                let split = glossy::Split::of(&hit.bsdf, self.glossy_order).map(EnvKind::Split);
+                if split.is_none() && hit.bsdf.num_components(BxdfFlags::NON_SPECULAR) > 0 {
+                    let name = scene.material_of(&hit.si).map_or("none", |(m, _, _)| m.type_name());
+                    self.fallback.material(name, "non-specular transmission", "the infinite lights");
+                }
+                split
+            }
         }
     }
 
@@ -752,6 +762,7 @@ impl Integrator for Silhouette {
             sh_table: OnceLock::new(),
             counters: Counters::default(),
             pixel_shading: self.pixel_shading,
+            fallback: FallbackWarning::new("silhouette", ctx.warnings),
         };
         let mut stats = render_pixels(&est, scene, ctx, film)?;
         let c = &est.counters;
