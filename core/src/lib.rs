@@ -3,6 +3,7 @@
 //! every integrator in `penumbra-integrators` plugs into.
 
 pub mod accel;
+pub mod agreement;
 pub mod bxdf;
 pub mod camera;
 #[rustfmt::skip]
