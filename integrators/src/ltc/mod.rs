@@ -5,7 +5,7 @@
 //! At each shading point and for each emitting triangle of each area light, the
 //! triangle is projected onto the sphere of directions, the occluders between the
 //! point and the triangle are projected too, and the visible part (light minus the
-//! union of occluders, [`spherical::difference`]) is integrated in closed form:
+//! union of occluders, [`spherical_polygon::difference`]) is integrated in closed form:
 //! the clamped cosine for the Lambertian lobe (exact), and a Linearly Transformed
 //! Cosine fitted to the Trowbridge–Reitz lobe for the glossy part.
 //!
@@ -19,7 +19,7 @@
 //! are clipped to the half-space of the shading point first, and a convex object
 //! straddling that plane is taken triangle by triangle. The triangles of one object
 //! that need no clipping (and lie in the open hemisphere around the light) are
-//! subtracted as the outline of their union ([`spherical::triangle_chains`]: each
+//! subtracted as the outline of their union ([`spherical_polygon::triangle_chains`]: each
 //! taken positively oriented from the point, shared edges cancelled, the rest covers
 //! by winding number), which is exact and has far fewer edges than the triangles —
 //! for a closed mesh, its silhouette edges (`"bool mergeoccluders" "false"`: one by one).
@@ -35,20 +35,12 @@
 //! same way as a camera ray's (analytic area lights, the rest as above), sample by sample:
 //! pixel shading applies to the first surfaces only.
 //!
-//! Stages: [`shader`] prepares the scene (objects, hierarchy, light shapes) and shades a point
-//! light by light; [`occluders`] finds what hides a light piece; [`integrate`] integrates the
-//! visible part; [`fresnel`] applies the glossy lobe's Fresnel factor. Pixel shading and the
-//! lights LTC does not shade live in [`crate::common`] (shared with `ratio`).
-
-mod fresnel;
-mod integrate;
-mod occluders;
-mod shader;
-
-pub use fresnel::{fresnel_at, FresnelMode};
-pub use shader::LtcShader;
+//! The shading itself (scene preparation, occluders, integration, Fresnel) is
+//! [`crate::common::ltc_shading`], shared with `ratio`; pixel shading and the lights LTC does
+//! not shade are in [`crate::common`] too. This file: parameters, the estimator, specular chains.
 
 use crate::common::direct::{has_specular, specular};
+use crate::common::ltc_shading::{AreaLighting, FresnelMode, LtcShader, Mode, ShaderSettings};
 use crate::common::other_lights::{add_other_lights, warn_infinite_lights, FallbackWarning};
 use crate::common::params::{ParamSpec, Params};
 use crate::common::pixel_shading::{parse_shading, SharedPixel, SHADING};
@@ -65,16 +57,6 @@ use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Requirements, Scene, SurfacePoint};
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Mode {
-    /// One silhouette loop per closed mesh.
-    Silhouette,
-    /// Every light and every occluder as its triangles.
-    PerTriangle,
-    /// Silhouettes for objects proven closed and convex, triangles otherwise.
-    Auto,
-}
 
 pub struct LtcIntegrator {
     pub mode: Mode,
@@ -133,40 +115,22 @@ impl LtcIntegrator {
 }
 
 struct Estimator<'a> {
-    shader: LtcShader<'a>,
+    ltc: &'a LtcIntegrator,
+    shader: LtcShader,
     fallback: FallbackWarning<'a>,
     /// The scene has lights other than area lights.
     other_lights: bool,
 }
 
-/// What pixel shading computes once per cluster: the analytic area lighting
-/// `(Σ L·form factor, glossy)`.
-pub(crate) type AreaLighting = (Rgb, Rgb);
-
-impl LtcShader<'_> {
-    /// Traces a pixel's camera `rays` and shades each surface they see once (with or without
-    /// `shadows`): `begin_pixel` of `ltc` and `ratio`.
-    pub(crate) fn trace_pixel(
-        &self,
-        rays: &[Ray],
-        samples: &[CameraSample],
-        scene: &Scene,
-        shadows: bool,
-        stats: &mut ThreadStats,
-    ) -> SharedPixel<AreaLighting> {
-        let mut scratch = Vec::new();
-        SharedPixel::trace(
-            rays,
-            samples,
-            scene,
-            stats,
-            |p| self.nearest_light_distance(p),
-            None,
-            |h, _| {
-                let desc = LtcShader::lobes(scene, &h.si)?;
-                Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
-            },
-        )
+impl LtcIntegrator {
+    /// What the shading is asked to do.
+    pub fn shader_settings(&self) -> ShaderSettings {
+        ShaderSettings {
+            mode: self.mode,
+            shadows: self.shadows,
+            fresnel: self.fresnel,
+            merge_occluders: self.merge_occluders,
+        }
     }
 }
 
@@ -188,7 +152,7 @@ impl Estimator<'_> {
         let lit = match area {
             Some((diffuse, specular)) => LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular),
             None => LtcShader::lobes(scene, si)
-                .map(|d| self.shader.area_lights(scene, si, &d, self.shader.ltc.shadows, &mut Vec::new())),
+                .map(|d| self.shader.area_lights(scene, si, &d, self.ltc.shadows, &mut Vec::new())),
         };
         let ltc_form = lit.is_some();
         if let Some(v) = lit {
@@ -196,7 +160,7 @@ impl Estimator<'_> {
         }
         // The BSDF only for what the LTC does not shade (delta and infinite lights, materials
         // without an LTC form) and for specular lobes to follow.
-        let follow = depth + 1 < self.shader.ltc.max_depth;
+        let follow = depth + 1 < self.ltc.max_depth;
         let may_be_specular = || scene.material_of(si).is_some_and(|(m, _, _)| m.may_be_specular());
         if !ltc_form || self.other_lights || (follow && may_be_specular()) {
             if let Some(hit) = hit.with_bsdf(scene) {
@@ -241,7 +205,7 @@ impl PixelEstimator for Estimator<'_> {
     }
 
     fn shares_pixel_work(&self) -> bool {
-        self.shader.ltc.pixel_shading
+        self.ltc.pixel_shading
     }
 
     fn begin_pixel(
@@ -251,7 +215,7 @@ impl PixelEstimator for Estimator<'_> {
         scene: &Scene,
         stats: &mut ThreadStats,
     ) -> Option<Self::Shared> {
-        Some(self.shader.trace_pixel(rays, samples, scene, self.shader.ltc.shadows, stats))
+        Some(self.shader.trace_pixel(rays, samples, scene, self.ltc.shadows, stats))
     }
 
     fn li_shared(
@@ -282,7 +246,6 @@ impl Integrator for LtcIntegrator {
             materials: true,
             // Light shapes and silhouettes (every mode but per-triangle) and occluder outlines.
             adjacency: self.mode != Mode::PerTriangle || (self.shadows && self.merge_occluders),
-            dual_edges: false,
             min_pixel_samples: (self.pixel_shading && self.coverage_samples > 1)
                 .then_some((self.coverage_samples, COVERAGE_REASON)),
             ..Default::default()
@@ -291,7 +254,8 @@ impl Integrator for LtcIntegrator {
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ltc", scene, ctx.warnings);
         let est = Estimator {
-            shader: LtcShader::new(self, scene),
+            ltc: self,
+            shader: LtcShader::new(self.shader_settings(), scene),
             fallback: FallbackWarning::new("ltc", ctx.warnings),
             other_lights: scene.light_list().iter().any(|l| !matches!(l, Light::Area(_))),
         };
@@ -308,9 +272,9 @@ impl Integrator for LtcIntegrator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::common::spherical_polygon;
     use glam::DVec3;
     use penumbra_core::scene::BuildOptions;
-    use penumbra_core::spherical;
 
     /// `ltc` asks the scene build for adjacency (built once there, per mesh, equal to the
     /// mesh's own), except in per-triangle mode without outlines; without the request the
@@ -364,11 +328,11 @@ mod tests {
         let mut bad = 0;
         for i in 0..200 {
             let p = DVec3::new(-2.0 + 0.02 * i as f64, 0.0, 0.3 - 0.01 * i as f64);
-            let la = spherical::project(p, &a);
-            let lb = spherical::project(p, &b);
-            let ff_a = spherical::form_factor(&la).abs();
-            let d = spherical::difference(std::slice::from_ref(&la), &[lb]);
-            let ff_d = spherical::form_factor_loops(&d);
+            let la = spherical_polygon::project(p, &a);
+            let lb = spherical_polygon::project(p, &b);
+            let ff_a = spherical_polygon::form_factor(&la).abs();
+            let d = spherical_polygon::difference(std::slice::from_ref(&la), &[lb]);
+            let ff_d = spherical_polygon::form_factor_loops(&d);
             if (ff_a - ff_d).abs() > 1e-6 * ff_a.max(1e-3) {
                 bad += 1;
                 eprintln!("p {p}: A {ff_a} diff {ff_d} loops {}", d.len());

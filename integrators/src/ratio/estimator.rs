@@ -5,9 +5,10 @@
 
 use super::{ChainTerms, RatioSample};
 use crate::common::direct::{has_specular, specular_ray};
+use crate::common::ltc::{Ltc, LtcCoeffs};
+use crate::common::ltc_shading::{fresnel_at, AreaLighting, LtcShader};
 use crate::common::other_lights::{add_other_lights, FallbackWarning};
 use crate::common::pixel_shading::SharedPixel;
-use crate::ltc::{fresnel_at, AreaLighting, LtcShader};
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::camera::CameraSample;
@@ -15,7 +16,6 @@ use penumbra_core::geometry::{gamma, Frame, Ray};
 use penumbra_core::integrator::{PixelEstimator, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{emitting_normal, DiffuseAreaLight, Light, LightContext};
-use penumbra_core::ltc::{Ltc, LtcCoeffs};
 use penumbra_core::material::{LtcDescription, LtcSpecular};
 use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Scene, SurfaceHit};
@@ -65,7 +65,7 @@ impl SampleGroup {
 }
 
 pub(super) struct Estimator<'a> {
-    pub(super) shader: LtcShader<'a>,
+    pub(super) shader: LtcShader,
     pub(super) n: u32,
     /// pbrt-v3's `"integer maxdepth"`: surfaces a specular chain may meet, the first included.
     pub(super) max_depth: u32,
@@ -158,7 +158,7 @@ impl Lobes {
         let (x, y) = (uv.x as f64, uv.y as f64);
         let local = if x < self.w_d || self.spec.is_none() {
             let x = (x / self.w_d.max(1e-300)).min(1.0 - f64::EPSILON / 2.0);
-            penumbra_core::ltc::cosine_sample(DVec2::new(x, y))
+            crate::common::ltc::cosine_sample(DVec2::new(x, y))
         } else {
             let x = ((x - self.w_d) / self.w_s.max(1e-300)).clamp(0.0, 1.0 - f64::EPSILON / 2.0);
             self.spec.as_ref().map(|(_, c)| c.sample(DVec2::new(x, y))).unwrap_or(DVec3::ZERO)

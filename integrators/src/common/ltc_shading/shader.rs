@@ -1,44 +1,31 @@
-//! What `ltc` prepares per scene (object bounds, convexity, the object hierarchy, the area
-//! lights gathered per emitting mesh with their shapes) and the analytic shading of the area
-//! lights at a point: shared with the `ratio` estimator, which needs the unshadowed term.
+//! What the shading prepares per scene (the objects, see [`super::objects`]; the area lights
+//! gathered per emitting mesh with their shapes) and the analytic shading of the area lights
+//! at a point, light by light.
 
 use super::fresnel::{fresnel_weight, FresnelMode};
-use super::integrate::{Accum, PieceFrame};
-use super::occluders::{ConvexLight, Occluders, PieceQuery};
-use super::{LtcIntegrator, Mode};
+use super::integrate::{integrate_piece, Accum, PieceFrame};
+use super::objects::{object_info, ConvexShape, Objects, Receiver, Skip};
+use super::occluders::{ConvexLight, PieceQuery};
+use super::region::Occluders;
+use super::settings::{Mode, ShaderSettings};
+use crate::common::ltc::Ltc;
+use crate::common::pixel_shading::SharedPixel;
 use glam::DVec3;
 use penumbra_core::accel::objects::ObjectBvh;
-use penumbra_core::geometry::Bounds3;
-use penumbra_core::geometry::Frame;
+use penumbra_core::camera::CameraSample;
+use penumbra_core::geometry::{Frame, Ray};
+use penumbra_core::integrator::ThreadStats;
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::emitting_normal;
-use penumbra_core::ltc::Ltc;
 use penumbra_core::material::LtcDescription;
 use penumbra_core::mesh::{EdgeAdjacency, TriangleMesh};
 use penumbra_core::scene::Scene;
-use penumbra_core::spherical::SilhouetteMesh;
 use penumbra_core::{Rgb, Vec3};
 use std::cell::OnceCell;
 
-/// What the estimator knows about each object (mesh `i` = object `i`).
-pub(super) struct ObjectInfo {
-    pub(super) bounds: Bounds3,
-    pub(super) occluder: bool,
-    /// Closed and convex (proven by the builder), with its adjacency for silhouettes.
-    pub(super) silhouette: Option<SilhouetteMesh>,
-    /// A hierarchy over the object's triangles, for the per-triangle cone query.
-    pub(super) tris: ObjectBvh,
-    /// All vertices in one plane: as a light, it cannot shadow itself.
-    pub(super) planar: bool,
-    /// Mesh vertex index → id shared by vertices at the same position (for triangle outlines).
-    pub(super) weld: Vec<u32>,
-    /// A closed, consistently wound mesh (after welding; known for silhouette meshes, and for
-    /// others with `mergeoccluders`): +1 when its winding normals point out of the solid, −1
-    /// when in, 0 otherwise or unknown. From outside or inside, the triangles facing away from a
-    /// point cover exactly the directions in which a ray from it meets the solid (every such ray
-    /// leaves it through one): the others need not be subtracted.
-    pub(super) closed: f64,
-}
+/// What pixel shading computes once per surface a pixel sees: the analytic area lighting
+/// `(Σ L·form factor, glossy)` ([`LtcShader::area_lights_split`]).
+pub type AreaLighting = (Rgb, Rgb);
 
 /// How an area light's emitting surface is turned into spherical polygons at a shading point.
 enum LightShape {
@@ -50,33 +37,6 @@ enum LightShape {
     /// A closed convex mesh emitting outwards: what a point outside sees of it is exactly
     /// its silhouette loop (the front faces tile it, none overlap), integrated once.
     Convex(ConvexShape),
-}
-
-/// What a convex light mesh needs at every shading point, computed once.
-pub(super) struct ConvexShape {
-    sil: SilhouetteMesh,
-    /// Edge-on tolerance of its faces: 1e-9 of the mesh's extent.
-    pub(super) eps: f64,
-    /// (a point of the face, outward unit normal) of every non-degenerate face.
-    pub(super) faces: Vec<(DVec3, DVec3)>,
-    pub(super) vertices: Vec<DVec3>,
-    pub(super) center: DVec3,
-}
-
-impl ConvexShape {
-    fn new(mesh: &TriangleMesh, adj: &EdgeAdjacency) -> ConvexShape {
-        let faces = (0..mesh.triangle_count())
-            .filter_map(|t| {
-                let [a, b, c] = mesh.vertices(t).map(d3);
-                let n = (b - a).cross(c - a).normalize_or_zero();
-                (n != DVec3::ZERO).then_some((a, n))
-            })
-            .collect();
-        let vertices: Vec<DVec3> = mesh.positions.iter().map(|q| d3(*q)).collect();
-        let center = vertices.iter().copied().sum::<DVec3>() / vertices.len().max(1) as f64;
-        let sil = SilhouetteMesh::new(mesh, adj);
-        ConvexShape { sil, eps: 1e-9 * mesh.extent(), faces, vertices, center }
-    }
 }
 
 impl LightShape {
@@ -126,33 +86,15 @@ impl LightShape {
 }
 
 /// The area lights of one emitting mesh with one radiance.
-pub(crate) struct LightGroup {
-    pub(crate) mesh: usize,
-    pub(crate) tris: Vec<u32>,
+pub struct LightGroup {
+    pub mesh: usize,
+    pub tris: Vec<u32>,
     /// Bounding sphere of the emitting triangles (centred on their vertices' mean).
-    pub(crate) center: DVec3,
-    pub(crate) radius: f64,
-    pub(crate) l: Rgb,
-    pub(crate) two_sided: bool,
+    pub center: DVec3,
+    pub radius: f64,
+    pub l: Rgb,
+    pub two_sided: bool,
     shape: LightShape,
-}
-
-/// The surface being shaded: its mesh and triangle, and `ωo` · its winding normal (with the
-/// orientation of a closed mesh: negative when seen from inside).
-#[derive(Clone, Copy)]
-pub(super) struct Receiver {
-    pub(super) mesh: usize,
-    pub(super) tri: usize,
-    pub(super) facing: f64,
-}
-
-/// Which of the light's own triangles are not occluders of the piece being shaded.
-#[derive(Clone, Copy)]
-pub(super) enum Skip {
-    /// The whole light mesh (planar or convex lights cannot shadow themselves).
-    Mesh(usize),
-    /// One triangle of the light mesh (the others may shadow it).
-    Triangle(usize, usize),
 }
 
 /// The winding normal of the triangle `si` lies on (zero if there is none).
@@ -167,11 +109,10 @@ fn d3(v: Vec3) -> DVec3 {
     v.as_dvec3()
 }
 
-/// The analytic area-light shading of `ltc` (see the module doc).
-pub struct LtcShader<'a> {
-    pub(super) ltc: &'a LtcIntegrator,
-    pub(super) objects: Vec<ObjectInfo>,
-    pub(super) bvh: ObjectBvh,
+/// The analytic area-light shading of `ltc` and `ratio` (see the module doc).
+pub struct LtcShader {
+    pub settings: ShaderSettings,
+    objects: Objects,
     /// The area lights, gathered per emitting mesh (pbrt-v3 makes one light per triangle).
     groups: Vec<LightGroup>,
 }
@@ -184,10 +125,10 @@ struct PointQuery<'s> {
     scratch: &'s mut Vec<usize>,
 }
 
-impl<'a> LtcShader<'a> {
+impl LtcShader {
     /// Prepares the per-object data `settings` needs on `scene` (silhouette adjacency only for
     /// the objects its mode takes as silhouettes).
-    pub fn new(settings: &'a LtcIntegrator, scene: &Scene) -> LtcShader<'a> {
+    pub fn new(settings: ShaderSettings, scene: &Scene) -> LtcShader {
         let cells: Vec<OnceCell<EdgeAdjacency>> = scene.meshes.iter().map(|_| OnceCell::new()).collect();
         // The scene's (built once when the integrator asks: `ltc` does); `ratio` asks for none
         // and builds only its light meshes' here.
@@ -199,7 +140,7 @@ impl<'a> LtcShader<'a> {
         let mut boxes = Vec::new();
         for (i, mesh) in scene.meshes.iter().enumerate() {
             let occluder = scene.objects.get(i).is_none_or(|o| o.occluder);
-            let info = object_info(settings, mesh, occluder, || adjacency(i));
+            let info = object_info(&settings, mesh, occluder, || adjacency(i));
             if occluder && mesh.triangle_count() > 0 {
                 boxes.push((i, info.bounds));
             }
@@ -215,17 +156,44 @@ impl<'a> LtcShader<'a> {
                 _ => LightShape::of(mesh, adjacency(g.mesh), &g.tris, g.two_sided),
             };
         }
-        LtcShader { ltc: settings, objects, bvh: ObjectBvh::build(&boxes), groups }
+        let objects =
+            Objects { info: objects, bvh: ObjectBvh::build(&boxes), merge_occluders: settings.merge_occluders };
+        LtcShader { settings, objects, groups }
+    }
+
+    /// Traces a pixel's camera `rays` and shades each surface they see once (with or without
+    /// `shadows`): `begin_pixel` of `ltc` and `ratio`.
+    pub fn trace_pixel(
+        &self,
+        rays: &[Ray],
+        samples: &[CameraSample],
+        scene: &Scene,
+        shadows: bool,
+        stats: &mut ThreadStats,
+    ) -> SharedPixel<AreaLighting> {
+        let mut scratch = Vec::new();
+        SharedPixel::trace(
+            rays,
+            samples,
+            scene,
+            stats,
+            |p| self.nearest_light_distance(p),
+            None,
+            |h, _| {
+                let desc = LtcShader::lobes(scene, &h.si)?;
+                Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
+            },
+        )
     }
 
     /// The area lights, one per emitting mesh and radiance.
-    pub(crate) fn light_groups(&self) -> &[LightGroup] {
+    pub fn light_groups(&self) -> &[LightGroup] {
         &self.groups
     }
 
     /// Distance from `p` to the nearest area light's bounding sphere (0 inside one; infinite
     /// without area lights).
-    pub(crate) fn nearest_light_distance(&self, p: DVec3) -> f64 {
+    pub fn nearest_light_distance(&self, p: DVec3) -> f64 {
         self.groups.iter().map(|g| ((p - g.center).length() - g.radius).max(0.0)).fold(f64::INFINITY, f64::min)
     }
 
@@ -236,7 +204,7 @@ impl<'a> LtcShader<'a> {
     }
 
     /// The diffuse albedo of [`Self::lobes`] alone (`None` exactly when it is `None`).
-    pub(super) fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Option<Rgb> {
+    pub fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Option<Rgb> {
         let (m, _, tx) = scene.material_of(si)?;
         m.ltc_diffuse(si, tx)
     }
@@ -299,7 +267,7 @@ impl<'a> LtcShader<'a> {
         let diffuse = le * acc.diffuse_ff.max(0.0) as f32;
         let mut out = Rgb::ZERO;
         if let Some((s, coeffs)) = q.at.spec {
-            let spec_term = match self.ltc.fresnel {
+            let spec_term = match self.settings.fresnel {
                 FresnelMode::Schlick => {
                     fresnel_weight(&s.fresnel, coeffs.magnitude, coeffs.fresnel) * acc.spec_int.max(0.0) as f32
                 }
@@ -339,11 +307,11 @@ impl<'a> LtcShader<'a> {
                     separate: None,
                     receiver: q.receiver,
                 };
-                self.occluders(scene, &pq, q.scratch)
+                self.objects.occluders(scene, &pq, q.scratch)
             } else {
                 Some(Occluders::default())
             };
-            self.integrate_piece(&q.at, outline, occ.unwrap_or_default(), acc);
+            integrate_piece(self.settings.fresnel, &q.at, outline, occ.unwrap_or_default(), acc);
         }
     }
 
@@ -372,13 +340,13 @@ impl<'a> LtcShader<'a> {
                         separate: Some(&cl),
                         receiver: q.receiver,
                     };
-                    self.occluders(scene, &pq, q.scratch)
+                    self.objects.occluders(scene, &pq, q.scratch)
                 } else {
                     Some(Occluders::default())
                 };
                 match occ {
                     Some(occ) => {
-                        self.integrate_piece(&q.at, outline, occ, acc);
+                        integrate_piece(self.settings.fresnel, &q.at, outline, occ, acc);
                         true
                     }
                     None => false,
@@ -426,11 +394,11 @@ impl<'a> LtcShader<'a> {
                     separate: None,
                     receiver: q.receiver,
                 };
-                self.occluders(scene, &pq, q.scratch).unwrap_or_default()
+                self.objects.occluders(scene, &pq, q.scratch).unwrap_or_default()
             } else {
                 Occluders::default()
             };
-            self.integrate_piece(&q.at, &pv, occ, acc);
+            integrate_piece(self.settings.fresnel, &q.at, &pv, occ, acc);
         }
     }
 }
@@ -451,33 +419,6 @@ fn piece_frame(si: &SurfaceInteraction, desc: &LtcDescription) -> Option<PieceFr
     });
     let wo_local = frame.to_local(d3(si.wo));
     Some(PieceFrame { p: d3(si.p), frame, wo_local, spec })
-}
-
-/// What `settings` needs of object `mesh` (`adjacency`: its edge adjacency, asked for only
-/// when needed).
-fn object_info<'m>(
-    settings: &LtcIntegrator,
-    mesh: &TriangleMesh,
-    occluder: bool,
-    adjacency: impl Fn() -> &'m EdgeAdjacency,
-) -> ObjectInfo {
-    let bounds = mesh.bounds();
-    let shadowing = settings.shadows && occluder;
-    let silhouette = match settings.mode {
-        Mode::PerTriangle => None,
-        _ if !shadowing => None,
-        Mode::Auto => mesh.is_closed_convex_with(adjacency(), 1e-4).then(|| SilhouetteMesh::new(mesh, adjacency())),
-        Mode::Silhouette => adjacency().is_closed_manifold().then(|| SilhouetteMesh::new(mesh, adjacency())),
-    };
-    let tris = if shadowing { ObjectBvh::over_triangles(mesh) } else { ObjectBvh::build(&[]) };
-    let (weld, closed) = if shadowing && settings.merge_occluders {
-        let adj = adjacency();
-        (adj.weld.clone(), if adj.is_closed_manifold() { mesh.winding_sign() } else { 0.0 })
-    } else {
-        // (Silhouette meshes are closed: their orientation says which side is inside.)
-        (Vec::new(), if silhouette.is_some() { mesh.winding_sign() } else { 0.0 })
-    };
-    ObjectInfo { bounds, occluder, silhouette, tris, planar: mesh.is_planar(), weld, closed }
 }
 
 /// The scene's area lights gathered per emitting mesh, radiance and sidedness, with the

@@ -1,15 +1,15 @@
 //! Fits the LTC table for core's Trowbridge–Reitz reflection and writes it in
-//! `penumbra_core::ltc::Ltc`'s binary format.
+//! `penumbra_integrators::common::ltc::Ltc`'s binary format.
 //!
-//! `cargo run --release -p penumbra-core --bin ltc-fit -- --out core/data/ltc_ggx.bin [--n 64] [--samples 24]`
+//! `cargo run --release -p penumbra-integrators --bin ltc-fit -- --out integrators/data/ltc_ggx.bin [--n 64] [--samples 24]`
 
 use std::time::Instant;
 
-use penumbra_core::ltc::fit::{fit_table, FitOptions};
+use penumbra_integrators::common::ltc::fit::{fit_table, FitOptions};
 
 fn main() {
     let mut opts = FitOptions::default();
-    let mut out = String::from("core/data/ltc_ggx.bin");
+    let mut out = String::from("integrators/data/ltc_ggx.bin");
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
     while i < args.len() {
