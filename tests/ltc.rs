@@ -141,13 +141,24 @@ fn stiff_scenes_are_finite_and_never_brighter_than_unshadowed() {
         let brighter = r.image.data.iter().zip(&u.image.data).filter(|(s, u)| **s > **u * (1.0 + 1e-5) + 1e-7).count();
         assert_eq!(brighter, 0, "{name}: {brighter} values brighter than unshadowed");
         // Against pbrt-v3 (whose receivers here are partly glossy, where LTC approximates): the
-        // image mean within 10 % (measured at 16 spp: +3.5 % for extreme roughness, −1.2 % for the
-        // light at grazing incidence over plastic, ≤ 0.8 % elsewhere; the Lambertian parts are exact).
+        // image mean within 1 % — issue 43's accuracy goal for LTC-shaded materials; measured at
+        // 16 spp: −0.93 % for the light at grazing incidence over plastic, ≤ 0.32 % elsewhere
+        // (the references' noise is ~0.05 % of the mean). `roughness-extremes` is a known failure
+        // of issue 43 (its roughness-1 strip has α ≈ 1.6, beyond the LTC table: +3.5 %); it must
+        // still fail, so that this line goes when issue 43 lands.
         let reference = reference(&format!("stiff/{name}.exr"));
         let full = render_path(&path, &Opts { integrator: Some("ltc"), spp: Some(16), ..Default::default() });
         let rel = mean(&full.image) / mean(&reference) - 1.0;
         eprintln!("{name}: ltc vs pbrt-v3 mean {:+.2}%", rel * 100.0);
-        assert!(rel.abs() < 0.10, "{name}: mean off by {:.2}%", rel * 100.0);
+        if name == "roughness-extremes" {
+            assert!(
+                rel.abs() > 0.01,
+                "{name}: known failure of issue 43 now within 1 % ({:+.2}%): remove it",
+                rel * 100.0
+            );
+        } else {
+            assert!(rel.abs() < 0.01, "{name}: mean off by {:.2}%", rel * 100.0);
+        }
     }
 }
 
@@ -239,8 +250,9 @@ fn coincident_geometry_has_no_speckles() {
 
 /// Glossy receivers (pbrt-v3 plastic, metal): LTC approximates the GGX lobe, so `ltc` is close
 /// to, not equal to, pbrt-v3. With the material's exact Fresnel at the LTC-weighted mean
-/// direction ("average", the default) the image mean is within 2 % of pbrt-v3's; Heitz et al.'s
-/// Schlick split misses pbrt-v3 plastic's dielectric Fresnel (η 1.5 → 1) by about 6 %.
+/// direction ("average", the default) the image mean is within 1 % of pbrt-v3's (issue 43's goal;
+/// measured +0.03 %, −0.07 %, +0.71 %); Heitz et al.'s Schlick split misses pbrt-v3 plastic's
+/// dielectric Fresnel (η 1.5 → 1) by about 6 %.
 #[test]
 fn glossy_scenes_are_close_to_pbrt_v3() {
     for name in ["quad-cube", "torus-nonconvex", "two-lights-metal"] {
@@ -260,7 +272,7 @@ fn glossy_scenes_are_close_to_pbrt_v3() {
             );
             rels.push(rel.abs());
         }
-        assert!(rels[0] < 0.02, "{name}: ltc (average Fresnel) mean off by {:.2}%", rels[0] * 100.0);
+        assert!(rels[0] < 0.01, "{name}: ltc (average Fresnel) mean off by {:.2}%", rels[0] * 100.0);
         assert!(rels[0] <= rels[1] + 1e-3, "{name}: the average Fresnel should not be worse than Schlick's split");
     }
 }

@@ -4,6 +4,7 @@
 
 pub mod accel;
 pub mod bssrdf;
+pub mod agreement;
 pub mod bxdf;
 pub mod camera;
 #[rustfmt::skip]

@@ -1,0 +1,479 @@
+//! The pbrt-v3 conformance matrix: every cell of `tests/conformance/` (one small scene each,
+//! written by `tools/conformance.py`: every pbrt-v3 material with its defaults and parameter
+//! sweeps, every light, shape, camera, sampler and pixel filter, closed rooms for
+//! interreflection) rendered by every integrator that can be compared with one of its pbrt-v3
+//! references, and judged by `penumbra_core::agreement`.
+//!
+//! **The test.** Per run (a cell and an integrator): the mean of every 8×8 block of each
+//! channel, and of each whole channel, against the reference's; the difference beyond the
+//! integrator's tolerance (0 for the integrators that are pbrt-v3's estimators) in units of the
+//! noise of both images. The render's noise is its own `variance` channels; the reference's is
+//! the variance of a penumbra render of the *same estimator* (`directlighting` for a `direct`
+//! reference, `path` for `path`, `ambientocclusion nsamples=1` for `ao`) scaled to the
+//! reference's sample count (same estimator, so same per-sample variance; see
+//! `penumbra_core::agreement`). A run fails when any |z| exceeds the Šidák threshold that keeps
+//! the probability of any false alarm in the whole matrix (all runs, all regions) at
+//! [`FAMILY_ALPHA`]. The halton sampler's error is below its independent-sample variance
+//! estimate, so the real rate is lower still.
+//!
+//! **Known failures** ([`KNOWN`]) name the issue that owns them and must still fail: a known
+//! failure that passes fails the test, so the list cannot go stale. Refusals (a render error)
+//! are recorded, not failed: refusing is allowed, a silently different image is not.
+//!
+//! **The report.** The per-integrator summary and per-cell table are generated into
+//! `docs/conformance.md` (between its markers); the test fails when the document is stale and
+//! rewrites it with `PENUMBRA_BLESS=1 cargo test --release --test conformance_matrix`. Results
+//! also go to `target/conformance/results.tsv`.
+
+mod common;
+mod matrix;
+
+use matrix::*;
+use penumbra_core::agreement::{critical_z, sidak_alpha, NoisyImage};
+use std::fmt::Write as _;
+
+/// Family-wise false-alarm rate of the whole matrix.
+const FAMILY_ALPHA: f64 = 0.01;
+
+/// One way of running an integrator over the cells, and how it is judged.
+struct Run {
+    /// The label in the report.
+    name: &'static str,
+    integrator: &'static str,
+    params: &'static [&'static str],
+    /// The reference kind it is compared with (cells without it are not run).
+    reference: &'static str,
+    /// Allowed systematic error of the image mean and of a block (relative), before noise.
+    mean_tol: f64,
+    block_tol: f64,
+    /// Rendered at 1/shrink of the cell's resolution (and `spp`, or the cell's), compared with
+    /// the reference box-downsampled alike: the pixel-shading integrators, whose cost is per
+    /// pixel and whose noise is anti-aliasing only (box-filter cells only).
+    shrink: usize,
+    spp: Option<u32>,
+    /// Where the tolerance comes from.
+    why: &'static str,
+}
+
+/// Every run. The first three are the reference estimators, rendered first in each cell: their
+/// variance is the reference's noise model.
+const RUNS: &[Run] = &[
+    Run {
+        name: "directlighting",
+        integrator: "directlighting",
+        params: &[],
+        reference: "direct",
+        mean_tol: 0.0,
+        block_tol: 0.0,
+        shrink: 1,
+        spp: None,
+        why: "pbrt-v3's estimator: noise only",
+    },
+    Run {
+        name: "path",
+        integrator: "path",
+        params: &[],
+        reference: "path",
+        mean_tol: 0.0,
+        block_tol: 0.0,
+        shrink: 1,
+        spp: None,
+        why: "pbrt-v3's estimator: noise only",
+    },
+    Run {
+        name: "ambientocclusion",
+        integrator: "ambientocclusion",
+        params: &["nsamples=1"],
+        reference: "ao",
+        mean_tol: 0.0,
+        block_tol: 0.0,
+        shrink: 1,
+        spp: None,
+        why: "pbrt-v3's estimator (one ray per camera sample, as the reference): noise only",
+    },
+    Run {
+        name: "whitted",
+        integrator: "whitted",
+        params: &[],
+        reference: "direct",
+        mean_tol: 0.0,
+        block_tol: 0.0,
+        shrink: 1,
+        spp: None,
+        why: "the same expectation as pbrt-v3's directlighting (light sampling only): noise only",
+    },
+    Run {
+        name: "ltc",
+        integrator: "ltc",
+        params: &[],
+        reference: "direct",
+        mean_tol: 0.01,
+        block_tol: 0.03,
+        shrink: 2,
+        spp: Some(16),
+        why: "LTC fits GGX × cos: issue 43's goal (image mean 1 %, blocks 3 %)",
+    },
+    Run {
+        name: "ratio",
+        integrator: "ratio",
+        params: &[],
+        reference: "direct",
+        mean_tol: 0.01,
+        block_tol: 0.03,
+        shrink: 2,
+        spp: Some(16),
+        why: "LTC × denoised ratio: issue 43's goal (image mean 1 %, blocks 3 %)",
+    },
+    Run {
+        name: "shexp",
+        integrator: "shexp",
+        params: &[],
+        reference: "direct",
+        mean_tol: 0.02,
+        block_tol: 0.05,
+        shrink: 2,
+        spp: Some(16),
+        why: "order-4 SH visibility: issue 39's goal (image mean 2 %, blocks 5 %)",
+    },
+    Run {
+        name: "silhouette",
+        integrator: "silhouette",
+        params: &[],
+        reference: "direct",
+        mean_tol: 0.02,
+        block_tol: 0.05,
+        shrink: 2,
+        spp: Some(16),
+        why: "glossy lobes in SH: issue 37's goal (2 %), blocks 5 %",
+    },
+    Run {
+        name: "silhouette mode=ao",
+        integrator: "silhouette",
+        params: &["mode=ao"],
+        reference: "ao",
+        mean_tol: 0.01,
+        block_tol: 0.03,
+        shrink: 2,
+        spp: Some(16),
+        why: "exact visibility along meridians: issue 37's goal (1 %)",
+    },
+    Run {
+        name: "sheared-ao",
+        integrator: "sheared-ao",
+        params: &[],
+        reference: "ao",
+        mean_tol: 0.02,
+        block_tol: 0.05,
+        shrink: 1,
+        spp: None,
+        why: "sheared filtering of neighbours' rays",
+    },
+];
+
+/// A failure owned by another issue. `cells` are `group/name` globs; every run they match
+/// must fail.
+struct Known {
+    run: &'static str,
+    cells: &'static [&'static str],
+    issue: u32,
+    what: &'static str,
+}
+
+const KNOWN: &[Known] = &[];
+
+fn reference_run(kind: &str) -> &'static str {
+    match kind {
+        "direct" => "directlighting",
+        "path" => "path",
+        _ => "ambientocclusion",
+    }
+}
+
+/// Runs every applicable run on one cell.
+fn run_cell(cell: &Cell, samples: &std::collections::BTreeMap<(String, String), f64>) -> Vec<Outcome> {
+    let mut out = Vec::new();
+    // The reference estimators' variances, by kind.
+    let mut ref_var: Vec<(String, Vec<f32>, u32)> = Vec::new();
+    for run in RUNS {
+        if !cell.has_ref(run.reference) {
+            continue;
+        }
+        let base = Outcome {
+            cell: cell.name.clone(),
+            key: cell.key(),
+            run: run.name.to_string(),
+            result: Err(String::new()),
+            warnings: Vec::new(),
+            seconds: 0.0,
+        };
+        let Some(reference) = reference(cell, run.reference, samples) else {
+            out.push(Outcome { result: Err(format!("no {} reference", run.reference)), ..base });
+            continue;
+        };
+        let k = if cell.group == "filter" { 1 } else { run.shrink };
+        let shot = match shoot(cell, run.integrator, run.params, run.spp.unwrap_or(cell.spp), k) {
+            Ok(s) => s,
+            Err(e) => {
+                out.push(Outcome { result: Err(format!("refused: {e}")), ..base });
+                continue;
+            }
+        };
+        if run.name == reference_run(run.reference) {
+            ref_var.push((run.reference.to_string(), shot.var.clone(), shot.spp));
+        }
+        let Some((_, var, spp)) = ref_var.iter().find(|(k, _, _)| k == run.reference) else {
+            out.push(Outcome { result: Err("reference estimator did not render".into()), ..base });
+            continue;
+        };
+        let (w, h) = (cell.width, cell.height);
+        let rv = shrink(&scaled_variance(var, *spp, reference.samples), w, h, k, true);
+        let rm = shrink(&reference.image.data, w, h, k, false);
+        let refi = NoisyImage { width: w / k, height: h / k, channels: 3, mean: &rm, variance: Some(&rv) };
+        let m = measure(&shot, &refi, run.mean_tol, run.block_tol, BLOCK / k);
+        out.push(Outcome { result: Ok(m), warnings: shot.warnings, seconds: shot.seconds, ..base });
+    }
+    out
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Verdict {
+    Pass,
+    Fail,
+    Known(u32),
+    /// A known failure that passes.
+    Stale(u32),
+    Refused,
+    Missing,
+}
+
+fn known_for(o: &Outcome) -> Option<&'static Known> {
+    KNOWN.iter().find(|k| k.run == o.run && k.cells.iter().any(|p| glob(p, &o.key)))
+}
+
+fn verdict(o: &Outcome, z_crit: f64) -> Verdict {
+    let failed = match &o.result {
+        Ok(m) => m.tests.iter().any(|t| !(t.z.abs() <= z_crit)),
+        Err(e) if e.starts_with("refused") => return Verdict::Refused,
+        Err(_) => return Verdict::Missing,
+    };
+    match (failed, known_for(o)) {
+        (true, Some(k)) => Verdict::Known(k.issue),
+        (false, Some(k)) => Verdict::Stale(k.issue),
+        (true, None) => Verdict::Fail,
+        (false, None) => Verdict::Pass,
+    }
+}
+
+#[test]
+fn pbrt_v3_conformance_matrix() {
+    let cells = cells();
+    assert!(cells.len() > 100, "cells.tsv lists {} cells", cells.len());
+    let samples = reference_samples();
+    let t0 = std::time::Instant::now();
+    let outcomes: Vec<Outcome> =
+        parallel(cells.len(), |i| run_cell(&cells[i], &samples)).into_iter().flatten().collect();
+    let seconds = t0.elapsed().as_secs_f64();
+    let m: usize = outcomes.iter().filter_map(|o| o.result.as_ref().ok()).map(|r| r.tests.len()).sum();
+    let z_crit = critical_z(sidak_alpha(FAMILY_ALPHA, m));
+    let verdicts: Vec<Verdict> = outcomes.iter().map(|o| verdict(o, z_crit)).collect();
+    let report = report(&cells, &outcomes, &verdicts, m, z_crit);
+    let target = common::root().join("target/conformance");
+    std::fs::create_dir_all(&target).unwrap();
+    std::fs::write(target.join("conformance.md"), &report).unwrap();
+    std::fs::write(target.join("results.tsv"), results_tsv(&outcomes, &verdicts, z_crit)).unwrap();
+    eprintln!(
+        "{} runs over {} cells in {seconds:.1} s; {m} region tests, Šidák |z| threshold {z_crit:.2}",
+        outcomes.len(),
+        cells.len()
+    );
+    let mut problems = Vec::new();
+    for (o, v) in outcomes.iter().zip(&verdicts) {
+        let line = match (&o.result, v) {
+            (Ok(r), Verdict::Fail | Verdict::Stale(_)) => {
+                let w = penumbra_core::agreement::worst(&r.tests).unwrap();
+                format!(
+                    "{} on {}: {:?}: image mean {}, worst block {}, worst |z| {:.1} at {} ({:.5} vs pbrt-v3 {:.5})",
+                    o.run,
+                    o.key,
+                    v,
+                    pct(r.mean_err),
+                    pct(r.block_err),
+                    w.z.abs(),
+                    region_name(&w.region),
+                    w.test,
+                    w.reference
+                )
+            }
+            (Err(e), Verdict::Missing) => format!("{} on {}: {e}", o.run, o.key),
+            _ => continue,
+        };
+        eprintln!("{line}");
+        problems.push(line);
+    }
+    check_docs(&report);
+    assert!(
+        problems.is_empty(),
+        "{} runs fail (see above; known failures pass: remove them from KNOWN)",
+        problems.len()
+    );
+}
+
+/// The generated part of `docs/conformance.md`.
+fn report(cells: &[Cell], outcomes: &[Outcome], verdicts: &[Verdict], m: usize, z_crit: f64) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{} cells, {} runs; {m} region tests at a family-wise false-alarm rate of {FAMILY_ALPHA} (Šidák |z| > {z_crit:.2}).\n",
+        cells.len(),
+        outcomes.len()
+    );
+    s += "| integrator | cells run | pass | known failures (issue: cells) | refused | worst image mean (cell) | worst 8×8 block (cell) | tolerance: mean / block, why |\n";
+    s += "|---|---|---|---|---|---|---|---|\n";
+    for run in RUNS {
+        let idx: Vec<usize> = (0..outcomes.len()).filter(|&i| outcomes[i].run == run.name).collect();
+        let count = |f: &dyn Fn(&Verdict) -> bool| idx.iter().filter(|&&i| f(&verdicts[i])).count();
+        let mut issues: std::collections::BTreeMap<u32, usize> = Default::default();
+        for &i in &idx {
+            if let Verdict::Known(n) = verdicts[i] {
+                *issues.entry(n).or_default() += 1;
+            }
+        }
+        let known = if issues.is_empty() {
+            "–".to_string()
+        } else {
+            issues.iter().map(|(n, c)| format!("#{n}: {c}")).collect::<Vec<_>>().join(", ")
+        };
+        let judged: Vec<(&Outcome, &Measure)> = idx
+            .iter()
+            .filter(|&&i| matches!(verdicts[i], Verdict::Pass | Verdict::Fail))
+            .filter_map(|&i| outcomes[i].result.as_ref().ok().map(|m| (&outcomes[i], m)))
+            .collect();
+        let worst_mean = judged.iter().max_by(|a, b| a.1.mean_err.abs().total_cmp(&b.1.mean_err.abs()));
+        let worst_block = judged.iter().max_by(|a, b| a.1.block_err.total_cmp(&b.1.block_err));
+        let _ = writeln!(
+            s,
+            "| `{}` | {} | {} | {known} | {} | {} | {} | {} / {}, {} |",
+            run.name,
+            idx.len(),
+            count(&|v| *v == Verdict::Pass),
+            count(&|v| *v == Verdict::Refused),
+            worst_mean.map_or("–".into(), |(o, m)| format!("{} ({})", pct(m.mean_err), o.cell)),
+            worst_block.map_or("–".into(), |(o, m)| format!(
+                "{} ({})",
+                pct(m.block_err).trim_start_matches('+'),
+                o.cell
+            )),
+            pct(run.mean_tol).trim_start_matches('+'),
+            pct(run.block_tol).trim_start_matches('+'),
+            run.why,
+        );
+    }
+    s += "\nPer cell: image-mean error / worst 8×8 block error against pbrt-v3 (✓ pass, ✗ fail, K#n known failure of issue n, R refused, – not run).\n\n";
+    s += "| cell |";
+    for run in RUNS {
+        let _ = write!(s, " {} |", run.name);
+    }
+    s += "\n|---|";
+    s += &"---|".repeat(RUNS.len());
+    s += "\n";
+    for c in cells {
+        let _ = write!(s, "| {} |", c.key());
+        for run in RUNS {
+            let i = outcomes.iter().position(|o| o.cell == c.name && o.run == run.name);
+            let cellstr = match i {
+                None => "–".to_string(),
+                Some(i) => {
+                    let mark = match verdicts[i] {
+                        Verdict::Pass => "✓".to_string(),
+                        Verdict::Fail => "✗".to_string(),
+                        Verdict::Known(n) => format!("K#{n}"),
+                        Verdict::Stale(n) => format!("stale K#{n}"),
+                        Verdict::Refused => "R".to_string(),
+                        Verdict::Missing => "missing".to_string(),
+                    };
+                    match &outcomes[i].result {
+                        Ok(m) => format!("{mark} {} / {}", pct(m.mean_err), pct(m.block_err).trim_start_matches('+')),
+                        Err(_) => mark,
+                    }
+                }
+            };
+            let _ = write!(s, " {cellstr} |");
+        }
+        s += "\n";
+    }
+    s
+}
+
+fn results_tsv(outcomes: &[Outcome], verdicts: &[Verdict], z_crit: f64) -> String {
+    let mut s = "cell\trun\tverdict\tmean_err\tblock_err\tworst_abs_z\tz_threshold\tseconds\twarnings\n".to_string();
+    for (o, v) in outcomes.iter().zip(verdicts) {
+        let (me, be, z) = match &o.result {
+            Ok(m) => (m.mean_err, m.block_err, penumbra_core::agreement::worst(&m.tests).map_or(0.0, |t| t.z.abs())),
+            Err(_) => (f64::NAN, f64::NAN, f64::NAN),
+        };
+        let _ = writeln!(
+            s,
+            "{}\t{}\t{v:?}\t{me:.6}\t{be:.6}\t{z:.3}\t{z_crit:.3}\t{:.3}\t{}",
+            o.key,
+            o.run,
+            o.seconds,
+            o.warnings.join(" | ").replace(['\t', '\n'], " ")
+        );
+    }
+    s
+}
+
+const BEGIN: &str = "<!-- conformance-matrix:begin (generated by tests/conformance_matrix.rs; PENUMBRA_BLESS=1 cargo test --release --test conformance_matrix rewrites it) -->";
+const END: &str = "<!-- conformance-matrix:end -->";
+
+/// Fails when `docs/conformance.md`'s generated part differs from `report` (rewrites it under
+/// `PENUMBRA_BLESS=1`).
+fn check_docs(report: &str) {
+    let path = common::root().join("docs/conformance.md");
+    let doc = std::fs::read_to_string(&path).unwrap_or_default();
+    let (Some(b), Some(e)) = (doc.find(BEGIN), doc.find(END)) else {
+        panic!("docs/conformance.md: the generated section's markers are missing");
+    };
+    let current = &doc[b + BEGIN.len()..e];
+    let fresh = format!("\n{report}");
+    if current == fresh {
+        return;
+    }
+    if std::env::var_os("PENUMBRA_BLESS").is_some() {
+        std::fs::write(&path, format!("{}{fresh}{}", &doc[..b + BEGIN.len()], &doc[e..])).unwrap();
+        eprintln!("docs/conformance.md rewritten");
+        return;
+    }
+    panic!(
+        "docs/conformance.md is stale (the new table is in target/conformance/conformance.md); \
+         regenerate it with PENUMBRA_BLESS=1 cargo test --release --test conformance_matrix"
+    );
+}
+
+#[test]
+fn every_cell_has_its_scene_and_references() {
+    let samples = reference_samples();
+    for c in cells() {
+        assert!(dir().join(format!("{}.pbrt", c.name)).is_file(), "{}: scene missing", c.name);
+        for kind in &c.refs {
+            assert!(
+                reference(&c, kind, &samples).is_some(),
+                "{}: {kind} reference or its sample count missing",
+                c.name
+            );
+        }
+    }
+}
+
+#[test]
+fn known_failures_name_runs_and_cells_that_exist() {
+    let cells = cells();
+    for k in KNOWN {
+        assert!(RUNS.iter().any(|r| r.name == k.run), "KNOWN names run {:?}, which RUNS does not have", k.run);
+        for p in k.cells {
+            assert!(cells.iter().any(|c| glob(p, &c.key())), "KNOWN pattern {p:?} ({}) matches no cell", k.what);
+        }
+    }
+    assert!(glob("material/plastic-a*", "material/plastic-a2") && !glob("material/plastic-a*", "material/metal-a2"));
+    assert!(glob("*/metal-*", "material/metal-r0.1") && glob("*", "x") && !glob("a*b", "ac"));
+}
