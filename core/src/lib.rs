@@ -3,8 +3,8 @@
 //! every integrator in `penumbra-integrators` plugs into.
 
 pub mod accel;
-pub mod bssrdf;
 pub mod agreement;
+pub mod bssrdf;
 pub mod bxdf;
 pub mod camera;
 #[rustfmt::skip]
