@@ -2,6 +2,7 @@
 //! choose an integrator, build what it needs, render), so tests and `sweep`
 //! call exactly what `penumbra render` runs.
 
+pub mod check;
 pub mod cli_params;
 pub mod output;
 pub mod pipeline;

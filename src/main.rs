@@ -23,6 +23,7 @@ mod sweep;
         cannot be used); 64 command-line usage error (unknown option, missing or malformed argument); \
         130 interrupted (Ctrl-C). `diff` adds OpenImageIO idiff's 1 warning, 2 failure, 3 different \
         sizes or channel sets, 4 unreadable file or bad option value; \
+        `check` uses diff's 0 pass, 2 failure, 3 different sizes, 4 unusable file or option; \
         `stability` uses the same scheme: 0 stable, 1 a tolerance exceeded, 2 non-finite values, 4 an \
         unusable scene or option."
 )]
@@ -40,6 +41,9 @@ enum Command {
     Info(info::InfoArgs),
     /// Compare two images with OpenImageIO idiff's metrics and exit codes.
     Diff(diff::DiffArgs),
+    /// Is a render's difference from a reference noise? A statistical image-regression gate
+    /// (per-value Welch/z tests, block and whole-image means, family-wise alpha), and suites.
+    Check(penumbra::check::CheckArgs),
     /// Merge the shard files of `render --tile I/N` / `--spp-offset K` into one image, bit-identical to the single render.
     Merge(merge::MergeArgs),
     /// Error versus time: render with several integrators at growing budgets against a reference.
@@ -66,6 +70,7 @@ fn main() -> ExitCode {
     match cli.command {
         Some(Command::Info(a)) => info::run(a),
         Some(Command::Diff(a)) => diff::run(a),
+        Some(Command::Check(a)) => penumbra::check::run(a),
         Some(Command::Render(a)) => render::run(a),
         Some(Command::Sweep(a)) => sweep::run(a),
         Some(Command::Merge(a)) => merge::run(a),
