@@ -81,13 +81,13 @@ pub fn mask_rgb(o: &Outcome) -> Vec<u8> {
     rgb
 }
 
-/// Each pixel's signed error in units of its noise (the channels' statistics summed and
-/// divided by √3), clipped to ±[`SIGNED_CLIP`]: red where the test is brighter, blue darker,
+/// Each pixel's signed error in units of its noise (the mean of its channels' statistics),
+/// clipped to ±[`SIGNED_CLIP`]: red where the test is brighter, blue darker,
 /// magenta for non-finite values.
 pub fn signed_rgb(o: &Outcome) -> Vec<u8> {
     o.t.chunks_exact(3)
         .flat_map(|c| {
-            let z = c.iter().sum::<f64>() / 3f64.sqrt();
+            let z = c.iter().sum::<f64>() / 3.0;
             if z.is_nan() {
                 MAGENTA
             } else {
