@@ -68,7 +68,7 @@ use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray};
 use penumbra_core::integrator::Preparation;
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
@@ -587,7 +587,8 @@ impl Estimator<'_> {
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<ClusterValue>;
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+    fn li(&self, ray: &Ray, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         match self.mode {
             Mode::Ao | Mode::Prt => self.ao(ray, scene, stats, aov),
             Mode::Shade => self.shade(ray, scene, sampler, stats, 0),
@@ -625,16 +626,8 @@ impl PixelEstimator for Estimator<'_> {
         ))
     }
 
-    fn li_shared(
-        &self,
-        ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &Ray, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         if self.mode == Mode::Shade {
             return shared.shade_sample(index, scene, |hit, env| self.shade_hit(hit, env, scene, sampler, stats, 0));
         }
@@ -653,9 +646,6 @@ fn dual_edges(scene: &Scene) -> DualEdges {
 }
 
 impl Integrator for Silhouette {
-    fn name(&self) -> &str {
-        "silhouette"
-    }
     /// Sample shading, or `prt` (whose samples never share).
     fn merges_sample_ranges(&self) -> bool {
         !self.pixel_shading || self.mode == Some(Mode::Prt)
