@@ -3,7 +3,7 @@
 use crate::camera::CameraSample;
 use crate::film::Film;
 use crate::geometry::Bounds2i;
-use crate::geometry::Ray;
+use crate::geometry::RayDifferential;
 use crate::sampler::Sampler;
 use crate::scene::{BuildOptions, Requirements, Scene};
 use crate::Rgb;
@@ -178,14 +178,17 @@ pub trait PixelEstimator: Send + Sync {
     /// Request sample arrays before rendering (pbrt-v3's `Request*Array`), on the prototype sampler.
     fn request_samples(&self, _sampler: &mut dyn Sampler) {}
     /// Radiance along a camera ray. The driver has counted the camera ray (see [`ThreadStats`]).
-    fn li(&self, ray: &Ray, cx: SampleContext) -> Rgb;
+    /// The ray carries its offset rays, scaled by `1/√spp` as pbrt-v3 scales them
+    /// ([`Scene::first_point`] turns them into the surface's differentials, for texture
+    /// filtering and bump mapping).
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb;
     /// Work shared by all samples of one pixel (e.g. `ltc` shading each surface seen in the
     /// pixel once): called with the pixel's camera samples and their rays, in sample order,
     /// before any of its samples is estimated. `Some` makes the driver call [`li_shared`](Self::li_shared)
     /// instead of `li` for that pixel. Only called when [`shares_pixel_work`](Self::shares_pixel_work).
     fn begin_pixel(
         &self,
-        _rays: &[Ray],
+        _rays: &[RayDifferential],
         _samples: &[CameraSample],
         _scene: &Scene,
         _stats: &mut ThreadStats,
@@ -204,7 +207,7 @@ pub trait PixelEstimator: Send + Sync {
     }
     /// `li` for sample `index` (`< rays.len()` of `begin_pixel`) of a pixel whose shared work
     /// is `shared`.
-    fn li_shared(&self, ray: &Ray, cx: SampleContext, _shared: &Self::Shared, _index: usize) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, _shared: &Self::Shared, _index: usize) -> Rgb {
         self.li(ray, cx)
     }
 }
@@ -389,7 +392,7 @@ struct TileScratch {
     sampler: Box<dyn Sampler>,
     aov: Vec<f32>,
     cams: Vec<CameraSample>,
-    rays: Vec<Ray>,
+    rays: Vec<RayDifferential>,
 }
 
 impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
@@ -462,8 +465,10 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
         shared
     }
 
-    fn generate_ray(&self, cs: &CameraSample) -> Ray {
-        crate::profiling::timed(crate::profiling::Phase::CameraRay, || self.scene.camera.generate_ray(cs))
+    /// The camera ray with its offset rays scaled to the sample spacing (pbrt-v3's
+    /// `ScaleDifferentials(1 / √spp)`).
+    fn generate_ray(&self, cs: &CameraSample) -> RayDifferential {
+        crate::profiling::timed(crate::profiling::Phase::CameraRay, || self.scene.camera.sample_ray(cs, self.spp))
     }
 }
 

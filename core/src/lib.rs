@@ -3,6 +3,7 @@
 //! every integrator in `penumbra-integrators` plugs into.
 
 pub mod accel;
+pub mod bssrdf;
 pub mod bxdf;
 pub mod camera;
 #[rustfmt::skip]
@@ -17,6 +18,7 @@ pub mod goodness_of_fit;
 pub mod image;
 pub mod integrator;
 pub mod interaction;
+pub mod interpolation;
 pub mod light;
 pub mod material;
 pub mod mesh;

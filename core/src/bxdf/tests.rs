@@ -831,3 +831,9 @@ fn combined_evaluation_matches_separate_calls_bit_for_bit() {
     }
     assert!(checked > 5_000, "{checked}");
 }
+
+// --- the lobes of `disney`, `fourier` and `hair` ------------------------------------------------
+
+mod disney;
+mod fourier;
+mod hair;
