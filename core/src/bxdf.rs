@@ -7,7 +7,7 @@
 //! instead of NaN or infinity; elsewhere the values are pbrt-v3's.
 
 use crate::microfacet::{cos_phi, sin_phi, sin_theta, MicrofacetDistribution};
-use crate::phase::Phase;
+use crate::profiling::Phase;
 use crate::spectrum::Rgb;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -838,7 +838,7 @@ impl Bsdf {
     /// surface). Reflection lobes count when `wo` and `wi` are on the same side of
     /// the *geometric* normal, transmission lobes otherwise (pbrt-v3).
     pub fn f(&self, wo_w: Vec3, wi_w: Vec3, flags: BxdfFlags) -> Rgb {
-        crate::phase::timed(Phase::Shading, || {
+        crate::profiling::timed(Phase::Shading, || {
             let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
             if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
                 return Rgb::ZERO;
@@ -849,7 +849,7 @@ impl Bsdf {
 
     /// `(self.f(wo_w, wi_w, flags), self.pdf(wo_w, wi_w, flags))`, bit for bit, in one pass.
     pub fn f_pdf(&self, wo_w: Vec3, wi_w: Vec3, flags: BxdfFlags) -> (Rgb, f32) {
-        crate::phase::timed(Phase::Shading, || {
+        crate::profiling::timed(Phase::Shading, || {
             let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
             if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
                 return (Rgb::ZERO, 0.0);
@@ -874,7 +874,7 @@ impl Bsdf {
 
     /// Average of the matching lobes' densities (pbrt-v3's `BSDF::Pdf`).
     pub fn pdf(&self, wo_w: Vec3, wi_w: Vec3, flags: BxdfFlags) -> f32 {
-        crate::phase::timed(Phase::Shading, || {
+        crate::profiling::timed(Phase::Shading, || {
             if self.n == 0 {
                 return 0.0;
             }
@@ -902,7 +902,7 @@ impl Bsdf {
     /// pdf is the average over all matching lobes and `f` the sum of the matching
     /// lobes selected by the geometric normal, as [`Bsdf::pdf`] and [`Bsdf::f`].
     pub fn sample_f(&self, wo_w: Vec3, u: Vec2, flags: BxdfFlags) -> Option<BsdfSample> {
-        crate::phase::timed(Phase::Shading, || {
+        crate::profiling::timed(Phase::Shading, || {
             let matching = self.num_components(flags);
             if matching == 0 {
                 return None;

@@ -373,7 +373,7 @@ mod tests {
                 n as f64 * (big(x1) - big(x0)) / (1.0 + a as f64 / 2.0)
             })
             .collect();
-        let (chi2, dof, p) = crate::stats::chi2_test(&hist, &expected, 5.0);
+        let (chi2, dof, p) = crate::goodness_of_fit::chi2_test(&hist, &expected, 5.0);
         assert!(p > 1e-4, "chi2 {chi2} dof {dof} p {p}");
         assert!(sample_catmull_rom_2d(&n1, &n2, &values, &cdf, 2.5, 0.5).is_none());
     }
@@ -412,7 +412,7 @@ mod tests {
                 n as f64 * (integral(p1) - integral(p0)) / (a[0] as f64 * tau)
             })
             .collect();
-        let (chi2, dof, p) = crate::stats::chi2_test(&hist, &expected, 5.0);
+        let (chi2, dof, p) = crate::goodness_of_fit::chi2_test(&hist, &expected, 5.0);
         assert!(p > 1e-4, "chi2 {chi2} dof {dof} p {p}");
     }
 

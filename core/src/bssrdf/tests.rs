@@ -114,7 +114,7 @@ fn chi2_radius_sampling() {
             for b in 0..bins {
                 exp[b] = n as f64 * radial_integral(|r| p.pdf_sr(ch, r) as f64, edges[b].max(1e-9), edges[b + 1]);
             }
-            let (chi2, dof, pv) = crate::stats::chi2_test(&obs, &exp, 5.0);
+            let (chi2, dof, pv) = crate::goodness_of_fit::chi2_test(&obs, &exp, 5.0);
             assert!(pv > 1e-4, "profile {k} channel {ch}: chi2 {chi2} dof {dof} p {pv}");
         }
     }

@@ -32,10 +32,9 @@ use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, RayDifferential};
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext,
 };
 use penumbra_core::material::BsdfOptions;
-use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Requirements, Scene};
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
@@ -86,14 +85,8 @@ const BSDF_OPTIONS: BsdfOptions =
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = ();
-    fn li(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         let (mut l, mut beta) = (Rgb::ZERO, Rgb::ONE);
         let mut ray = *ray;
         let mut specular_bounce = false;
@@ -167,9 +160,6 @@ impl PixelEstimator for Estimator<'_> {
 }
 
 impl Integrator for PathIntegrator {
-    fn name(&self) -> &str {
-        "path"
-    }
     fn merges_sample_ranges(&self) -> bool {
         true
     }

@@ -64,7 +64,7 @@ use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, Ray, RayDifferential};
 use penumbra_core::integrator::{
     render_pixels, with_threads, Integrator, PixelEstimator, Preparation, RenderContext, RenderError, RenderStats,
-    ThreadStats,
+    SampleContext, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
@@ -535,14 +535,8 @@ impl Estimator<'_> {
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<Rgb>;
-    fn li(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         self.li(ray, scene, sampler, stats, 0)
     }
 
@@ -567,16 +561,8 @@ impl PixelEstimator for Estimator<'_> {
         Some(SharedPixel::trace(rays, samples, scene, stats, |_| f64::INFINITY, Some(differs), shade))
     }
 
-    fn li_shared(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         shared.shade_sample(index, scene, |hit, e| self.shade_hit(ray, hit, e, scene, sampler, stats, 0))
     }
     fn pixel_bounds(&self) -> Option<Bounds2i> {
@@ -595,9 +581,6 @@ impl Shexp {
 }
 
 impl Integrator for Shexp {
-    fn name(&self) -> &str {
-        "shexp"
-    }
     /// Sample shading (pixel shading shares the environment's term between a pixel's samples;
     /// without an environment it shares nothing, but that is known only at render time).
     fn merges_sample_ranges(&self) -> bool {

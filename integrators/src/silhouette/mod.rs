@@ -69,7 +69,7 @@ use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray, RayDifferential};
 use penumbra_core::integrator::Preparation;
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
@@ -615,14 +615,8 @@ impl Estimator<'_> {
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<ClusterValue>;
-    fn li(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         match self.mode {
             Mode::Ao | Mode::Prt => self.ao(ray, scene, stats, aov),
             Mode::Shade => self.shade(ray, scene, sampler, stats, 0),
@@ -660,16 +654,8 @@ impl PixelEstimator for Estimator<'_> {
         ))
     }
 
-    fn li_shared(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         if self.mode == Mode::Shade {
             return shared
                 .shade_sample(index, scene, |hit, env| self.shade_hit(ray, hit, env, scene, sampler, stats, 0));
@@ -689,9 +675,6 @@ fn dual_edges(scene: &Scene) -> DualEdges {
 }
 
 impl Integrator for Silhouette {
-    fn name(&self) -> &str {
-        "silhouette"
-    }
     /// Sample shading, or `prt` (whose samples never share).
     fn merges_sample_ranges(&self) -> bool {
         !self.pixel_shading || self.mode == Some(Mode::Prt)

@@ -258,7 +258,7 @@ fn clearcoat_half_vectors_follow_gtr1() {
             }
         }
         let expected = vec![kept as f64 / bins as f64; bins];
-        let (chi2, dof, p) = crate::stats::chi2_test(&hist, &expected, 5.0);
+        let (chi2, dof, p) = crate::goodness_of_fit::chi2_test(&hist, &expected, 5.0);
         assert!(p > P_MIN, "alpha {alpha}: chi2 {chi2} dof {dof} p {p}");
         let accepted = kept as f64 / n as f64;
         let sd = (u45 * (1.0 - u45) / n as f64).sqrt();
