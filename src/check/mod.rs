@@ -102,6 +102,10 @@ pub struct CheckArgs {
     /// Suite: run only the cases whose name contains this.
     #[arg(long, value_name = "TEXT", requires = "suite")]
     pub only: Option<String>,
+    /// Suite: pbrt-v3's binary, for the references a case has pbrt render
+    /// (`reference_renderer = "pbrt"`).
+    #[arg(long, value_name = "PATH", requires = "suite")]
+    pub pbrt: Option<PathBuf>,
     /// Suite: worker threads per render (default: all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
