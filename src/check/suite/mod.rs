@@ -232,7 +232,13 @@ fn case_options(args: &CheckArgs, case: &Case) -> Result<GateOptions, String> {
 
 /// The reference's path: the case's file (rendered first under `--make-references` when
 /// missing), or a fresh penumbra render into the output directory when the case names none.
-fn reference(args: &CheckArgs, case: &Case, out: &Path, threads: usize, cancel: &AtomicBool) -> Result<PathBuf, String> {
+fn reference(
+    args: &CheckArgs,
+    case: &Case,
+    out: &Path,
+    threads: usize,
+    cancel: &AtomicBool,
+) -> Result<PathBuf, String> {
     let Some(p) = &case.reference else {
         let p = out.join(format!("{}.reference.exr", case.name));
         render::penumbra(&Request::reference(case), &p, threads, cancel)?;

@@ -183,7 +183,8 @@ impl<'a> Fields<'a> {
 fn check_keys(src: &Src, t: &Table, what: &str) -> Result<(), String> {
     for (k, item) in t.iter() {
         if !KEYS.contains(&k) {
-            return Err(src.err(item, format!("unknown key `{k}` in {what} (known: {})", KEYS.join(", "))));
+            let at = t.key(k).and_then(|key| key.span()).or_else(|| item.span());
+            return Err(format!("{}: unknown key `{k}` in {what} (known: {})", src.at(at), KEYS.join(", ")));
         }
     }
     Ok(())
@@ -218,7 +219,8 @@ pub fn parse(text: &str, file: &Path) -> Result<Vec<Case>, String> {
     let Some(cases) = root.get("case") else {
         return Err(format!("{}: no [[case]] tables", file.display()));
     };
-    let cases = cases.as_array_of_tables().ok_or_else(|| src.err(cases, "`case` must be an array of tables: [[case]]"))?;
+    let cases =
+        cases.as_array_of_tables().ok_or_else(|| src.err(cases, "`case` must be an array of tables: [[case]]"))?;
     let dir = file.parent().unwrap_or(Path::new(".")).to_path_buf();
     let mut out: Vec<Case> = Vec::new();
     for t in cases.iter() {
@@ -241,10 +243,9 @@ fn kind(f: &Fields) -> Result<Kind, String> {
         "tolerance" => Kind::Tolerance,
         other => {
             let item = f.get("kind").unwrap_or(&Item::None);
-            return Err(f.src.err(
-                item,
-                format!("`kind` must be welch, converged, same-estimator or tolerance, got {other:?}"),
-            ));
+            return Err(f
+                .src
+                .err(item, format!("`kind` must be welch, converged, same-estimator or tolerance, got {other:?}")));
         }
     })
 }
