@@ -69,6 +69,7 @@ fn unbiased_cases_pass() {
     assert_eq!(r.junit.matches("<testcase ").count(), 4);
     assert_eq!(r.html.matches("data:image/png;base64,").count(), 4 * 6, "six images per case");
     assert!(!r.html.contains("src=\"http"), "no external assets");
+    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// A 2 % brighter reference: the A/B Welch case at 64 spp, the converged case at 16 spp and
@@ -98,6 +99,7 @@ fn a_two_percent_bias_fails() {
     assert_eq!(r.junit.matches("<failure message=").count(), 3);
     // Each failing case is marked twice: in the summary table and in its section's heading.
     assert_eq!(r.html.matches("class=\"FAIL\"").count(), 2 * 3);
+    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// A missing reference without --make-references is an error of that case (exit 4, JUnit
@@ -116,4 +118,5 @@ fn errors_are_clear() {
     assert!(r.stderr.contains("suite.toml:11:1: unknown key `samples`"), "{}", r.stderr);
     let r = run(&d, "[[case]]\nname = \"x\"\nkind = \"tolerance\"\n", &[]);
     assert!(r.code == 4 && r.stderr.contains("needs `abs` and/or `rel`"), "{}", r.stderr);
+    let _ = std::fs::remove_dir_all(&d);
 }

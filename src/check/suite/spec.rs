@@ -323,3 +323,37 @@ fn validate(c: &Case) -> Result<(), String> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_example_suite_parses() {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/check/example.toml");
+        let cases = read(&file).expect("example suite");
+        assert_eq!(cases.len(), 3);
+        assert_eq!(cases[0].kind, Kind::Welch);
+        assert!(cases[0].reference.is_none() && cases[0].reference_integrator.as_deref() == Some("directlighting"));
+        assert_eq!(cases[0].resolution, Some((32, 32)), "from [defaults]");
+        assert_eq!(cases[0].reference_seed, 1 + REFERENCE_SEED_OFFSET);
+        assert_eq!(cases[1].kind, Kind::Converged);
+        assert_eq!(cases[1].reference_spp, Some(1024));
+        assert_eq!(cases[2].kind, Kind::Tolerance);
+        assert_eq!((cases[2].abs, cases[2].rel, cases[2].reference_seed), (Some(1e-6), Some(0.001), 0));
+    }
+
+    #[test]
+    fn errors_name_file_line_column() {
+        let f = Path::new("s.toml");
+        let e = |t: &str| parse(t, f).expect_err(t);
+        assert!(e("[[case]]\nname = \"a\"\nspp = -3\n").starts_with("s.toml:3:7: `spp`"));
+        assert!(e("[[case]]\nname = \"a\"\nkind = \"fuzzy\"\n").starts_with("s.toml:3:8: `kind` must be"));
+        assert!(e("[[case]]\nname = \"a\"\n[[case]]\nname = \"a\"\n").contains("a second case named \"a\""));
+        assert!(e("[[case]]\nspp = 4\n").contains("needs a `name`"));
+        assert!(e("[[case]\n").starts_with("s.toml:1:"), "{}", e("[[case]\n"));
+        assert!(e("[defaults]\nspp = 4\n").contains("no [[case]] tables"));
+        assert!(e("[[case]]\nname = \"a\"\nresolution = [32]\n").starts_with("s.toml:3:14: `resolution`"));
+        assert!(e("[[case]]\nname = \"a\"\nreference_renderer = \"pbrt\"\n").contains("needs a `reference` path"));
+    }
+}
