@@ -26,7 +26,11 @@ pub fn escape(s: &str) -> String {
 
 /// Now as `YYYY-MM-DDTHH:MM:SS` (UTC).
 pub fn timestamp() -> String {
-    let secs = SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
+    iso8601(SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0))
+}
+
+/// Seconds since 1970 as `YYYY-MM-DDTHH:MM:SS` (UTC).
+pub fn iso8601(secs: u64) -> String {
     let (days, rem) = ((secs / 86400) as i64, secs % 86400);
     // Howard Hinnant's civil_from_days.
     let z = days + 719_468;
@@ -47,7 +51,7 @@ pub fn xml(suite: &str, results: &[CaseResult]) -> String {
     let suite = escape(suite);
     let mut x = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n");
     x += &format!(
-        "  <testsuite name=\"{suite}\" package=\"penumbra.check\" id=\"0\" tests=\"{}\" failures=\"{}\" errors=\"{}\" skipped=\"0\" time=\"{time:.3}\" timestamp=\"{}\" hostname=\"localhost\">\n    <properties/>\n",
+        "  <testsuite name=\"{suite}\" package=\"penumbra.check\" id=\"0\" tests=\"{}\" failures=\"{}\" errors=\"{}\" time=\"{time:.3}\" timestamp=\"{}\" hostname=\"localhost\">\n    <properties/>\n",
         results.len(),
         count(Status::Fail),
         count(Status::Error),
@@ -75,4 +79,40 @@ pub fn xml(suite: &str, results: &[CaseResult]) -> String {
     }
     x += "    <system-out/>\n    <system-err/>\n  </testsuite>\n</testsuites>\n";
     x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::check::suite::{CaseResult, Status};
+
+    fn case(name: &str, status: Status, summary: &str) -> CaseResult {
+        CaseResult {
+            name: name.into(),
+            status,
+            summary: summary.into(),
+            detail: "d<1>".into(),
+            seconds: 0.5,
+            images: None,
+        }
+    }
+
+    #[test]
+    fn dates_and_counts() {
+        assert_eq!(iso8601(0), "1970-01-01T00:00:00");
+        assert_eq!(iso8601(951_782_400), "2000-02-29T00:00:00");
+        assert_eq!(iso8601(1_796_256_000 + 3661), "2026-12-03T01:01:01");
+        let x = xml(
+            "s",
+            &[case("a", Status::Pass, ""), case("b", Status::Fail, "p < 1e-3 & \"x\""), case("c", Status::Error, "no")],
+        );
+        assert!(x.contains("tests=\"3\" failures=\"1\" errors=\"1\" time=\"1.500\""), "{x}");
+        assert!(
+            x.contains("<failure message=\"p &lt; 1e-3 &amp; &quot;x&quot;\" type=\"gate\">d&lt;1&gt;</failure>"),
+            "{x}"
+        );
+        assert!(x.contains("<error message=\"no\" type=\"could-not-run\">"), "{x}");
+        assert_eq!(x.matches("<testcase ").count(), 3);
+        assert_eq!(escape("a\u{1}b"), "a\u{fffd}b");
+    }
 }
