@@ -27,9 +27,9 @@ CASES = [
     ("fourier-dl", "fourier", 'Integrator "directlighting"', 2048),
     ("fourier-path", "fourier", 'Integrator "path"', 2048),
     ("hair-dl", "hair", 'Integrator "directlighting"', 4096),
-    ("hair-path", "hair", 'Integrator "path"', 2048),
-    ("subsurface-dl", "subsurface", 'Integrator "directlighting"', 2048),
-    ("subsurface-path", "subsurface", 'Integrator "path"', 4096),
+    ("hair-path", "hair", 'Integrator "path"', 1024),
+    ("subsurface-dl", "subsurface", 'Integrator "directlighting"', 1024),
+    ("subsurface-path", "subsurface", 'Integrator "path"', 1024),
 ]
 
 
