@@ -24,7 +24,7 @@ CASES = [
     ("disney-reflection-path", "disney-reflection", 'Integrator "path"', 4096),
     ("disney-transmission-dl", "disney-transmission", 'Integrator "directlighting"', 4096),
     ("disney-transmission-path", "disney-transmission", 'Integrator "path"', 4096),
-    ("fourier-dl", "fourier", 'Integrator "directlighting"', 2048),
+    ("fourier-dl", "fourier", 'Integrator "directlighting"', 512),
     ("fourier-path", "fourier", 'Integrator "path"', 2048),
     ("hair-dl", "hair", 'Integrator "directlighting"', 4096),
     ("hair-path", "hair", 'Integrator "path"', 1024),
