@@ -24,12 +24,12 @@ CASES = [
     ("disney-reflection-path", "disney-reflection", 'Integrator "path"', 4096),
     ("disney-transmission-dl", "disney-transmission", 'Integrator "directlighting"', 4096),
     ("disney-transmission-path", "disney-transmission", 'Integrator "path"', 4096),
-    ("fourier-dl", "fourier", 'Integrator "directlighting"', 2048),
+    ("fourier-dl", "fourier", 'Integrator "directlighting"', 512),
     ("fourier-path", "fourier", 'Integrator "path"', 2048),
     ("hair-dl", "hair", 'Integrator "directlighting"', 4096),
-    ("hair-path", "hair", 'Integrator "path"', 2048),
-    ("subsurface-dl", "subsurface", 'Integrator "directlighting"', 2048),
-    ("subsurface-path", "subsurface", 'Integrator "path"', 4096),
+    ("hair-path", "hair", 'Integrator "path"', 1024),
+    ("subsurface-dl", "subsurface", 'Integrator "directlighting"', 1024),
+    ("subsurface-path", "subsurface", 'Integrator "path"', 1024),
 ]
 
 
