@@ -14,7 +14,7 @@ pub struct InfoArgs {
     /// The pbrt-v3 scene file.
     pub scene: PathBuf,
     /// Check and describe the build for this integrator (default: the scene's, as `render`).
-    #[arg(short = 'i', long = "integrator")]
+    #[arg(short = 'i', long = "integrator", value_parser = penumbra::cli_params::integrator_arg)]
     pub integrator: Option<String>,
     /// Integrator parameter `key=value`, as for `render` (repeatable).
     #[arg(long = "param", value_name = "KEY=VALUE")]

@@ -1,6 +1,8 @@
 //! `penumbra`: render pbrt-v3 scenes with selectable integrators, compare them, gate image error in CI.
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
+use std::ffi::OsString;
+use std::path::Path;
 use std::process::ExitCode;
 
 mod convert;
@@ -18,7 +20,8 @@ mod sweep;
     about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes",
     long_about = "Compare direct-illumination and visibility integrators on pbrt-v3 scenes.\n\n\
         With no subcommand, `penumbra` renders the embedded default scene to penumbra.exr \
-        (the same as `penumbra render`).",
+        (the same as `penumbra render`); `penumbra scene.pbrt [options]` renders that scene, \
+        as `pbrt scene.pbrt` does (the same as `penumbra render scene.pbrt [options]`).",
     after_help = "Exit status (every subcommand): 0 success; 1 error (a scene, input or output that \
         cannot be used); 64 command-line usage error (unknown option, missing or malformed argument); \
         130 interrupted (Ctrl-C). `diff` adds OpenImageIO idiff's 1 warning, 2 failure, 3 different \
@@ -58,7 +61,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
+    let cli = match Cli::try_parse_from(with_render_for_a_scene(std::env::args_os().collect())) {
         Ok(c) => c,
         Err(e) => {
             let _ = e.print();
@@ -79,4 +82,19 @@ fn main() -> ExitCode {
         Some(Command::Convert(a)) => convert::run(a),
         None => render::run(render::RenderArgs::default()),
     }
+}
+
+/// The pbrt habit (issue 41): `penumbra scene.pbrt …` renders the scene. A first argument that
+/// is not a subcommand or an option, and names an existing file or ends in `.pbrt`, gets
+/// `render` put before it.
+fn with_render_for_a_scene(mut args: Vec<OsString>) -> Vec<OsString> {
+    if let Some(first) = args.get(1) {
+        let text = first.to_string_lossy();
+        let subcommand = text == "help" || Cli::command().get_subcommands().any(|c| c.get_name() == text);
+        let scene = text.ends_with(".pbrt") || Path::new(first).is_file();
+        if !subcommand && !text.starts_with('-') && scene {
+            args.insert(1, OsString::from("render"));
+        }
+    }
+    args
 }

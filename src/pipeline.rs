@@ -67,12 +67,18 @@ pub fn choose_integrator(
     } else {
         desc.integrator.params.mark_all_used();
         if cli_name.is_none() {
-            let known = penumbra_integrators::PBRT_UNIMPLEMENTED.contains(&scene_name);
+            if !penumbra_integrators::PBRT_UNIMPLEMENTED.contains(&scene_name) {
+                // pbrt-v3 renders nothing for an integrator it does not know (issue 41).
+                let message = crate::cli_params::unknown_integrator(scene_name);
+                return Err(Diagnostic::error(
+                    Some(desc.integrator.loc.clone()),
+                    format!("{message} (pbrt-v3 stops here too; -i chooses one)"),
+                ));
+            }
             warnings.warn(
                 Some(desc.integrator.loc.clone()),
                 format!(
-                    "{} integrator \"{scene_name}\" is not implemented by penumbra: rendering with \"{FALLBACK_INTEGRATOR}\" instead (choose one with -i)",
-                    if known { "pbrt-v3" } else { "unknown" }
+                    "pbrt-v3 integrator \"{scene_name}\" is not implemented by penumbra: rendering with \"{FALLBACK_INTEGRATOR}\" instead (choose one with -i)"
                 ),
             );
             // pbrt-v3's other integrators share `path`'s `maxdepth`.
@@ -84,10 +90,7 @@ pub fn choose_integrator(
         }
     };
     let entry = penumbra_integrators::find(name).ok_or_else(|| {
-        Diagnostic::error(
-            None,
-            format!("unknown integrator \"{name}\"; valid names: {}", penumbra_integrators::names().join(", ")),
-        )
+Diagnostic::error(None, crate::cli_params::unknown_integrator(name))
     })?;
     let params = cli_params::merge(&base, &cli_params::conform(entry, cli_params)?);
     let integrator = (entry.create)(&params, warnings)?;

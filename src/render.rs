@@ -19,7 +19,7 @@ pub struct RenderArgs {
     /// The pbrt-v3 scene file (default: the embedded default scene).
     pub scene: Option<PathBuf>,
     /// Integrator to use (overrides the scene's `Integrator`).
-    #[arg(short = 'i', long = "integrator")]
+    #[arg(short = 'i', long = "integrator", value_parser = penumbra::cli_params::integrator_arg)]
     pub integrator: Option<String>,
     /// Integrator parameter `key=value` (repeatable): one the integrator declares (listed
     /// below), its value of the declared type.

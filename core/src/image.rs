@@ -906,6 +906,29 @@ pub fn write_pfm(image: &Image, path: impl AsRef<Path>) -> Result<(), ImageError
 
 static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
+/// The permissions of the file at `path` if one exists and may be replaced; an error if it is
+/// read-only (no write permission bit at all, which even a privileged user's write would
+/// ignore) or the current user may not write it. Replacing a file through a rename needs only
+/// the directory's permission, so without this check a protected reference image would be
+/// silently replaced (issue 41).
+pub fn existing_writable(path: &Path) -> io::Result<Option<fs::Permissions>> {
+    let Ok(meta) = fs::metadata(path) else { return Ok(None) };
+    if meta.is_dir() {
+        return Err(io::Error::new(io::ErrorKind::IsADirectory, "is a directory"));
+    }
+    if meta.permissions().readonly() {
+        return Err(io::Error::new(
+            io::ErrorKind::PermissionDenied,
+            "the existing file is read-only; it is not replaced (make it writable to overwrite it)",
+        ));
+    }
+    // Opening for writing without truncating changes nothing but asks the OS for this user's right.
+    File::options().write(true).open(path).map_err(|e| {
+        io::Error::new(e.kind(), format!("the existing file cannot be written ({e}); it is not replaced"))
+    })?;
+    Ok(Some(meta.permissions()))
+}
+
 /// Writes a file atomically: `produce` writes into a new temporary file in the
 /// same directory as `path`, which is flushed, fsync'ed and then renamed over
 /// `path`. If `produce` or any step fails, the temporary file is removed and an
@@ -927,6 +950,7 @@ where
     tmp_name.push(file_name);
     tmp_name.push(format!(".tmp-{}-{}", std::process::id(), TMP_COUNTER.fetch_add(1, Ordering::Relaxed)));
     let tmp = dir.join(tmp_name);
+    let existing = existing_writable(path).map_err(io_err)?;
     let result = (|| -> io::Result<()> {
         let file = File::options().write(true).create_new(true).open(&tmp)?;
         let mut w = io::BufWriter::new(file);
@@ -934,6 +958,10 @@ where
         let file = w.into_inner().map_err(|e| e.into_error())?;
         file.sync_all()?;
         drop(file);
+        // The replacement keeps the replaced file's permissions (not the umask's default).
+        if let Some(permissions) = existing {
+            fs::set_permissions(&tmp, permissions)?;
+        }
         fs::rename(&tmp, path)
     })();
     if let Err(e) = result {
@@ -1159,6 +1187,27 @@ mod tests {
         write_atomic(&p, |w| w.write_all(b"new")).unwrap();
         assert_eq!(fs::read(&p).unwrap(), b"new");
         assert!(matches!(write_atomic(d.join("no/such/dir/x"), |_| Ok(())), Err(ImageError::Io { .. })));
+        fs::remove_dir_all(d).unwrap();
+    }
+
+    #[test]
+    fn atomic_write_refuses_a_read_only_file_and_keeps_permissions() {
+        use std::os::unix::fs::PermissionsExt;
+        let d = tmpdir("readonly");
+        let p = d.join("ref.exr");
+        write_atomic(&p, |w| w.write_all(b"reference")).unwrap();
+        fs::set_permissions(&p, fs::Permissions::from_mode(0o444)).unwrap();
+        let r = write_atomic(&p, |w| w.write_all(b"new"));
+        let Err(ImageError::Io { source, .. }) = r else { panic!("a read-only file was replaced: {r:?}") };
+        assert!(source.to_string().contains("read-only"), "{source}");
+        assert_eq!(fs::read(&p).unwrap(), b"reference");
+        assert_eq!(fs::metadata(&p).unwrap().permissions().mode() & 0o777, 0o444);
+        assert_eq!(fs::read_dir(&d).unwrap().count(), 1, "no temporary file is left");
+        // A writable file with a mode other than the umask's default keeps it when replaced.
+        fs::set_permissions(&p, fs::Permissions::from_mode(0o640)).unwrap();
+        write_atomic(&p, |w| w.write_all(b"new")).unwrap();
+        assert_eq!(fs::read(&p).unwrap(), b"new");
+        assert_eq!(fs::metadata(&p).unwrap().permissions().mode() & 0o777, 0o640);
         fs::remove_dir_all(d).unwrap();
     }
 

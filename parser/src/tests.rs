@@ -636,3 +636,16 @@ fn asset_files_are_every_file_valued_parameter_resolved() {
     assert_eq!(got, want);
     assert!(!s.shapes[0].entity.params.report_unused("shape").is_empty(), "reading them marks nothing used");
 }
+
+#[test]
+fn a_missing_world_end_is_a_warning_and_a_fragment_is_not() {
+    let out = parse("WorldBegin\nShape \"sphere\"\n");
+    let w: Vec<_> = out.warnings.iter().filter(|w| w.message.contains("missing WorldEnd")).collect();
+    assert_eq!(w.len(), 1, "{:?}", out.warnings);
+    assert_eq!(w[0].loc.as_ref().map(|l| l.line), Some(3));
+    assert_eq!(out.scene.shapes.len(), 1);
+    assert!(!parse("WorldBegin\nWorldEnd\n").warnings.iter().any(|w| w.message.contains("WorldEnd")));
+    // A world-block fragment (what an Include holds) warns that it is one, not about WorldEnd.
+    let frag = parse("Shape \"sphere\"\n");
+    assert!(!frag.warnings.iter().any(|w| w.message.contains("missing WorldEnd")), "{:?}", frag.warnings);
+}

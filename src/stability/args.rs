@@ -41,7 +41,7 @@ pub struct StabilityArgs {
     /// The pbrt-v3 scene file.
     pub scene: PathBuf,
     /// Integrators to check, comma-separated.
-    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]")]
+    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]", value_parser = penumbra::cli_params::integrator_arg)]
     pub integrators: Vec<String>,
     /// Samples per pixel of every render.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]

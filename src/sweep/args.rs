@@ -47,7 +47,7 @@ pub struct SweepArgs {
     #[arg(long, value_name = "S")]
     pub reference_seed: Option<u64>,
     /// Integrators to compare, comma-separated.
-    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]")]
+    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]", value_parser = penumbra::cli_params::integrator_arg)]
     pub integrators: Vec<String>,
     /// Explicit budgets, comma-separated (default: 1, 2, 4, ... until --time-limit).
     #[arg(long, value_delimiter = ',', value_name = "B[,B...]", value_parser = clap::value_parser!(u32).range(1..))]
