@@ -89,9 +89,8 @@ pub fn choose_integrator(
             ParamSet::default()
         }
     };
-    let entry = penumbra_integrators::find(name).ok_or_else(|| {
-Diagnostic::error(None, crate::cli_params::unknown_integrator(name))
-    })?;
+    let entry = penumbra_integrators::find(name)
+        .ok_or_else(|| Diagnostic::error(None, crate::cli_params::unknown_integrator(name)))?;
     let params = cli_params::merge(&base, &cli_params::conform(entry, cli_params)?);
     let integrator = (entry.create)(&params, warnings)?;
     warnings.extend(params.report_unused(&format!("integrator \"{name}\"")));

@@ -83,3 +83,13 @@ fn a_misspelt_integrator_is_a_usage_error_with_a_suggestion_everywhere() {
     }
     std::fs::remove_dir_all(&d).ok();
 }
+
+#[test]
+fn info_without_a_scene_describes_the_embedded_one_as_render_renders_it() {
+    let d = dir("info-default");
+    let o = penumbra(&d, &["info"]);
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.contains("builds:"), "{out}");
+    std::fs::remove_dir_all(&d).ok();
+}
