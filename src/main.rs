@@ -3,6 +3,7 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+mod cli;
 mod convert;
 mod diff;
 mod info;
