@@ -42,7 +42,9 @@ fn spp_is_1_to_2_pow_24_everywhere_with_one_message() {
             let e = stderr(&o);
             assert_eq!(o.status.code(), Some(64), "{args:?}: {e}");
             assert!(e.contains(&format!("{bad} is not in 1..=16777216")), "{args:?}: {e}");
-            messages.push(e.lines().next().unwrap_or_default().replace("--reference-spp", "--spp"));
+            // The message after the flag's name and value name (`--spp <SPP>`, `--reference-spp <N>`).
+            let first_line = e.lines().next().unwrap_or_default();
+            messages.push(first_line.rsplit("': ").next().unwrap_or_default().to_string());
         }
         let first = &messages[0];
         assert!(messages.iter().all(|m| m == first), "different messages for --spp {bad}: {messages:?}");
@@ -69,11 +71,10 @@ fn spp_2_pow_24_is_accepted_everywhere() {
 fn render_flags_are_the_same_in_every_subcommand() {
     let d = cli_dir("cli-flags-help");
     let help = |sub: &str| String::from_utf8_lossy(&penumbra(&d, &[sub, "--help"]).stdout).into_owned();
+    // The flag's help line, whitespace normalised (each subcommand aligns its own columns).
     let flag_help = |text: &str, flag: &str| -> String {
-        let start = text.find(&format!("      {flag}")).unwrap_or_else(|| panic!("{flag} missing in\n{text}"));
-        let rest = &text[start..];
-        let end = rest[1..].find("\n  -").map_or(rest.len(), |i| i + 1);
-        rest[..end].to_string()
+        let line = text.lines().find(|l| l.trim_start().starts_with(&format!("{flag} ")));
+        line.unwrap_or_else(|| panic!("{flag} missing in\n{text}")).split_whitespace().collect::<Vec<_>>().join(" ")
     };
     let (render, sweep, stability) = (help("render"), help("sweep"), help("stability"));
     for flag in ["--param", "--threads", "--seed", "--resolution"] {
