@@ -142,29 +142,49 @@ pub fn help_text() -> String {
     o
 }
 
-/// The README's list of the registered integrators' parameters (between [`README_BEGIN`] and
-/// [`README_END`]; `cargo run -p penumbra-integrators --example readme-params` rewrites it).
-pub fn markdown() -> String {
-    let mut o = String::new();
+/// The page that documents integrator `name`, relative to the repository's root.
+pub fn doc_page(name: &str) -> String {
+    format!("docs/integrators/{name}.md")
+}
+
+/// Marks the generated parameter table in an integrator's page ([`with_generated_params`]).
+pub const PARAMS_BEGIN: &str =
+    "<!-- integrator-params:begin (generated from the registry: cargo run -p penumbra-integrators --example generate-docs) -->";
+pub const PARAMS_END: &str = "<!-- integrator-params:end -->";
+/// Marks the generated integrator table in the README ([`with_generated_table`]).
+pub const TABLE_BEGIN: &str =
+    "<!-- integrator-table:begin (generated from the registry: cargo run -p penumbra-integrators --example generate-docs) -->";
+pub const TABLE_END: &str = "<!-- integrator-table:end -->";
+
+/// `text` with what lies between the lines `begin` and `end` replaced by `generated`.
+fn replace_between(text: &str, begin: &str, end: &str, generated: &str, what: &str) -> Result<String, String> {
+    let b = text.find(begin).ok_or_else(|| format!("{what}: the marker `{begin}` is missing"))?;
+    let e = text.find(end).ok_or_else(|| format!("{what}: the marker `{end}` is missing"))?;
+    let from = b + begin.len();
+    if e < from {
+        return Err(format!("{what}: the end marker comes before the begin marker"));
+    }
+    Ok(format!("{}\n\n{}\n{}", &text[..from], generated.trim_end(), &text[e..]))
+}
+
+/// `page` (the text of `entry`'s [`doc_page`]) with its parameter table, between
+/// [`PARAMS_BEGIN`] and [`PARAMS_END`], generated from `entry.params`.
+pub fn with_generated_params(entry: &Entry, page: &str) -> Result<String, String> {
+    replace_between(page, PARAMS_BEGIN, PARAMS_END, &common::params::markdown(entry.params), &doc_page(entry.name))
+}
+
+/// The README's integrator table: one line per registered integrator, linking its page.
+pub fn integrator_table() -> String {
+    let mut o = String::from("| integrator | method (its page: parameters, measurements, limits) |\n|---|---|\n");
     for e in REGISTRY {
-        o += &format!("\n**`{}`**\n\n", e.name);
-        o += &common::params::markdown(e.params);
+        o += &format!("| [`{}`]({}) | {} |\n", e.name, doc_page(e.name), e.method.replace('|', "\\|"));
     }
     o
 }
 
-pub const README_BEGIN: &str = "<!-- integrator-params:begin (generated from the registry: cargo run -p penumbra-integrators --example readme-params) -->";
-pub const README_END: &str = "<!-- integrator-params:end -->";
-
-/// `readme` with the text between its markers replaced by [`markdown`].
-pub fn with_generated_params(readme: &str) -> Result<String, String> {
-    let begin = readme.find(README_BEGIN).ok_or("README: the integrator-params begin marker is missing")?;
-    let end = readme.find(README_END).ok_or("README: the integrator-params end marker is missing")?;
-    let from = begin + README_BEGIN.len();
-    if end < from {
-        return Err("README: the integrator-params end marker comes before the begin marker".into());
-    }
-    Ok(format!("{}\n{}\n{}", &readme[..from], markdown(), &readme[end..]))
+/// `readme` with its integrator table, between [`TABLE_BEGIN`] and [`TABLE_END`], generated.
+pub fn with_generated_table(readme: &str) -> Result<String, String> {
+    replace_between(readme, TABLE_BEGIN, TABLE_END, &integrator_table(), "README.md")
 }
 
 #[cfg(test)]

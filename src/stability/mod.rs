@@ -15,9 +15,9 @@ mod measure;
 mod report;
 mod variants;
 
+use crate::cli::cancel_on_interrupt;
+use crate::cli::print_new_warnings;
 use crate::diff::{EXIT_FAIL, EXIT_FILE, EXIT_OK, EXIT_WARN};
-use crate::render::cancel_on_interrupt;
-use crate::sweep::print_new_warnings;
 pub use args::StabilityArgs;
 use args::{setup, Setup, Tolerances};
 use measure::{measure, Bound, Channels, Measures};
@@ -51,7 +51,7 @@ fn fail(message: impl std::fmt::Display) -> Failure {
 }
 
 pub fn run(mut args: StabilityArgs) -> ExitCode {
-    args.threads = penumbra::cli_params::threads_or_warn(args.threads);
+    args.flags.threads = penumbra::cli_params::threads_or_warn(args.flags.threads);
     match run_inner(&args) {
         Ok(code) => ExitCode::from(code),
         Err(f) => penumbra::cli_params::exit_with_error(f.code, &f.message),
@@ -100,7 +100,7 @@ fn run_inner(args: &StabilityArgs) -> Result<u8, Failure> {
             eprintln!("{m}");
         }
     };
-    let build = BuildOptions { spp: Some(args.spp), seed: args.seed, crop: None, resolution: Some(s.resolution) };
+    let build = BuildOptions { spp: Some(args.spp), seed: args.flags.seed, crop: None, resolution: Some(s.resolution) };
     let geo = Geometry::of(&s.desc, &build).map_err(fail)?;
     let mut notes: Vec<String> = Vec::new();
     let mut scenes: Vec<(Variant, SceneDescription)> = Vec::new();
@@ -177,7 +177,7 @@ impl Study<'_> {
             integrator: None,
             params: &self.s.params,
             build: self.build.clone(),
-            threads: self.args.threads,
+            threads: self.args.flags.threads,
             with_variance: true,
             cancel: self.cancel,
             progress: None,

@@ -4,7 +4,7 @@ use super::args::StabilityArgs;
 use super::measure::Measures;
 use super::variants::{Expect, Geometry, Kind, Variant};
 use super::Setup;
-use crate::diff::{fmt_g, num, viridis};
+use crate::cli::format::{fmt_g, num, viridis};
 use crate::sweep::plot::register_font;
 use penumbra_core::image::{self, Image};
 use penumbra_core::spectrum::srgb_encode;
@@ -164,7 +164,7 @@ impl Report<'_> {
             "scene": self.args.scene,
             "resolution": [w, h],
             "spp": self.args.spp,
-            "seed": self.args.seed,
+            "seed": self.args.flags.seed,
             "extent": num(self.geo.extent),
             "center": self.geo.center,
             "tolerances": {
@@ -188,7 +188,7 @@ impl Report<'_> {
             s,
             "{w}x{h} pixels, {} spp, seed {}; scene extent {} (bounding-box diagonal).\n",
             self.args.spp,
-            self.args.seed,
+            self.args.flags.seed,
             fmt_g(self.geo.extent, 4)
         );
         s += &format!("| {} |\n|{}\n", HEADER.join(" | "), "---|".repeat(HEADER.len()));

@@ -2,8 +2,9 @@
 //! every integrator is created once with its parameters before anything renders.
 
 use super::row::Metric;
-use super::{fail, print_new_warnings, Failure};
-use crate::render::{check_crop, full_resolution, parse_crop, parse_resolution};
+use super::{fail, Failure};
+use crate::cli::print_new_warnings;
+use crate::cli::{check_crop, full_resolution, parse_crop, parse_resolution, spp_parser, RenderFlags};
 use penumbra::cli_params;
 use penumbra::pipeline;
 use penumbra::scene_identity::scene_identity;
@@ -34,7 +35,7 @@ pub struct SweepArgs {
     #[arg(long)]
     pub reference: Option<PathBuf>,
     /// Render the reference with --reference-integrator at N spp instead (cached under OUTDIR/cache/).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_name = "N", value_parser = spp_parser())]
     pub reference_spp: Option<u32>,
     /// The integrator of the `--reference-spp` render: the estimator the others should converge
     /// to (default: the first -i's natural reference — ambientocclusion for ambientocclusion,
@@ -64,21 +65,10 @@ pub struct SweepArgs {
     #[arg(long, value_name = "NAME")]
     pub budget_param: Option<String>,
     /// Samples per pixel when the budget is a parameter (default: the scene's sampler).
-    #[arg(long, requires = "budget_param", value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, requires = "budget_param", value_parser = spp_parser())]
     pub spp: Option<u32>,
-    /// Integrator parameter `key=value` for every integrator (repeatable): each must declare it
-    /// (`penumbra render --help` lists them), its value of the declared type.
-    #[arg(long = "param", value_name = "KEY=VALUE")]
-    pub params: Vec<String>,
-    /// Worker threads (default: all cores).
-    #[arg(long, default_value_t = 0)]
-    pub threads: usize,
-    /// Sampler seed of the renders.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Override the film resolution `WxH`.
-    #[arg(long)]
-    pub resolution: Option<String>,
+    #[command(flatten)]
+    pub flags: RenderFlags,
     /// Crop `x0,x1,y0,y1` (as `penumbra render --crop`).
     #[arg(long, allow_hyphen_values = true)]
     pub crop: Option<String>,
@@ -162,7 +152,7 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
         }
     }
     let usage = |d: penumbra_parser::Diagnostic| Failure { code: penumbra::exit::USAGE, message: d.to_string() };
-    let params = cli_params::parse_all(&args.params).map_err(usage)?;
+    let params = cli_params::parse_all(&args.flags.params).map_err(usage)?;
     // Every `--param` applies to every integrator of the sweep: each must declare it, with its type.
     for n in &integrators {
         if let Some(entry) = penumbra_integrators::find(n) {
@@ -170,7 +160,7 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
         }
     }
     let crop = args.crop.as_deref().map(parse_crop).transpose().map_err(fail)?;
-    let resolution = args.resolution.as_deref().map(parse_resolution).transpose().map_err(fail)?;
+    let resolution = args.flags.resolution.as_deref().map(parse_resolution).transpose().map_err(fail)?;
     let parsed = pipeline::load_scene(Some(&args.scene)).map_err(|d| Failure { code: 1, message: d.to_string() })?;
     let scene_identity = scene_identity(&parsed.scene).map_err(fail)?;
     if let Some(c) = crop {

@@ -2,7 +2,8 @@
 //! under `OUTDIR/cache/` by a key of everything that determines it.
 
 use super::args::Setup;
-use super::{fail, print_new_warnings, rgb_only, Failure, SweepArgs, EXIT_CANCELLED};
+use super::{fail, rgb_only, Failure, SweepArgs, EXIT_CANCELLED};
+use crate::cli::print_new_warnings;
 use penumbra::pipeline::{self, RenderOptions};
 use penumbra_core::fnv::fnv1a64;
 use penumbra_core::image::{self, Image};
@@ -36,7 +37,7 @@ pub fn reference_key(
 
 /// The seed of the `--reference-spp` render.
 fn reference_seed(args: &SweepArgs) -> u64 {
-    args.reference_seed.unwrap_or(args.seed.wrapping_add(1))
+    args.reference_seed.unwrap_or(args.flags.seed.wrapping_add(1))
 }
 
 /// Where the `--reference-spp` render is cached (`None` with `--reference`).
@@ -142,7 +143,7 @@ fn render_reference(
         integrator: Some(ri),
         params: &[],
         build: BuildOptions { spp: Some(n), seed: rseed, crop: s.crop, resolution: s.resolution },
-        threads: args.threads,
+        threads: args.flags.threads,
         with_variance: false,
         cancel,
         progress: None,

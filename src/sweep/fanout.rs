@@ -14,7 +14,7 @@ use super::args::{Setup, SweepArgs};
 use super::report::Outputs;
 use super::row::Row;
 use super::{cache, compare_row, fail, render_one, taken_budget, Failure, Timed};
-use crate::render::cancel_on_interrupt;
+use crate::cli::cancel_on_interrupt;
 use penumbra_core::image::{self, Image};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};

@@ -5,7 +5,7 @@ use super::args::SweepArgs;
 use super::plot::{render_plots, Series};
 use super::row::{Metric, Row};
 use super::summary::{default_target, summary_markdown, SummaryInput};
-use crate::diff::num;
+use crate::cli::format::num;
 use penumbra_core::image;
 use serde_json::{json, Value};
 use std::fmt::Write as _;
@@ -88,10 +88,10 @@ pub struct Outputs<'a> {
 impl<'a> Outputs<'a> {
     /// The outputs under `--output`, with the reference as `sweep.json` and the summary name it.
     pub fn new(args: &'a SweepArgs, integrators: &[String], reference: Value, reference_label: String) -> Self {
-        let threads = if args.threads == 0 {
+        let threads = if args.flags.threads == 0 {
             std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
         } else {
-            args.threads
+            args.flags.threads
         };
         Outputs {
             dir: &args.output,
@@ -111,9 +111,9 @@ impl<'a> Outputs<'a> {
                 "max_budget": args.max_budget,
                 "budget_param": args.budget_param,
                 "spp": args.spp,
-                "params": args.params,
-                "seed": args.seed,
-                "resolution": args.resolution,
+                "params": args.flags.params,
+                "seed": args.flags.seed,
+                "resolution": args.flags.resolution,
                 "crop": args.crop,
             }),
             items: None,
