@@ -151,10 +151,12 @@ impl PixelEstimator for Estimator<'_> {
 
 /// The diffuse reflectance at `si` (0 where the material has none, or none was built).
 pub(crate) fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Rgb {
-    let Some((material, _, textures)) = scene.material_of(si) else { return Rgb::ZERO };
+    let Some((material, materials, textures)) = scene.material_of(si) else { return Rgb::ZERO };
     match material {
         Material::Matte { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
-        m => m.ltc_diffuse(si, textures).unwrap_or(Rgb::ZERO),
+        // (substrate: its Kd, though its FresnelBlend is not Lambertian)
+        Material::Substrate { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
+        m => m.ltc_diffuse(si, materials, textures).unwrap_or(Rgb::ZERO),
     }
 }
 

@@ -49,9 +49,9 @@ pub use fresnel::{fresnel_at, FresnelMode};
 pub use shader::LtcShader;
 
 use crate::common::direct::{has_specular, specular};
-use crate::common::other_lights::{add_other_lights, warn_infinite_lights, FallbackWarning};
+use crate::common::other_lights::{add_other_lights, warn_infinite_lights, Coverage, FallbackWarning};
 use crate::common::params::{ParamSpec, Params};
-use crate::common::pixel_shading::{parse_shading, SharedPixel, SHADING};
+use crate::common::pixel_shading::{parse_shading, rgb_differs, ClusterExtent, Refine, SharedPixel, NEAR_FIELD, SHADING};
 use crate::common::{max_depth, max_depth_param};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::camera::CameraSample;
@@ -66,6 +66,29 @@ use penumbra_core::scene::{Requirements, Scene, SurfacePoint};
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 
+/// How the glossy lobes are integrated over the visible part of a light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Glossy {
+    /// The material's own lobe: the LTC integral plus the residual by quadrature in the LTC's
+    /// cosine space ([`penumbra_core::ltc::quadrature`]), to a relative tolerance of 1e-3.
+    Exact,
+    /// The LTC alone (Heitz et al. 2016, the paper's method), with `"fresnel"`'s treatment.
+    Ltc,
+}
+
+impl Glossy {
+    /// `"string glossy"`, read by `ltc` and `ratio`.
+    pub const PARAM: ParamSpec = ParamSpec::choice(
+        "glossy",
+        &["exact", "ltc"],
+        "glossy lobes: the material's own (LTC integral plus the residual by quadrature) or the LTC fit alone (the paper's)",
+    );
+
+    pub fn from_params(params: &Params) -> Result<Glossy, Diagnostic> {
+        params.choice("glossy", [Glossy::Exact, Glossy::Ltc])
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
     /// One silhouette loop per closed mesh.
@@ -79,6 +102,7 @@ pub enum Mode {
 pub struct LtcIntegrator {
     pub mode: Mode,
     pub shadows: bool,
+    pub glossy: Glossy,
     pub fresnel: FresnelMode,
     /// `"string shading" "pixel"` (default): the samples of a pixel only resolve visibility
     /// (edges, which surface is seen); each surface seen in the pixel is shaded once
@@ -108,6 +132,7 @@ pub const PARAMS: &[ParamSpec] = &[
         "occluders as silhouettes where proven convex, always as silhouettes, or triangle by triangle (pertriangle: the same)",
     ),
     ParamSpec::bool("shadows", true, "false: the unshadowed term"),
+    Glossy::PARAM,
     FresnelMode::PARAM,
     SHADING,
     ParamSpec::bool("mergeoccluders", true, "subtract an object's triangles as their outline (false: one by one; same image)"),
@@ -123,6 +148,7 @@ impl LtcIntegrator {
         Ok(Box::new(LtcIntegrator {
             mode,
             shadows: p.bool("shadows")?,
+            glossy: Glossy::from_params(&p)?,
             fresnel: FresnelMode::from_params(&p)?,
             pixel_shading: parse_shading(&p)?,
             merge_occluders: p.bool("mergeoccluders")?,
@@ -160,13 +186,43 @@ impl LtcShader<'_> {
             samples,
             scene,
             stats,
-            |p| self.nearest_light_distance(p),
-            None,
+            |p, extent| self.refine(scene, p, extent),
+            Some(|a: &AreaLighting, b: &AreaLighting| rgb_differs(a.0, b.0) || rgb_differs(a.1, b.1)),
             |h, _| {
-                let desc = LtcShader::lobes(scene, &h.si)?;
+                let desc = self.lobes(scene, &h.si)?;
                 Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
             },
         )
+    }
+}
+
+/// A glossy lobe narrower than this many times a pixel cluster's angular extent (its camera
+/// rays' spread) is shaded at every member: the highlight (a sharp reflection of the light's
+/// outline) moves across the pixel by about that angle, while the lobe is `~2α` wide.
+const SHARP_EVERY: f32 = 0.5;
+/// … and narrower than this many times, at the representative and the farthest member, and at
+/// every member when the two differ by more than 10 %.
+const SHARP_COMPARE: f32 = 8.0;
+
+impl LtcShader<'_> {
+    /// How finely pixel shading shades a cluster at `p`: every member near a light (the
+    /// cluster's extent above [`NEAR_FIELD`] of its distance) or for a lobe far sharper than the
+    /// cluster's angle ([`SHARP_EVERY`]); compared with its farthest member for a sharp one
+    /// ([`SHARP_COMPARE`]); once otherwise.
+    fn refine(&self, scene: &Scene, p: &SurfacePoint, extent: ClusterExtent) -> Refine {
+        if extent.world > NEAR_FIELD * self.nearest_light_distance(p.si.p.as_dvec3()) {
+            return Refine::Every;
+        }
+        let alpha = scene
+            .material_of(&p.si)
+            .and_then(|(m, materials, tx)| m.ltc_lobes(&p.si, materials, tx))
+            .and_then(|d| d.lobes.iter().filter_map(|l| l.ggx_alpha()).reduce(f32::min));
+        let angle = extent.angle as f32;
+        match alpha {
+            Some(a) if a < SHARP_EVERY * angle => Refine::Every,
+            Some(a) if a < SHARP_COMPARE * angle => Refine::Compare,
+            _ => Refine::Once,
+        }
     }
 }
 
@@ -184,24 +240,34 @@ impl Estimator<'_> {
     ) -> Rgb {
         let SurfacePoint { si, le, .. } = hit;
         let mut l = *le;
-        // With the pixel's lighting integrated already, only the sample's albedo is needed.
-        let lit = match area {
-            Some((diffuse, specular)) => LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular),
-            None => LtcShader::lobes(scene, si)
-                .map(|d| self.shader.area_lights(scene, si, &d, self.shader.ltc.shadows, &mut Vec::new())),
+        // With the pixel's lighting integrated already, only the sample's albedo is needed (and
+        // whether the material transmits, which the shared value does not say).
+        let (lit, coverage) = match area {
+            Some((diffuse, specular)) => {
+                let lit = LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular);
+                let transmits = lit.is_some() && may_transmit(scene, si) && self.shader.lobes(scene, si).is_some_and(|d| d.transmits);
+                (lit, Coverage::of(lit.is_some(), transmits))
+            }
+            None => match self.shader.lobes(scene, si) {
+                Some(d) => {
+                    let v = self.shader.area_lights(scene, si, &d, self.shader.ltc.shadows, &mut Vec::new());
+                    (Some(v), Coverage::of(true, d.transmits))
+                }
+                None => (None, Coverage::None),
+            },
         };
-        let ltc_form = lit.is_some();
         if let Some(v) = lit {
             l += v;
         }
         // The BSDF only for what the LTC does not shade (delta and infinite lights, materials
-        // without an LTC form) and for specular lobes to follow.
+        // without an LTC form, transmission) and for specular lobes to follow.
         let follow = depth + 1 < self.shader.ltc.max_depth;
         let may_be_specular = || scene.material_of(si).is_some_and(|(m, _, _)| m.may_be_specular());
-        if !ltc_form || self.other_lights || (follow && may_be_specular()) {
+        let rest = coverage != Coverage::Area || self.other_lights;
+        if rest || (follow && may_be_specular()) {
             if let Some(hit) = hit.with_bsdf(scene) {
-                if !ltc_form || self.other_lights {
-                    add_other_lights(&mut l, &hit, ltc_form, scene, sampler, stats, &self.fallback);
+                if rest {
+                    add_other_lights(&mut l, &hit, coverage, scene, sampler, stats, &self.fallback);
                 }
                 if follow && has_specular(&hit.bsdf) {
                     for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
@@ -219,6 +285,13 @@ impl Estimator<'_> {
         }
         l
     }
+}
+
+/// Whether the material at `si` may have transmission lobes its LTC form leaves out (a cheap
+/// test before the full description).
+pub(crate) fn may_transmit(scene: &Scene, si: &penumbra_core::interaction::SurfaceInteraction) -> bool {
+    use penumbra_core::material::Material;
+    scene.material_of(si).is_some_and(|(m, _, _)| matches!(m, Material::Translucent { .. } | Material::Mix { .. }))
 }
 
 impl PixelEstimator for Estimator<'_> {
@@ -291,11 +364,13 @@ impl Integrator for LtcIntegrator {
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ltc", scene, ctx.warnings);
         let est = Estimator {
-            shader: LtcShader::new(self, scene),
+            shader: LtcShader::new(self, scene, "ltc"),
             fallback: FallbackWarning::new("ltc", ctx.warnings),
             other_lights: scene.light_list().iter().any(|l| !matches!(l, Light::Area(_))),
         };
-        render_pixels(&est, scene, ctx, film)
+        let mut stats = render_pixels(&est, scene, ctx, film)?;
+        est.shader.finish(&mut stats, ctx.warnings);
+        Ok(stats)
     }
     /// Occluders only remove parts of a light's polygon, whose integrand is non-negative
     /// (form factor, LTC), and the pixel clusters do not depend on shadows: the unshadowed

@@ -3,22 +3,23 @@
 //! lights at a point: shared with the `ratio` estimator, which needs the unshadowed term.
 
 use super::fresnel::{fresnel_weight, FresnelMode};
-use super::integrate::{Accum, PieceFrame};
+use super::integrate::{Accum, LobeLtc, PieceFrame};
 use super::occluders::{ConvexLight, Occluders, PieceQuery};
-use super::{LtcIntegrator, Mode};
+use super::{Glossy, LtcIntegrator, Mode};
 use glam::DVec3;
 use penumbra_core::accel::objects::ObjectBvh;
 use penumbra_core::geometry::Bounds3;
 use penumbra_core::geometry::Frame;
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::emitting_normal;
-use penumbra_core::ltc::Ltc;
+use penumbra_core::ltc::{Ltc, LtcCoeffs};
 use penumbra_core::material::LtcDescription;
 use penumbra_core::mesh::{EdgeAdjacency, TriangleMesh};
 use penumbra_core::scene::Scene;
 use penumbra_core::spherical::SilhouetteMesh;
 use penumbra_core::{Rgb, Vec3};
 use std::cell::OnceCell;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// What the estimator knows about each object (mesh `i` = object `i`).
 pub(super) struct ObjectInfo {
@@ -50,6 +51,68 @@ enum LightShape {
     /// A closed convex mesh emitting outwards: what a point outside sees of it is exactly
     /// its silhouette loop (the front faces tile it, none overlap), integrated once.
     Convex(ConvexShape),
+    /// A `sphere` shape (its tessellation's vertices on one sphere): the true sphere pbrt-v3
+    /// renders, whose silhouette from a point outside is a circle — taken as the regular
+    /// [`SPHERE_SIDES`]-gon of the same solid angle, whatever the tessellation (12 600
+    /// triangles for a default sphere, whose silhouette loop would have hundreds of edges).
+    Sphere(SphereShape),
+}
+
+/// A sphere light: its mesh as a convex shape (for the occluders' separation tests) and the
+/// sphere.
+pub(super) struct SphereShape {
+    pub(super) convex: ConvexShape,
+    pub(super) center: DVec3,
+    pub(super) radius: f64,
+}
+
+/// Sides of the polygon that stands for a sphere light's silhouette circle (a regular polygon
+/// of the circle's solid angle; with 32 sides its corners lie 0.32 % of the circle's radius
+/// outside it, its edges' middles 0.16 % inside): 32 when the point's sharpest lobe is
+/// narrower than the circle (it resolves the outline), 16 when narrower than 4 times it, 8
+/// otherwise (a smooth integrand over an equal-area polygon: the difference is of fourth
+/// order in the circle's radius).
+pub(super) fn sphere_sides(angular_radius: f64, lobe_width: f64) -> usize {
+    if lobe_width < angular_radius {
+        32
+    } else if lobe_width < 4.0 * angular_radius {
+        16
+    } else {
+        8
+    }
+}
+
+/// The silhouette circle of the sphere (`center`, `radius`) seen from `p` as the regular
+/// [`sphere_sides`]-gon of the same solid angle for a lobe `lobe_width` wide (radians), as
+/// world points at the tangent distance (so that their bounding sphere bounds the circle);
+/// `None` when `p` is inside the sphere.
+pub(super) fn sphere_outline(p: DVec3, center: DVec3, radius: f64, lobe_width: f64) -> Option<Vec<DVec3>> {
+    let axis = center - p;
+    let d = axis.length();
+    if !(d > radius * (1.0 + 1e-9)) {
+        return None;
+    }
+    let axis = axis / d;
+    let sin_rho = radius / d;
+    let cos_rho = (1.0 - sin_rho * sin_rho).max(0.0).sqrt();
+    let sides = sphere_sides(sin_rho.asin(), lobe_width);
+    // A regular spherical n-gon of circumradius ρ' has solid angle 2π + 2nB − nπ with
+    // cot B = cos ρ' tan(π/n): ρ' for the cap's 2π(1 − cos ρ).
+    let n = sides as f64;
+    let omega = std::f64::consts::TAU * (1.0 - cos_rho);
+    let b = (omega - std::f64::consts::TAU + n * std::f64::consts::PI) / (2.0 * n);
+    let cos_r = (1.0 / b.tan() / (std::f64::consts::PI / n).tan()).clamp(-1.0, 1.0);
+    let sin_r = (1.0 - cos_r * cos_r).max(0.0).sqrt();
+    let (u, v) = penumbra_core::spherical::orthonormal_basis(axis);
+    let tangent = (d * d - radius * radius).max(0.0).sqrt();
+    Some(
+        (0..sides)
+            .map(|k| {
+                let phi = std::f64::consts::TAU * k as f64 / n;
+                p + (axis * cos_r + (u * phi.cos() + v * phi.sin()) * sin_r) * tangent
+            })
+            .collect(),
+    )
 }
 
 /// What a convex light mesh needs at every shading point, computed once.
@@ -61,6 +124,8 @@ pub(super) struct ConvexShape {
     pub(super) faces: Vec<(DVec3, DVec3)>,
     pub(super) vertices: Vec<DVec3>,
     pub(super) center: DVec3,
+    /// The largest distance of a vertex from `center`.
+    pub(super) radius: f64,
 }
 
 impl ConvexShape {
@@ -75,12 +140,14 @@ impl ConvexShape {
         let vertices: Vec<DVec3> = mesh.positions.iter().map(|q| d3(*q)).collect();
         let center = vertices.iter().copied().sum::<DVec3>() / vertices.len().max(1) as f64;
         let sil = SilhouetteMesh::new(mesh, adj);
-        ConvexShape { sil, eps: 1e-9 * mesh.extent(), faces, vertices, center }
+        let radius = vertices.iter().map(|v| (*v - center).length()).fold(0.0, f64::max);
+        ConvexShape { sil, eps: 1e-9 * mesh.extent(), faces, vertices, center, radius }
     }
 }
 
 impl LightShape {
-    fn of(mesh: &TriangleMesh, adj: &EdgeAdjacency, tris: &[u32], two_sided: bool) -> LightShape {
+    /// `sphere`: the mesh is a `sphere` shape's tessellation.
+    fn of(mesh: &TriangleMesh, adj: &EdgeAdjacency, tris: &[u32], two_sided: bool, sphere: bool) -> LightShape {
         let n = mesh.triangle_count();
         let mut covered = vec![false; n];
         for t in tris {
@@ -101,7 +168,11 @@ impl LightShape {
                 w == Vec3::ZERO || emitting_normal(mesh, t).dot(w) > 0.0
             });
             if outward {
-                return LightShape::Convex(ConvexShape::new(mesh, adj));
+                let convex = ConvexShape::new(mesh, adj);
+                return match sphere.then(|| on_one_sphere(&convex.vertices)).flatten() {
+                    Some((center, radius)) => LightShape::Sphere(SphereShape { convex, center, radius }),
+                    None => LightShape::Convex(convex),
+                };
             }
         }
         LightShape::Triangles
@@ -123,6 +194,20 @@ impl LightShape {
         }
         Some(LightShape::Planar { outline: po.outline, normal, origin: po.origin })
     }
+}
+
+/// The sphere through all of `vertices` (the centre of their bounding box and the largest
+/// distance from it, all distances within 1e-5 of it), if there is one.
+fn on_one_sphere(vertices: &[DVec3]) -> Option<(DVec3, f64)> {
+    let (lo, hi) = vertices
+        .iter()
+        .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let center = (lo + hi) * 0.5;
+    let (near, far) = vertices
+        .iter()
+        .map(|v| (*v - center).length())
+        .fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r), b.max(r)));
+    (far > 0.0 && near >= far * (1.0 - 1e-5)).then_some((center, far))
 }
 
 /// The area lights of one emitting mesh with one radiance.
@@ -174,6 +259,34 @@ pub struct LtcShader<'a> {
     pub(super) bvh: ObjectBvh,
     /// The area lights, gathered per emitting mesh (pbrt-v3 makes one light per triangle).
     groups: Vec<LightGroup>,
+    pub(crate) counters: ShaderCounters,
+    /// The integrator's name, for warnings (`ltc` or `ratio`).
+    pub(crate) name: &'static str,
+}
+
+/// What the shader counts over a render (for `stats.json`).
+#[derive(Default)]
+pub(crate) struct ShaderCounters {
+    /// Shading points integrated analytically.
+    pub(crate) points: AtomicU64,
+    /// Evaluations of a glossy lobe by the exact integration's quadrature.
+    pub(crate) quadrature_evals: AtomicU64,
+    /// Quadrature triangles split for accuracy.
+    pub(crate) quadrature_splits: AtomicU64,
+    /// Points whose material's lobes the table does not reach (`"glossy" "ltc"`): shaded by
+    /// `directlighting`'s estimator.
+    pub(crate) beyond_table: AtomicU64,
+}
+
+impl ShaderCounters {
+    /// The counters as `stats.json`'s `counters` entries.
+    pub(crate) fn report(&self, out: &mut std::collections::BTreeMap<String, f64>) {
+        let get = |c: &AtomicU64| c.load(Ordering::Relaxed) as f64;
+        out.insert("ltc_points".into(), get(&self.points));
+        out.insert("ltc_quadrature_evals".into(), get(&self.quadrature_evals));
+        out.insert("ltc_quadrature_splits".into(), get(&self.quadrature_splits));
+        out.insert("ltc_beyond_table_points".into(), get(&self.beyond_table));
+    }
 }
 
 /// A shading point's query: where it is and whether occluders are searched.
@@ -187,7 +300,7 @@ struct PointQuery<'s> {
 impl<'a> LtcShader<'a> {
     /// Prepares the per-object data `settings` needs on `scene` (silhouette adjacency only for
     /// the objects its mode takes as silhouettes).
-    pub fn new(settings: &'a LtcIntegrator, scene: &Scene) -> LtcShader<'a> {
+    pub fn new(settings: &'a LtcIntegrator, scene: &Scene, name: &'static str) -> LtcShader<'a> {
         let cells: Vec<OnceCell<EdgeAdjacency>> = scene.meshes.iter().map(|_| OnceCell::new()).collect();
         // The scene's (built once when the integrator asks: `ltc` does); `ratio` asks for none
         // and builds only its light meshes' here.
@@ -212,10 +325,31 @@ impl<'a> LtcShader<'a> {
             // light, as of every occluder, on its own.
             g.shape = match settings.mode {
                 Mode::PerTriangle => LightShape::Triangles,
-                _ => LightShape::of(mesh, adjacency(g.mesh), &g.tris, g.two_sided),
+                _ => {
+                    let sphere = scene.objects.get(g.mesh).is_some_and(|o| o.kind == "sphere");
+                    LightShape::of(mesh, adjacency(g.mesh), &g.tris, g.two_sided, sphere)
+                }
             };
         }
-        LtcShader { ltc: settings, objects, bvh: ObjectBvh::build(&boxes), groups }
+        LtcShader { ltc: settings, objects, bvh: ObjectBvh::build(&boxes), groups, counters: ShaderCounters::default(), name }
+    }
+
+    /// After the render: the counters into `stats`, and the warnings they call for.
+    pub(crate) fn finish(&self, stats: &mut penumbra_core::integrator::RenderStats, warnings: &penumbra_parser::DiagSink) {
+        self.counters.report(&mut stats.counters);
+        let beyond = self.counters.beyond_table.load(Ordering::Relaxed);
+        if beyond > 0 {
+            let alpha_max = Ltc::ggx().map_or(0.0, |t| t.alpha_max);
+            warnings.warn(
+                None,
+                format!(
+                    "{}: \"glossy\" \"ltc\": {beyond} shading points have a lobe rougher than the LTC table \
+                     reaches (alpha > {alpha_max}): directlighting's estimator shaded them (\"glossy\" \"exact\" \
+                     is exact there)",
+                    self.name
+                ),
+            );
+        }
     }
 
     /// The area lights, one per emitting mesh and radiance.
@@ -229,16 +363,23 @@ impl<'a> LtcShader<'a> {
         self.groups.iter().map(|g| ((p - g.center).length() - g.radius).max(0.0)).fold(f64::INFINITY, f64::min)
     }
 
-    /// The LTC description of the material at `si` (`None`: no LTC form, or no material).
-    pub fn lobes(scene: &Scene, si: &SurfaceInteraction) -> Option<LtcDescription> {
-        let (m, _, tx) = scene.material_of(si)?;
-        m.ltc_lobes(si, tx)
+    /// The LTC description of the material at `si` (`None`: no LTC form, or no material, or —
+    /// with `"glossy" "ltc"`, which has no exact fallback of its own — a lobe rougher than the
+    /// table reaches: then `directlighting`'s estimator shades the point, counted).
+    pub fn lobes(&self, scene: &Scene, si: &SurfaceInteraction) -> Option<LtcDescription> {
+        let (m, materials, tx) = scene.material_of(si)?;
+        let d = m.ltc_lobes(si, materials, tx)?;
+        if self.ltc.glossy == Glossy::Ltc && d.lobes.iter().any(|l| l.ggx_alpha().is_some_and(|a| !Ltc::covers(a))) {
+            self.counters.beyond_table.fetch_add(1, Ordering::Relaxed);
+            return None;
+        }
+        Some(d)
     }
 
-    /// The diffuse albedo of [`Self::lobes`] alone (`None` exactly when it is `None`).
+    /// The diffuse albedo of [`Self::lobes`] (`None` when the material has no LTC form).
     pub(super) fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Option<Rgb> {
-        let (m, _, tx) = scene.material_of(si)?;
-        m.ltc_diffuse(si, tx)
+        let (m, materials, tx) = scene.material_of(si)?;
+        m.ltc_diffuse(si, materials, tx)
     }
 
     /// Analytic radiance reflected towards `si.wo` from all area lights, with analytic
@@ -270,6 +411,7 @@ impl<'a> LtcShader<'a> {
         let receiver = Receiver { mesh: si.mesh as usize, tri: si.tri as usize, facing };
         let Some(at) = piece_frame(si, desc) else { return (d, s) };
         let mut q = PointQuery { at, receiver, shadows, scratch };
+        self.counters.points.fetch_add(1, Ordering::Relaxed);
         for g in &self.groups {
             if scene.meshes.get(g.mesh).is_none() {
                 continue;
@@ -290,7 +432,24 @@ impl<'a> LtcShader<'a> {
                 self.planar_light(scene, q, geom, (outline.as_slice(), *normal, *origin), &mut acc);
                 true
             }
-            LightShape::Convex(shape) => self.convex_light(scene, q, geom, shape, &mut acc),
+            LightShape::Convex(shape) => {
+                let sil = shape.sil.loops(q.at.p, shape.eps);
+                match sil.as_slice() {
+                    [] => true, // p inside (or edge-on everywhere): no face emits towards it
+                    [outline] => {
+                        let p = q.at.p;
+                        self.convex_light(scene, q, geom, || ConvexLight::new(shape, p), outline, &mut acc)
+                    }
+                    _ => false,
+                }
+            }
+            LightShape::Sphere(s) => match sphere_outline(q.at.p, s.center, s.radius, q.at.lobe_width()) {
+                None => true, // inside the sphere
+                Some(outline) => {
+                    let cl = || ConvexLight::sphere(&s.convex, s.center, s.radius);
+                    self.convex_light(scene, q, geom, cl, &outline, &mut acc)
+                }
+            },
         };
         if !whole {
             self.light_triangles(scene, q, geom, &mut acc);
@@ -298,14 +457,25 @@ impl<'a> LtcShader<'a> {
         let le = geom.l;
         let diffuse = le * acc.diffuse_ff.max(0.0) as f32;
         let mut out = Rgb::ZERO;
-        if let Some((s, coeffs)) = q.at.spec {
-            let spec_term = match self.ltc.fresnel {
-                FresnelMode::Schlick => {
-                    fresnel_weight(&s.fresnel, coeffs.magnitude, coeffs.fresnel) * acc.spec_int.max(0.0) as f32
+        for (k, lc) in q.at.lobes.iter().enumerate() {
+            let term = match (self.ltc.glossy, self.ltc.fresnel) {
+                (Glossy::Exact, _) => acc.exact[k].as_vec3().max(Rgb::ZERO),
+                (Glossy::Ltc, FresnelMode::Schlick) => {
+                    let c = &lc.coeffs;
+                    lc.lobe.ltc_scale()
+                        * fresnel_weight(&lc.lobe.fresnel(), c.magnitude, c.fresnel)
+                        * acc.spec_int[k].max(0.0) as f32
                 }
-                FresnelMode::Average => (acc.spec_fresnel * coeffs.magnitude).max(Rgb::ZERO),
+                (Glossy::Ltc, FresnelMode::Average) => {
+                    lc.lobe.ltc_scale() * (acc.spec_fresnel[k] * lc.coeffs.magnitude).max(Rgb::ZERO)
+                }
             };
-            out += s.scale * spec_term * le;
+            out += term * le;
+        }
+        let st = &acc.quadrature;
+        if st.evals > 0 {
+            self.counters.quadrature_evals.fetch_add(st.evals, Ordering::Relaxed);
+            self.counters.quadrature_splits.fetch_add(st.splits, Ordering::Relaxed);
         }
         (diffuse, out)
     }
@@ -347,44 +517,39 @@ impl<'a> LtcShader<'a> {
         }
     }
 
-    /// A convex light's silhouette as one piece; false when an occluder is not wholly in
-    /// front of it (then it is taken triangle by triangle).
-    fn convex_light(
+    /// A convex light's silhouette `outline` (world points) as one piece; false when an
+    /// occluder is not wholly in front of it (then it is taken triangle by triangle). `light`
+    /// makes what the occluders' separation tests need of it.
+    fn convex_light<'s>(
         &self,
         scene: &Scene,
         q: &mut PointQuery,
         geom: &LightGroup,
-        shape: &ConvexShape,
+        light: impl FnOnce() -> ConvexLight<'s>,
+        outline: &[DVec3],
         acc: &mut Accum,
     ) -> bool {
         let p = q.at.p;
-        let sil = shape.sil.loops(p, shape.eps);
-        match sil.as_slice() {
-            [] => true, // p inside (or edge-on everywhere): no face emits towards it
-            [outline] => {
-                let occ = if q.shadows {
-                    let cl = ConvexLight::new(shape, p);
-                    let pq = PieceQuery {
-                        p,
-                        skip: Skip::Mesh(geom.mesh),
-                        piece: outline,
-                        plane: None,
-                        separate: Some(&cl),
-                        receiver: q.receiver,
-                    };
-                    self.occluders(scene, &pq, q.scratch)
-                } else {
-                    Some(Occluders::default())
-                };
-                match occ {
-                    Some(occ) => {
-                        self.integrate_piece(&q.at, outline, occ, acc);
-                        true
-                    }
-                    None => false,
-                }
+        let occ = if q.shadows {
+            let cl = light();
+            let pq = PieceQuery {
+                p,
+                skip: Skip::Mesh(geom.mesh),
+                piece: outline,
+                plane: None,
+                separate: Some(&cl),
+                receiver: q.receiver,
+            };
+            self.occluders(scene, &pq, q.scratch)
+        } else {
+            Some(Occluders::default())
+        };
+        match occ {
+            Some(occ) => {
+                self.integrate_piece(&q.at, outline, occ, acc);
+                true
             }
-            _ => false,
+            None => false,
         }
     }
 
@@ -445,12 +610,21 @@ fn piece_frame(si: &SurfaceInteraction, desc: &LtcDescription) -> Option<PieceFr
     }
     let n = if n.dot(si.wo) < 0.0 { -n } else { n };
     let frame = Frame::toward(d3(n), d3(si.wo));
-    let spec = desc.specular.map(|s| {
-        let cos_o = frame.to_local(d3(si.wo)).z.clamp(0.0, 1.0);
-        (s, Ltc::lookup(cos_o as f32, s.alpha))
-    });
     let wo_local = frame.to_local(d3(si.wo));
-    Some(PieceFrame { p: d3(si.p), frame, wo_local, spec })
+    let cos_o = wo_local.z.clamp(0.0, 1.0) as f32;
+    let lobes = desc
+        .lobes
+        .iter()
+        .map(|lobe| {
+            let coeffs = match lobe.ggx_alpha() {
+                Some(a) => Ltc::lookup(cos_o, a),
+                // The cosine (FresnelBlend's diffuse term).
+                None => LtcCoeffs { minv: glam::DMat3::IDENTITY, magnitude: 1.0, fresnel: 0.0 },
+            };
+            LobeLtc { lobe: *lobe, coeffs }
+        })
+        .collect();
+    Some(PieceFrame { p: d3(si.p), frame, wo_local, lobes })
 }
 
 /// What `settings` needs of object `mesh` (`adjacency`: its edge adjacency, asked for only

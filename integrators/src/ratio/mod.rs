@@ -68,7 +68,7 @@ use crate::common::other_lights::{warn_infinite_lights, FallbackWarning};
 use crate::common::params::{ParamSpec, Params, Range};
 use crate::common::pixel_shading::{parse_shading, SHADING};
 use crate::common::{max_depth, max_depth_param};
-use crate::ltc::{FresnelMode, LtcIntegrator, LtcShader, Mode};
+use crate::ltc::{FresnelMode, Glossy, LtcIntegrator, LtcShader, Mode};
 use estimator::{Estimator, SampleGroup};
 use penumbra_core::film::Film;
 use penumbra_core::integrator::{render_pixels_with_margin, Integrator, RenderContext, RenderError, RenderStats};
@@ -113,6 +113,7 @@ pub const PARAMS: &[ParamSpec] = &[
         .within(Range::NonNegativeFinite),
     ParamSpec::float("ratiofloor", D.ratio_floor, "added to the ratio edge stop's noise scale")
         .within(Range::PositiveFinite),
+    Glossy::PARAM,
     FresnelMode::PARAM,
     SHADING,
     max_depth(1024),
@@ -136,6 +137,7 @@ impl RatioIntegrator {
             ltc: LtcIntegrator {
                 mode: Mode::Auto, // shadows off: only the lights' shapes (one polygon where possible)
                 shadows: false,
+                glossy: Glossy::from_params(&p)?,
                 fresnel: FresnelMode::from_params(&p)?,
                 pixel_shading: parse_shading(&p)?,
                 merge_occluders: true,
@@ -283,7 +285,7 @@ impl Integrator for RatioIntegrator {
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ratio", scene, ctx.warnings);
-        let shader = LtcShader::new(&self.ltc, scene);
+        let shader = LtcShader::new(&self.ltc, scene, "ratio");
         let groups = SampleGroup::of(&shader, scene);
         let est = Estimator {
             shader,
@@ -301,6 +303,7 @@ impl Integrator for RatioIntegrator {
             })?;
         stats.counters.insert("denoise_seconds".into(), seconds);
         stats.counters.insert("mean_radius".into(), filtered);
+        est.shader.finish(&mut stats, ctx.warnings);
         stats.render_seconds += seconds;
         Ok(stats)
     }
