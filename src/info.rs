@@ -1,7 +1,8 @@
 //! `penumbra info SCENE [-i NAME]`: what a scene contains, checked as `render` checks it.
 
 use penumbra::{cli_params, pipeline};
-use penumbra_core::scene::{BuildOptions, Scene};
+use penumbra_core::integrator::check_scene;
+use penumbra_core::scene::BuildOptions;
 use penumbra_parser::{DiagSink, Entity, Param, ParamValue, SceneDescription, ShapeDesc};
 use std::collections::BTreeMap;
 use std::fmt::Write;
@@ -65,20 +66,18 @@ fn check(desc: &SceneDescription, args: &InfoArgs, params: &[Param], warnings: &
     let integrator =
         pipeline::choose_integrator(desc, args.integrator.as_deref(), params, warnings).map_err(|d| d.to_string())?;
     let req = integrator.requirements();
-    let scene = Scene::check(desc, req, &BuildOptions::default(), warnings).map_err(|d| d.to_string())?;
+    let scene =
+        check_scene(integrator.as_ref(), desc, &BuildOptions::default(), warnings).map_err(|d| d.to_string())?;
     let mut o = String::new();
     let mut builds: Vec<&str> = Vec::new();
-    for (on, what) in [
-        (req.accel, "bvh"),
-        (req.lights, "lights"),
-        (req.materials, "materials"),
-        (req.adjacency, "adjacency"),
-        (req.sphere_sets.is_some(), "sphere sets"),
-    ] {
+    for (on, what) in
+        [(req.accel, "bvh"), (req.lights, "lights"), (req.materials, "materials"), (req.adjacency, "adjacency")]
+    {
         if on {
             builds.push(what);
         }
     }
+    builds.extend(scene.report.prepared.as_deref());
     let _ = writeln!(
         o,
         "{} builds: {} ({} spp)",
@@ -96,43 +95,10 @@ fn check(desc: &SceneDescription, args: &InfoArgs, params: &[Param], warnings: &
     if req.accel {
         let _ = writeln!(o, "  bvh: not built by info");
     }
-    if let Some(sets) = &scene.sphere_sets {
-        sphere_sets(&mut o, &scene, sets);
+    for line in &scene.report.details {
+        let _ = writeln!(o, "    {line}");
     }
     Ok(o)
-}
-
-/// One line per object of `shexp`'s sphere sets: where they came from, how many, how much they
-/// stick out, how long they took.
-fn sphere_sets(o: &mut String, scene: &Scene, sets: &penumbra_core::sphereset::SphereSets) {
-    for s in &sets.sets {
-        let obj = &scene.objects[s.object];
-        let rel = if s.volume > 0.0 {
-            format!(" ({:.1} % of its volume)", 100.0 * s.outside_volume / s.volume)
-        } else {
-            String::new()
-        };
-        let _ = writeln!(
-            o,
-            "    object {} ({} at {}:{}): {:?}, {} spheres, {} triangles, outside volume {:.4}{rel}, {:.3} s",
-            s.object,
-            obj.kind,
-            obj.loc.file,
-            obj.loc.line,
-            s.source,
-            s.leaves.len(),
-            s.triangles,
-            s.outside_volume,
-            s.seconds
-        );
-    }
-    if let Some(g) = &sets.ground {
-        let _ =
-            writeln!(o, "    object {} (ground plane): cuts the environment below normal {:.3}", g.object, g.normal);
-    }
-    for (i, why) in &sets.skipped {
-        let _ = writeln!(o, "    object {i}: no spheres ({why})");
-    }
 }
 
 /// Reads a parameter without marking it used (the summary must not hide unused-parameter warnings).

@@ -3,7 +3,7 @@
 use crate::cli_params;
 use penumbra_core::film::{Film, FilmSpec};
 use penumbra_core::image::Image;
-use penumbra_core::integrator::{Integrator, RenderContext, RenderError, RenderStats};
+use penumbra_core::integrator::{build_scene, Integrator, RenderContext, RenderError, RenderStats};
 use penumbra_core::scene::{BuildOptions, BuildReport, Scene};
 use penumbra_parser::{DiagSink, Diagnostic, Param, ParamSet, ParseOutput, SceneDescription};
 use std::path::Path;
@@ -139,7 +139,7 @@ pub fn prepare(
     warnings: &DiagSink,
 ) -> Result<(Box<dyn Integrator>, Scene), PipelineError> {
     let integrator = choose_integrator(desc, opts.integrator, opts.params, warnings)?;
-    let scene = Scene::build(desc, integrator.requirements(), &opts.build, warnings)?;
+    let scene = build_scene(integrator.as_ref(), desc, &opts.build, warnings)?;
     Ok((integrator, scene))
 }
 
@@ -173,7 +173,7 @@ pub fn render_with(
     opts: &RenderOptions,
     warnings: &DiagSink,
 ) -> Result<Rendered, PipelineError> {
-    let scene = Scene::build(desc, integrator.requirements(), &opts.build, warnings)?;
+    let scene = build_scene(integrator, desc, &opts.build, warnings)?;
     let (film, stats) = render_film(integrator, &scene, scene.film.clone(), opts, warnings)?;
     Ok(Rendered {
         integrator: integrator.name().to_string(),

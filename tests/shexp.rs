@@ -8,9 +8,9 @@ use penumbra_core::geometry::Ray;
 use penumbra_core::scene::{BuildOptions, Requirements, Scene};
 use penumbra_core::sh::ShOrder;
 use penumbra_core::sh::{self, ShRotation};
-use penumbra_core::sphereset::Sphere;
 use penumbra_core::Vec3;
 use penumbra_integrators::shexp::lighting::EnvLighting;
+use penumbra_integrators::shexp::sphereset::{self, Sphere, SphereSets};
 use penumbra_integrators::shexp::visibility::{ExpChoice, Visibility};
 use penumbra_parser::DiagSink;
 use std::f64::consts::PI;
@@ -459,8 +459,18 @@ WorldEnd
 fn ball_scene(kd: f32) -> Scene {
     let text = BALL_ON_GROUND.replace("KD", &kd.to_string());
     let parsed = penumbra_parser::parse_str(&text, "ball.pbrt", None).unwrap();
-    let req = Requirements { accel: true, lights: true, materials: true, sphere_sets: Some(32), ..Default::default() };
-    Scene::build(&parsed.scene, req, &BuildOptions::default(), &DiagSink::new()).unwrap()
+    with_sphere_sets(&parsed.scene, 32)
+}
+
+/// The scene as `shexp` builds it, with `spheres` leaves per fitted object.
+fn with_sphere_sets(desc: &penumbra_parser::SceneDescription, spheres: u32) -> Scene {
+    let req = Requirements { accel: true, lights: true, materials: true, ..Default::default() };
+    let mut scene = Scene::build(desc, req, &BuildOptions::default(), &DiagSink::new()).unwrap();
+    let params = sphereset::fit::FitParams { spheres, ..Default::default() };
+    let dir = sphereset::cache::default_dir();
+    let sets = sphereset::build_for_scene(&scene.meshes, &scene.objects, &params, dir.as_deref());
+    scene.prepared = Some(std::sync::Arc::new(sets));
+    scene
 }
 
 /// `∫ L(ω) max(0, n·ω) dω` at ground point `q` (n = +y) from the unit sphere at (0, 1, 0) whose
@@ -501,7 +511,7 @@ fn a_lone_sphere_reflects_its_radiance_onto_the_ground() {
     // ringing brightens small caps near the horizon).
     use penumbra_integrators::shexp::reflect::{surface::SurfaceSample, tables::FormFactor, Reflectors, Surfaces};
     let scene = ball_scene(0.9);
-    let sets = scene.sphere_sets.as_ref().unwrap();
+    let sets = scene.prepared::<SphereSets>().unwrap();
     let order = ShOrder::new(4).unwrap();
     let vis = Visibility::new(order, ExpChoice::ScalingSquaring, 45f64.to_radians()).unwrap();
     let surfaces = Surfaces::build(&scene, sets, order, &std::sync::atomic::AtomicBool::new(false));
@@ -768,9 +778,7 @@ WorldEnd
             if reverse { "ReverseOrientation" } else { "" }
         );
         let parsed = penumbra_parser::parse_str(&text, "cube.pbrt", None).unwrap();
-        let req =
-            Requirements { accel: true, lights: true, materials: true, sphere_sets: Some(6), ..Default::default() };
-        Scene::build(&parsed.scene, req, &BuildOptions::default(), &DiagSink::new()).unwrap()
+        with_sphere_sets(&parsed.scene, 6)
     };
     let outward = "0 2 3 0 3 1 4 5 7 4 7 6 0 1 5 0 5 4 2 6 7 2 7 3 0 4 6 0 6 2 1 3 7 1 7 5";
     let one_flipped = "0 3 2 0 1 3 4 5 7 4 7 6 0 1 5 0 5 4 2 6 7 2 7 3 0 4 6 0 6 2 1 3 7 1 7 5";
@@ -778,14 +786,14 @@ WorldEnd
     let order = ShOrder::new(4).unwrap();
     let no = std::sync::atomic::AtomicBool::new(false);
     let base = cube(outward, false);
-    let sets = base.sphere_sets.clone().unwrap();
+    let sets = base.prepared::<SphereSets>().unwrap().clone();
     assert_eq!(sets.sets.len(), 1);
     let reference = Surfaces::build(&base, &sets, order, &no);
     for (name, indices, reverse) in
         [("one face flipped", one_flipped, false), ("inward", inward, false), ("reversed", outward, true)]
     {
         let mut scene = cube(indices, reverse);
-        scene.sphere_sets = Some(sets.clone());
+        scene.prepared = Some(std::sync::Arc::new(sets.clone()));
         let other = Surfaces::build(&scene, &sets, order, &no);
         for (a, b) in reference.surfaces.iter().zip(&other.surfaces) {
             let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());

@@ -85,7 +85,7 @@ pub fn step_float(v: f32, toward: f32) -> f32 {
 
 /// An orthonormal frame; `to_local`/`from_local` map between world and frame coordinates (z = normal).
 /// `Frame` (f32) is the shading frame of a surface interaction; `Frame<DVec3>` is the f64 frame
-/// the analytic methods work in ([`crate::ltc`]: x towards the outgoing direction).
+/// the analytic methods work in (LTC shading: x towards the outgoing direction).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame<V = Vec3> {
     pub x: V,

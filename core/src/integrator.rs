@@ -5,13 +5,15 @@ use crate::film::Film;
 use crate::geometry::Bounds2i;
 use crate::geometry::Ray;
 use crate::sampler::Sampler;
-use crate::scene::{Requirements, Scene};
+use crate::scene::{BuildOptions, Requirements, Scene};
 use crate::Rgb;
 use glam::{IVec2, Vec2};
-use penumbra_parser::DiagSink;
+use penumbra_parser::{DiagSink, Diagnostic, SceneDescription};
 use rayon::prelude::*;
+use std::any::Any;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Tiles are laid on this fixed grid of absolute raster coordinates.
@@ -81,6 +83,15 @@ pub trait Integrator: Send + Sync {
     fn name(&self) -> &str;
     /// What the scene build must provide.
     fn requirements(&self) -> Requirements;
+    /// Builds what this integrator's own method needs over the built scene (a structure no
+    /// other integrator uses, such as `silhouette`'s dual-edge hierarchy or `shexp`'s sphere
+    /// sets): called once per scene by [`build_scene`], which keeps the result in
+    /// [`Scene::prepared`] for every render of the scene and times it into the build report.
+    /// The default prepares nothing. `render` should build the structure itself when it finds
+    /// none (a scene built without [`build_scene`]).
+    fn prepare(&self, _scene: &Scene) -> Option<Preparation> {
+        None
+    }
     /// Extra film channels this integrator writes (beyond R, G, B).
     fn extra_channels(&self) -> Vec<String> {
         Vec::new()
@@ -100,6 +111,53 @@ pub trait Integrator: Send + Sync {
     fn radiance_bound(&self) -> Option<RadianceBound> {
         None
     }
+}
+
+/// What [`Integrator::prepare`] built.
+pub struct Preparation {
+    /// The build report's name for it ("dual edges").
+    pub stage: String,
+    /// One line saying what was built (the build report's detail).
+    pub summary: String,
+    /// Further lines for `penumbra info` (e.g. one per object).
+    pub details: Vec<String>,
+    /// The structure, read back with [`Scene::prepared`].
+    pub value: Arc<dyn Any + Send + Sync>,
+}
+
+/// The scene `integrator` renders: built as its [`Integrator::requirements`] ask, with what
+/// its [`Integrator::prepare`] builds.
+pub fn build_scene(
+    integrator: &dyn Integrator,
+    desc: &SceneDescription,
+    opts: &BuildOptions,
+    warnings: &DiagSink,
+) -> Result<Scene, Diagnostic> {
+    let scene = Scene::build(desc, integrator.requirements(), opts, warnings)?;
+    Ok(prepare_scene(integrator, scene))
+}
+
+/// [`build_scene`] without the acceleration structure ([`Scene::check`]: `penumbra info`).
+pub fn check_scene(
+    integrator: &dyn Integrator,
+    desc: &SceneDescription,
+    opts: &BuildOptions,
+    warnings: &DiagSink,
+) -> Result<Scene, Diagnostic> {
+    let scene = Scene::check(desc, integrator.requirements(), opts, warnings)?;
+    Ok(prepare_scene(integrator, scene))
+}
+
+/// `scene` with what `integrator` prepares over it (timed into its report).
+pub fn prepare_scene(integrator: &dyn Integrator, mut scene: Scene) -> Scene {
+    let t = Instant::now();
+    if let Some(p) = integrator.prepare(&scene) {
+        scene.report.stages.push((p.stage.clone(), t.elapsed().as_secs_f64(), p.summary));
+        scene.report.prepared = Some(p.stage);
+        scene.report.details.extend(p.details);
+        scene.prepared = Some(p.value);
+    }
+    scene
 }
 
 /// What [`Integrator::radiance_bound`] declares.

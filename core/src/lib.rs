@@ -15,7 +15,6 @@ pub mod image;
 pub mod integrator;
 pub mod interaction;
 pub mod light;
-pub mod ltc;
 pub mod material;
 pub mod mesh;
 #[rustfmt::skip]
@@ -31,10 +30,7 @@ pub mod scene;
 pub mod sh;
 pub mod shapes;
 pub mod shard;
-pub mod silhouette;
 pub mod spectrum;
-pub mod sphereset;
-pub mod spherical;
 pub mod stats;
 pub mod texture;
 

@@ -11,6 +11,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use penumbra_core::scene::{BuildOptions, Requirements, Scene};
+use penumbra_integrators::silhouette::dual::DualEdges;
 use penumbra_parser::DiagSink;
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -41,10 +42,12 @@ fuzz_target!(|data: &[u8]| {
         lights: true,
         materials: true,
         adjacency: true,
-        dual_edges: true,
         min_pixel_samples: None,
-        sphere_sets: None,
     };
     let opts = BuildOptions { spp: Some(1), seed: 0, crop: None, resolution: Some((8, 8)) };
-    let _ = Scene::build(&parsed.scene, req, &opts, &DiagSink::new());
+    // With `silhouette`'s dual edges, built as its preparation builds them.
+    if let Ok(scene) = Scene::build(&parsed.scene, req, &opts, &DiagSink::new()) {
+        let occluders: Vec<bool> = scene.objects.iter().map(|o| o.occluder).collect();
+        let _ = DualEdges::build(&scene.meshes, &occluders);
+    }
 });

@@ -130,12 +130,12 @@ fn exponent(xs: &[f64], ys: &[f64]) -> f64 {
     fit(&lx, &ly).1
 }
 
-/// The polygon-level cost behind one shading point: `spherical::difference` of a regular
+/// The polygon-level cost behind one shading point: `spherical_polygon::difference` of a regular
 /// `n`-gon light (seen from below, as one loop) minus a regular `n`-gon occluder loop straddling
 /// its edge, then its form factor. Seconds per call (mean over enough repetitions).
 fn polygon_difference_time(n: usize) -> f64 {
     use glam::DVec3;
-    use penumbra_core::spherical;
+    use penumbra_integrators::common::spherical_polygon;
     let ring = |r: f64, h: f64, dx: f64| -> Vec<DVec3> {
         (0..n)
             .map(|i| {
@@ -150,8 +150,8 @@ fn polygon_difference_time(n: usize) -> f64 {
     let t0 = Instant::now();
     let mut acc = 0.0;
     for _ in 0..reps {
-        let d = spherical::difference(std::hint::black_box(&light), std::hint::black_box(&occ));
-        acc += spherical::form_factor_loops(&d);
+        let d = spherical_polygon::difference(std::hint::black_box(&light), std::hint::black_box(&occ));
+        acc += spherical_polygon::form_factor_loops(&d);
     }
     std::hint::black_box(acc);
     t0.elapsed().as_secs_f64() / reps as f64
@@ -169,7 +169,7 @@ fn main() {
     }
     let res: u32 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(32);
     let budget: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(f64::INFINITY);
-    println!("spherical::difference of an n-gon light minus an n-gon occluder (one call, one thread)");
+    println!("spherical_polygon::difference of an n-gon light minus an n-gon occluder (one call, one thread)");
     let ts: Vec<f64> = SIZES.iter().map(|&n| polygon_difference_time(n)).collect();
     for (n, t) in SIZES.iter().zip(&ts) {
         println!("{n:>6} {:>10.2} µs", t * 1e6);

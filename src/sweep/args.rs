@@ -1,7 +1,7 @@
 //! The `sweep` command line ([`SweepArgs`], [`Metric`]) and its validation ([`setup`]):
 //! every integrator is created once with its parameters before anything renders.
 
-use super::output::Row;
+use super::row::Metric;
 use super::{fail, print_new_warnings, Failure};
 use crate::render::{check_crop, full_resolution, parse_crop, parse_resolution};
 use penumbra::cli_params;
@@ -122,51 +122,6 @@ pub struct SweepArgs {
     /// and summary.md, as the sweep itself would (timings are each item's own).
     #[arg(long)]
     pub collect: bool,
-}
-
-/// An error metric, lower is better (PSNR is recorded but cannot be plotted on a log axis).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Metric {
-    Mae,
-    Rmse,
-    #[value(name = "max_err", alias = "max-err")]
-    MaxErr,
-    Relmse,
-    Smape,
-    Flip,
-}
-
-impl Metric {
-    pub fn column(self) -> &'static str {
-        match self {
-            Metric::Mae => "mae",
-            Metric::Rmse => "rmse",
-            Metric::MaxErr => "max_err",
-            Metric::Relmse => "relmse",
-            Metric::Smape => "smape",
-            Metric::Flip => "flip",
-        }
-    }
-    pub fn label(self) -> &'static str {
-        match self {
-            Metric::Mae => "MAE",
-            Metric::Rmse => "RMSE",
-            Metric::MaxErr => "max error",
-            Metric::Relmse => "relMSE",
-            Metric::Smape => "SMAPE",
-            Metric::Flip => "FLIP",
-        }
-    }
-    pub fn of(self, r: &Row) -> Option<f64> {
-        Some(match self {
-            Metric::Mae => r.mae,
-            Metric::Rmse => r.rmse,
-            Metric::MaxErr => r.max_err,
-            Metric::Relmse => r.relmse,
-            Metric::Smape => r.smape,
-            Metric::Flip => r.flip?,
-        })
-    }
 }
 
 /// The validated command line and the parsed scene.

@@ -11,7 +11,8 @@
 //! writes the same `sweep.csv`/`sweep.json`/plot/summary; every row keeps its item's timings.
 
 use super::args::{Setup, SweepArgs};
-use super::output::{Outputs, Row};
+use super::output::Outputs;
+use super::row::Row;
 use super::{cache, compare_row, fail, render_one, taken_budget, Failure, Timed};
 use crate::render::cancel_on_interrupt;
 use penumbra_core::image::{self, Image};

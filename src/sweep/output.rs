@@ -1,38 +1,15 @@
 //! What a sweep writes as rows arrive: `sweep.csv`, `sweep.json`, and (through
 //! [`Outputs::write_report`]) the summary and the plots.
 
-use super::args::{Metric, SweepArgs};
+use super::args::SweepArgs;
 use super::plot::{render_plots, Series};
+use super::row::{Metric, Row};
 use super::summary::{default_target, summary_markdown, SummaryInput};
 use crate::diff::num;
 use penumbra_core::image;
 use serde_json::{json, Value};
 use std::fmt::Write as _;
 use std::path::Path;
-
-/// One render of the sweep.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Row {
-    pub integrator: String,
-    pub budget: u32,
-    /// Samples per pixel actually rendered.
-    pub spp: u32,
-    /// Scene build (the pipeline's build report).
-    pub build_s: f64,
-    /// The integrator's render (its own clock).
-    pub render_s: f64,
-    /// Wall time around choose-integrator + build + render + film readout.
-    pub total_s: f64,
-    pub mae: f64,
-    pub rmse: f64,
-    pub psnr: f64,
-    pub max_err: f64,
-    pub relmse: f64,
-    pub smape: f64,
-    pub flip: Option<f64>,
-    /// Non-finite (NaN or infinite) R, G, B values in the render.
-    pub nan_count: u64,
-}
 
 pub const CSV_HEADER: &str =
     "integrator,budget,build_s,render_s,total_s,mae,rmse,psnr,max_err,relmse,smape,flip,nan_count";

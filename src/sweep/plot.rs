@@ -1,6 +1,6 @@
 //! The log-log plot of error versus time (SVG and PNG, drawn with plotters and an embedded font).
 
-use super::args::Metric;
+use super::row::Metric;
 use penumbra_core::image;
 use std::path::Path;
 

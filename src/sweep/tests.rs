@@ -1,7 +1,7 @@
-use super::args::Metric;
 use super::cache::{fnv1a64, reference_key};
-use super::output::{csv_text, Row};
+use super::output::csv_text;
 use super::plot::{render_plots, PLOT_SIZE};
+use super::row::{Metric, Row};
 use super::schedule::Schedule;
 use super::summary::*;
 use penumbra_core::image;

@@ -8,7 +8,7 @@ use glam::Vec3;
 
 /// A cone from `apex` along unit `axis` with half-angle cosine `cos`, up to distance `far`
 /// (a region of space, in f32 like the bounds it is tested against; for a cone of
-/// directions bounding a spherical loop see [`crate::spherical::cone::BoundingCone`]).
+/// directions bounding a spherical loop see `BoundingCone` in the integrators' `common::spherical_polygon`).
 #[derive(Clone, Copy, Debug)]
 pub struct Cone {
     pub apex: Vec3,

@@ -72,21 +72,12 @@ impl Scene {
         } else {
             None
         };
-        let sphere_sets = req.sphere_sets.map(|n| {
-            let t = Instant::now();
-            let params = crate::sphereset::fit::FitParams { spheres: n, ..Default::default() };
-            let dir = crate::sphereset::cache::default_dir();
-            let sets = crate::sphereset::build_for_scene(&meshes, &objects, &params, dir.as_deref());
-            report.stages.push(("sphere sets".into(), t.elapsed().as_secs_f64(), sets.summary()));
-            sets
-        });
         let (materials, textures) = if req.materials {
             let (m, t) = materials(desc, &objects, warnings, &mut report)?;
             (Some(m), Some(t))
         } else {
             (None, None)
         };
-        let dual_edges = req.dual_edges.then(|| dual_edges(&meshes, &objects, &mut report));
         Ok(Scene {
             camera,
             film,
@@ -99,11 +90,10 @@ impl Scene {
             lights,
             materials,
             textures,
-            dual_edges,
             bounds,
             integrator: desc.integrator.clone(),
             report,
-            sphere_sets,
+            prepared: None,
         })
     }
 }
@@ -327,28 +317,6 @@ fn materials(
         ),
     ));
     Ok((materials, textures))
-}
-
-/// The dual-edge hierarchy over the objects that occlude (`silhouette`).
-fn dual_edges(
-    meshes: &[TriangleMesh],
-    objects: &[SceneObject],
-    report: &mut BuildReport,
-) -> crate::silhouette::DualEdges {
-    let occluders: Vec<bool> = objects.iter().map(|o| o.occluder).collect();
-    let d = crate::silhouette::DualEdges::build(meshes, &occluders);
-    report.stages.push((
-        "dual edges".into(),
-        d.build_seconds,
-        format!(
-            "{} edges ({} boundary, {} non-manifold, {} tested at every point)",
-            d.edge_count(),
-            d.boundary_edges,
-            d.non_manifold_edges,
-            d.always_tested()
-        ),
-    ));
-    d
 }
 
 #[cfg(test)]

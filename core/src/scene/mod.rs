@@ -16,6 +16,8 @@ use crate::sampler::Sampler;
 use crate::texture::{TextureEvalContext, Textures};
 use glam::Vec3;
 use penumbra_parser::Entity;
+use std::any::Any;
+use std::sync::Arc;
 
 mod build;
 pub use build::film_spec;
@@ -32,14 +34,9 @@ pub struct Requirements {
     pub materials: bool,
     /// Per-mesh edge adjacency ([`Scene::adjacency`]: silhouettes, closedness, outlines).
     pub adjacency: bool,
-    /// The 4D dual-edge hierarchy of every occluder's edges (`silhouette`).
-    pub dual_edges: bool,
     /// At least this many camera samples per pixel, and the integrator's reason (said in the
     /// warning when the scene's or the command line's count is raised).
     pub min_pixel_samples: Option<(u32, &'static str)>,
-    /// Sphere-set approximations of the occluders with this many leaves per fitted object
-    /// (`shexp`; see [`crate::sphereset`]).
-    pub sphere_sets: Option<u32>,
 }
 
 /// A crop given on the command line: fractions (pbrt-v3's `cropwindow`) or pixel bounds.
@@ -93,6 +90,11 @@ pub struct SurfaceHit {
 pub struct BuildReport {
     /// (stage, seconds, detail)
     pub stages: Vec<(String, f64, String)>,
+    /// The stage name of what the integrator prepared for its own method, if anything.
+    pub prepared: Option<String>,
+    /// Further lines about what was built, for `penumbra info` (e.g. an integrator's prepared
+    /// structure object by object).
+    pub details: Vec<String>,
 }
 
 impl BuildReport {
@@ -118,14 +120,14 @@ pub struct Scene {
     pub materials: Option<Materials>,
     /// Built when `Requirements::materials`: only textures a built material references.
     pub textures: Option<Textures>,
-    /// Built when `Requirements::dual_edges`: contour-edge queries over the occluders.
-    pub dual_edges: Option<crate::silhouette::DualEdges>,
     pub bounds: Bounds3,
     /// The scene's own `Integrator` directive.
     pub integrator: Entity,
     pub report: BuildReport,
-    /// Built when `Requirements::sphere_sets`.
-    pub sphere_sets: Option<crate::sphereset::SphereSets>,
+    /// What the integrator built over the scene for its own method
+    /// ([`Integrator::prepare`](crate::integrator::Integrator::prepare)), kept with the scene
+    /// so that every render of it shares one build; read with [`Scene::prepared`].
+    pub prepared: Option<Arc<dyn Any + Send + Sync>>,
 }
 
 /// A ray bundle with more candidate triangles than this is traversed ray by ray: testing each
@@ -133,6 +135,11 @@ pub struct Scene {
 const BUNDLE_LIMIT: usize = 12;
 
 impl Scene {
+    /// The integrator's prepared structure, when it is a `T`.
+    pub fn prepared<T: Any>(&self) -> Option<&T> {
+        self.prepared.as_deref()?.downcast_ref::<T>()
+    }
+
     /// The edge adjacency of mesh `mesh` (`None` unless `Requirements::adjacency`).
     pub fn adjacency(&self, mesh: usize) -> Option<&EdgeAdjacency> {
         self.adjacency.get(mesh)

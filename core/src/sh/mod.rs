@@ -37,6 +37,7 @@
 //! finds and shades these channels; `penumbra relight` consumes them.
 
 pub mod basis;
+pub mod eigen;
 pub mod env;
 pub mod exp;
 pub mod product;
@@ -47,8 +48,9 @@ pub mod transfer;
 pub mod zonal;
 
 pub use basis::{eval, eval_vec};
+pub use eigen::{exp_eigen, log_star};
 pub use env::{project_infinite_light, ShRgb};
-pub use exp::{exp_eigen, log_star, ExpMethod, ExpScratch, ShExp};
+pub use exp::{ExpMethod, ExpScratch, ShExp};
 pub use product::TripleProduct;
 pub use quadrature::{project, SphereQuadrature};
 pub use rotation::ShRotation;

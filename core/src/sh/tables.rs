@@ -1,8 +1,8 @@
-//! Tables built with [`log_star`](super::exp::log_star): the log-blocker table `G_θ` that
+//! Tables built with [`log_star`](super::eigen::log_star): the log-blocker table `G_θ` that
 //! `shexp` sums per sphere (a zonal vector per cap angle), and the optimal-linear `(a, b)`
 //! table of Ren et al.'s cheap exponential, fitted on the pairs `(Ĝ_θ, B_θ)`.
 
-use super::exp::{exp_eigen, log_star_zonal_refined};
+use super::eigen::{exp_eigen, log_star_zonal_refined};
 use super::{product::TripleProduct, zonal, ShError, ShOrder, SQRT_4PI};
 use std::f64::consts::FRAC_PI_2;
 

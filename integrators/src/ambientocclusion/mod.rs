@@ -21,13 +21,10 @@ use penumbra_core::geometry::{face_forward, Frame, Ray};
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, ThreadStats,
 };
-use penumbra_core::interaction::SurfaceInteraction;
-use penumbra_core::material::Material;
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::{cosine_sample_hemisphere, uniform_sample_hemisphere};
 use penumbra_core::scene::{Requirements, Scene};
 use penumbra_core::sh::{basis, transfer::TransferChannels, ShOrder};
-use penumbra_core::texture::TextureEvalContext;
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -141,22 +138,11 @@ impl PixelEstimator for Estimator<'_> {
                 }
             }
             if let Some(order) = self.ao.sh {
-                TransferChannels::new(order, 0).write(aov, &transfer[..k], diffuse_albedo(scene, &si));
+                TransferChannels::new(order, 0).write(aov, &transfer[..k], crate::common::diffuse_albedo(scene, &si));
             }
             return Rgb::splat(sum);
         }
         Rgb::ZERO
-    }
-}
-
-/// The diffuse reflectance at `si` (0 where the material has none, or none was built).
-pub(crate) fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Rgb {
-    let Some((material, materials, textures)) = scene.material_of(si) else { return Rgb::ZERO };
-    match material {
-        Material::Matte { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
-        // (substrate: its Kd, though its FresnelBlend is not Lambertian)
-        Material::Substrate { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
-        m => m.ltc_diffuse(si, materials, textures).unwrap_or(Rgb::ZERO),
     }
 }
 

@@ -3,15 +3,22 @@
 pub mod direct;
 pub mod image_pass;
 pub mod light_distribution;
+pub mod ltc;
+pub mod ltc_shading;
 pub mod other_lights;
 pub mod pixel_shading;
+pub mod spherical_polygon;
 
 pub mod params;
 
 use params::{ParamSpec, Params};
 use penumbra_core::geometry::Bounds2i;
+use penumbra_core::interaction::SurfaceInteraction;
+use penumbra_core::material::Material;
+use penumbra_core::scene::Scene;
 use penumbra_core::sh::MAX_ORDER;
-use penumbra_core::IVec2;
+use penumbra_core::texture::TextureEvalContext;
+use penumbra_core::{IVec2, Rgb};
 use penumbra_parser::Diagnostic;
 
 /// pbrt-v3's `"integer maxdepth"` (default 5), at most `limit` (a recursive integrator's stack
@@ -58,4 +65,17 @@ pub fn pixel_bounds_param(params: &Params) -> Result<Option<Bounds2i>, Diagnosti
         warnings.warn(set.loc_of("pixelbounds").cloned(), "degenerate \"pixelbounds\": no pixel is sampled");
     }
     Ok(Some(b))
+}
+
+/// The diffuse reflectance at `si` (0 where the material has none, or none was built): the
+/// `albedo.*` channels written beside SH transfer channels (`ambientocclusion`, `sheared-ao`,
+/// `silhouette`).
+pub fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Rgb {
+    let Some((material, materials, textures)) = scene.material_of(si) else { return Rgb::ZERO };
+    match material {
+        Material::Matte { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
+        // (substrate: its Kd, though its FresnelBlend is not Lambertian)
+        Material::Substrate { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
+        m => m.ltc_diffuse(si, materials, textures).unwrap_or(Rgb::ZERO),
+    }
 }

@@ -5,7 +5,7 @@
 //! At each shading point and for each emitting triangle of each area light, the
 //! triangle is projected onto the sphere of directions, the occluders between the
 //! point and the triangle are projected too, and the visible part (light minus the
-//! union of occluders, [`spherical::difference`]) is integrated in closed form:
+//! union of occluders, [`spherical_polygon::difference`]) is integrated in closed form:
 //! the clamped cosine for the Lambertian lobe (exact), and a Linearly Transformed
 //! Cosine fitted to the Trowbridge–Reitz lobe for the glossy part.
 //!
@@ -19,7 +19,7 @@
 //! are clipped to the half-space of the shading point first, and a convex object
 //! straddling that plane is taken triangle by triangle. The triangles of one object
 //! that need no clipping (and lie in the open hemisphere around the light) are
-//! subtracted as the outline of their union ([`spherical::triangle_chains`]: each
+//! subtracted as the outline of their union ([`spherical_polygon::triangle_chains`]: each
 //! taken positively oriented from the point, shared edges cancelled, the rest covers
 //! by winding number), which is exact and has far fewer edges than the triangles —
 //! for a closed mesh, its silhouette edges (`"bool mergeoccluders" "false"`: one by one).
@@ -35,23 +35,15 @@
 //! same way as a camera ray's (analytic area lights, the rest as above), sample by sample:
 //! pixel shading applies to the first surfaces only.
 //!
-//! Stages: [`shader`] prepares the scene (objects, hierarchy, light shapes) and shades a point
-//! light by light; [`occluders`] finds what hides a light piece; [`integrate`] integrates the
-//! visible part; [`fresnel`] applies the glossy lobe's Fresnel factor. Pixel shading and the
-//! lights LTC does not shade live in [`crate::common`] (shared with `ratio`).
-
-mod fresnel;
-mod integrate;
-mod occluders;
-mod shader;
-
-pub use fresnel::{fresnel_at, FresnelMode};
-pub use shader::LtcShader;
+//! The shading itself (scene preparation, occluders, integration, Fresnel) is
+//! [`crate::common::ltc_shading`], shared with `ratio`; pixel shading and the lights LTC does
+//! not shade are in [`crate::common`] too. This file: parameters, the estimator, specular chains.
 
 use crate::common::direct::{has_specular, specular};
+use crate::common::ltc_shading::{AreaLighting, FresnelMode, Glossy, LtcShader, Mode, ShaderSettings};
 use crate::common::other_lights::{add_other_lights, warn_infinite_lights, Coverage, FallbackWarning};
 use crate::common::params::{ParamSpec, Params};
-use crate::common::pixel_shading::{parse_shading, rgb_differs, ClusterExtent, Refine, SharedPixel, NEAR_FIELD, SHADING};
+use crate::common::pixel_shading::{parse_shading, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::camera::CameraSample;
@@ -65,39 +57,6 @@ use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Requirements, Scene, SurfacePoint};
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
-
-/// How the glossy lobes are integrated over the visible part of a light.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Glossy {
-    /// The material's own lobe: the LTC integral plus the residual by quadrature in the LTC's
-    /// cosine space ([`penumbra_core::ltc::quadrature`]), to a relative tolerance of 1e-3.
-    Exact,
-    /// The LTC alone (Heitz et al. 2016, the paper's method), with `"fresnel"`'s treatment.
-    Ltc,
-}
-
-impl Glossy {
-    /// `"string glossy"`, read by `ltc` and `ratio`.
-    pub const PARAM: ParamSpec = ParamSpec::choice(
-        "glossy",
-        &["exact", "ltc"],
-        "glossy lobes: the material's own (LTC integral plus the residual by quadrature) or the LTC fit alone (the paper's)",
-    );
-
-    pub fn from_params(params: &Params) -> Result<Glossy, Diagnostic> {
-        params.choice("glossy", [Glossy::Exact, Glossy::Ltc])
-    }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Mode {
-    /// One silhouette loop per closed mesh.
-    Silhouette,
-    /// Every light and every occluder as its triangles.
-    PerTriangle,
-    /// Silhouettes for objects proven closed and convex, triangles otherwise.
-    Auto,
-}
 
 pub struct LtcIntegrator {
     pub mode: Mode,
@@ -159,69 +118,22 @@ impl LtcIntegrator {
 }
 
 struct Estimator<'a> {
-    shader: LtcShader<'a>,
+    ltc: &'a LtcIntegrator,
+    shader: LtcShader,
     fallback: FallbackWarning<'a>,
     /// The scene has lights other than area lights.
     other_lights: bool,
 }
 
-/// What pixel shading computes once per cluster: the analytic area lighting
-/// `(Σ L·form factor, glossy)`.
-pub(crate) type AreaLighting = (Rgb, Rgb);
-
-impl LtcShader<'_> {
-    /// Traces a pixel's camera `rays` and shades each surface they see once (with or without
-    /// `shadows`): `begin_pixel` of `ltc` and `ratio`.
-    pub(crate) fn trace_pixel(
-        &self,
-        rays: &[Ray],
-        samples: &[CameraSample],
-        scene: &Scene,
-        shadows: bool,
-        stats: &mut ThreadStats,
-    ) -> SharedPixel<AreaLighting> {
-        let mut scratch = Vec::new();
-        SharedPixel::trace(
-            rays,
-            samples,
-            scene,
-            stats,
-            |p, extent| self.refine(scene, p, extent),
-            Some(|a: &AreaLighting, b: &AreaLighting| rgb_differs(a.0, b.0) || rgb_differs(a.1, b.1)),
-            |h, _| {
-                let desc = self.lobes(scene, &h.si)?;
-                Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
-            },
-        )
-    }
-}
-
-/// A glossy lobe narrower than this many times a pixel cluster's angular extent (its camera
-/// rays' spread) is shaded at every member: the highlight (a sharp reflection of the light's
-/// outline) moves across the pixel by about that angle, while the lobe is `~2α` wide.
-const SHARP_EVERY: f32 = 0.5;
-/// … and narrower than this many times, at the representative and the farthest member, and at
-/// every member when the two differ by more than 10 %.
-const SHARP_COMPARE: f32 = 8.0;
-
-impl LtcShader<'_> {
-    /// How finely pixel shading shades a cluster at `p`: every member near a light (the
-    /// cluster's extent above [`NEAR_FIELD`] of its distance) or for a lobe far sharper than the
-    /// cluster's angle ([`SHARP_EVERY`]); compared with its farthest member for a sharp one
-    /// ([`SHARP_COMPARE`]); once otherwise.
-    fn refine(&self, scene: &Scene, p: &SurfacePoint, extent: ClusterExtent) -> Refine {
-        if extent.world > NEAR_FIELD * self.nearest_light_distance(p.si.p.as_dvec3()) {
-            return Refine::Every;
-        }
-        let alpha = scene
-            .material_of(&p.si)
-            .and_then(|(m, materials, tx)| m.ltc_lobes(&p.si, materials, tx))
-            .and_then(|d| d.lobes.iter().filter_map(|l| l.ggx_alpha()).reduce(f32::min));
-        let angle = extent.angle as f32;
-        match alpha {
-            Some(a) if a < SHARP_EVERY * angle => Refine::Every,
-            Some(a) if a < SHARP_COMPARE * angle => Refine::Compare,
-            _ => Refine::Once,
+impl LtcIntegrator {
+    /// What the shading is asked to do.
+    pub fn shader_settings(&self) -> ShaderSettings {
+        ShaderSettings {
+            mode: self.mode,
+            shadows: self.shadows,
+            glossy: self.glossy,
+            fresnel: self.fresnel,
+            merge_occluders: self.merge_occluders,
         }
     }
 }
@@ -245,12 +157,13 @@ impl Estimator<'_> {
         let (lit, coverage) = match area {
             Some((diffuse, specular)) => {
                 let lit = LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular);
-                let transmits = lit.is_some() && may_transmit(scene, si) && self.shader.lobes(scene, si).is_some_and(|d| d.transmits);
+                let transmits =
+                    lit.is_some() && may_transmit(scene, si) && self.shader.lobes(scene, si).is_some_and(|d| d.transmits);
                 (lit, Coverage::of(lit.is_some(), transmits))
             }
             None => match self.shader.lobes(scene, si) {
                 Some(d) => {
-                    let v = self.shader.area_lights(scene, si, &d, self.shader.ltc.shadows, &mut Vec::new());
+                    let v = self.shader.area_lights(scene, si, &d, self.ltc.shadows, &mut Vec::new());
                     (Some(v), Coverage::of(true, d.transmits))
                 }
                 None => (None, Coverage::None),
@@ -261,7 +174,7 @@ impl Estimator<'_> {
         }
         // The BSDF only for what the LTC does not shade (delta and infinite lights, materials
         // without an LTC form, transmission) and for specular lobes to follow.
-        let follow = depth + 1 < self.shader.ltc.max_depth;
+        let follow = depth + 1 < self.ltc.max_depth;
         let may_be_specular = || scene.material_of(si).is_some_and(|(m, _, _)| m.may_be_specular());
         let rest = coverage != Coverage::Area || self.other_lights;
         if rest || (follow && may_be_specular()) {
@@ -289,7 +202,7 @@ impl Estimator<'_> {
 
 /// Whether the material at `si` may have transmission lobes its LTC form leaves out (a cheap
 /// test before the full description).
-pub(crate) fn may_transmit(scene: &Scene, si: &penumbra_core::interaction::SurfaceInteraction) -> bool {
+fn may_transmit(scene: &Scene, si: &penumbra_core::interaction::SurfaceInteraction) -> bool {
     use penumbra_core::material::Material;
     scene.material_of(si).is_some_and(|(m, _, _)| matches!(m, Material::Translucent { .. } | Material::Mix { .. }))
 }
@@ -314,7 +227,7 @@ impl PixelEstimator for Estimator<'_> {
     }
 
     fn shares_pixel_work(&self) -> bool {
-        self.shader.ltc.pixel_shading
+        self.ltc.pixel_shading
     }
 
     fn begin_pixel(
@@ -324,7 +237,7 @@ impl PixelEstimator for Estimator<'_> {
         scene: &Scene,
         stats: &mut ThreadStats,
     ) -> Option<Self::Shared> {
-        Some(self.shader.trace_pixel(rays, samples, scene, self.shader.ltc.shadows, stats))
+        Some(self.shader.trace_pixel(rays, samples, scene, self.ltc.shadows, stats))
     }
 
     fn li_shared(
@@ -355,7 +268,6 @@ impl Integrator for LtcIntegrator {
             materials: true,
             // Light shapes and silhouettes (every mode but per-triangle) and occluder outlines.
             adjacency: self.mode != Mode::PerTriangle || (self.shadows && self.merge_occluders),
-            dual_edges: false,
             min_pixel_samples: (self.pixel_shading && self.coverage_samples > 1)
                 .then_some((self.coverage_samples, COVERAGE_REASON)),
             ..Default::default()
@@ -364,7 +276,8 @@ impl Integrator for LtcIntegrator {
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ltc", scene, ctx.warnings);
         let est = Estimator {
-            shader: LtcShader::new(self, scene, "ltc"),
+            ltc: self,
+            shader: LtcShader::new(self.shader_settings(), scene, "ltc"),
             fallback: FallbackWarning::new("ltc", ctx.warnings),
             other_lights: scene.light_list().iter().any(|l| !matches!(l, Light::Area(_))),
         };
@@ -383,9 +296,9 @@ impl Integrator for LtcIntegrator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::common::spherical_polygon;
     use glam::DVec3;
     use penumbra_core::scene::BuildOptions;
-    use penumbra_core::spherical;
 
     /// `ltc` asks the scene build for adjacency (built once there, per mesh, equal to the
     /// mesh's own), except in per-triangle mode without outlines; without the request the
@@ -422,6 +335,7 @@ mod tests {
         LtcIntegrator {
             mode: Mode::Auto,
             shadows: true,
+            glossy: Glossy::Exact,
             fresnel: FresnelMode::Average,
             pixel_shading,
             merge_occluders: true,
@@ -439,11 +353,11 @@ mod tests {
         let mut bad = 0;
         for i in 0..200 {
             let p = DVec3::new(-2.0 + 0.02 * i as f64, 0.0, 0.3 - 0.01 * i as f64);
-            let la = spherical::project(p, &a);
-            let lb = spherical::project(p, &b);
-            let ff_a = spherical::form_factor(&la).abs();
-            let d = spherical::difference(std::slice::from_ref(&la), &[lb]);
-            let ff_d = spherical::form_factor_loops(&d);
+            let la = spherical_polygon::project(p, &a);
+            let lb = spherical_polygon::project(p, &b);
+            let ff_a = spherical_polygon::form_factor(&la).abs();
+            let d = spherical_polygon::difference(std::slice::from_ref(&la), &[lb]);
+            let ff_d = spherical_polygon::form_factor_loops(&d);
             if (ff_a - ff_d).abs() > 1e-6 * ff_a.max(1e-3) {
                 bad += 1;
                 eprintln!("p {p}: A {ff_a} diff {ff_d} loops {}", d.len());

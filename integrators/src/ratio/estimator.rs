@@ -5,9 +5,10 @@
 
 use super::{ChainTerms, RatioSample};
 use crate::common::direct::{has_specular, specular_ray};
+use crate::common::ltc::{Ltc, LtcCoeffs};
+use crate::common::ltc_shading::{fresnel_at, AreaLighting, LtcShader};
 use crate::common::other_lights::{add_other_lights, Coverage, FallbackWarning};
 use crate::common::pixel_shading::SharedPixel;
-use crate::ltc::{fresnel_at, AreaLighting, LtcShader};
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::camera::CameraSample;
@@ -15,7 +16,6 @@ use penumbra_core::geometry::{gamma, Frame, Ray};
 use penumbra_core::integrator::{PixelEstimator, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{emitting_normal, DiffuseAreaLight, Light, LightContext};
-use penumbra_core::ltc::{Ltc, LtcCoeffs};
 use penumbra_core::material::{LtcDescription, LtcLobe};
 use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Scene, SurfaceHit};
@@ -65,7 +65,7 @@ impl SampleGroup {
 }
 
 pub(super) struct Estimator<'a> {
-    pub(super) shader: LtcShader<'a>,
+    pub(super) shader: LtcShader,
     pub(super) n: u32,
     /// pbrt-v3's `"integer maxdepth"`: surfaces a specular chain may meet, the first included.
     pub(super) max_depth: u32,
@@ -190,7 +190,7 @@ impl Lobes {
         let remap = |x: f64, lo: f64, w: f64| ((x - lo) / w.max(1e-300)).clamp(0.0, 1.0 - f64::EPSILON / 2.0);
         let mut lo = self.w_d;
         let local = if x < self.w_d || self.glossy.is_empty() {
-            penumbra_core::ltc::cosine_sample(DVec2::new(remap(x, 0.0, self.w_d), y))
+            crate::common::ltc::cosine_sample(DVec2::new(remap(x, 0.0, self.w_d), y))
         } else {
             let last = self.glossy.len() - 1;
             let mut out = DVec3::ZERO;

@@ -1,10 +1,10 @@
 //! `ratio`: analytic direct illumination × denoised stochastic shadows (Heitz, Hill &
 //! McGuire 2018, "Combining Analytic Direct Illumination and Stochastic Shadows"), the ratio
-//! estimator of seed 004 (`../shared/seeds/004_*`), built on `ltc`'s analytic shading.
+//! estimator of seed 004 (`../shared/seeds/004_*`), built on the analytic shading `ltc` uses ([`crate::common::ltc_shading`]).
 //!
 //! For every area light and every point whose material has an LTC form, three terms:
 //!
-//! * `U`: the analytic unshadowed radiance, from `ltc` with `shadows = false`;
+//! * `U`: the analytic unshadowed radiance, the LTC shading with `shadows = false`;
 //! * `S_N`, `U_N`: Monte Carlo estimates of the shadowed and the unshadowed radiance from
 //!   the *same* samples (same directions, same points on the light, same weights; `S_N`
 //!   multiplies each by its visibility), with the real BSDF and the light's radiance.
@@ -64,11 +64,11 @@ pub mod filter;
 pub use filter::{cross_bilateral, guarded_ratio, noise_radius, FilterParams, Guide};
 
 use crate::common::image_pass::ImageBuffer;
+use crate::common::ltc_shading::{FresnelMode, Glossy, LtcShader, Mode, ShaderSettings};
 use crate::common::other_lights::{warn_infinite_lights, FallbackWarning};
 use crate::common::params::{ParamSpec, Params, Range};
 use crate::common::pixel_shading::{parse_shading, SHADING};
 use crate::common::{max_depth, max_depth_param};
-use crate::ltc::{FresnelMode, Glossy, LtcIntegrator, LtcShader, Mode};
 use estimator::{Estimator, SampleGroup};
 use penumbra_core::film::Film;
 use penumbra_core::integrator::{render_pixels_with_margin, Integrator, RenderContext, RenderError, RenderStats};
@@ -78,8 +78,12 @@ use penumbra_core::{Rgb, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 
 pub struct RatioIntegrator {
-    /// The analytic part (`shadows` is false).
-    pub ltc: LtcIntegrator,
+    /// The analytic part's settings (`shadows` is false).
+    pub shading: ShaderSettings,
+    /// `"string shading" "pixel"`: `U` once per surface a pixel sees (as `ltc`'s).
+    pub pixel_shading: bool,
+    /// pbrt-v3's `"integer maxdepth"`: the surfaces a camera ray's specular chain may meet.
+    pub max_depth: u32,
     pub nsamples: u32,
     pub denoise: bool,
     pub max_radius: u32,
@@ -134,16 +138,15 @@ impl RatioIntegrator {
             ratio_floor: p.float("ratiofloor")?,
         };
         Ok(Box::new(RatioIntegrator {
-            ltc: LtcIntegrator {
+            shading: ShaderSettings {
                 mode: Mode::Auto, // shadows off: only the lights' shapes (one polygon where possible)
                 shadows: false,
                 glossy: Glossy::from_params(&p)?,
                 fresnel: FresnelMode::from_params(&p)?,
-                pixel_shading: parse_shading(&p)?,
                 merge_occluders: true,
-                coverage_samples: 1, // ratio's camera samples are its stochastic budget
-                max_depth: max_depth_param(&p)?,
             },
+            pixel_shading: parse_shading(&p)?,
+            max_depth: max_depth_param(&p)?,
             nsamples,
             denoise: p.bool("denoise")?,
             max_radius,
@@ -285,14 +288,14 @@ impl Integrator for RatioIntegrator {
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ratio", scene, ctx.warnings);
-        let shader = LtcShader::new(&self.ltc, scene, "ratio");
+        let shader = LtcShader::new(self.shading, scene, "ratio");
         let groups = SampleGroup::of(&shader, scene);
         let est = Estimator {
             shader,
             n: scene.sampler.round_count(self.nsamples).max(1),
-            max_depth: self.ltc.max_depth,
+            max_depth: self.max_depth,
             groups,
-            pixel_shading: self.ltc.pixel_shading,
+            pixel_shading: self.pixel_shading,
             fallback: FallbackWarning::new("ratio", ctx.warnings),
         };
         let (mut stats, (filtered, seconds)) =

@@ -287,7 +287,7 @@ impl ShearedAo {
                 p_error: si.p_error,
                 n,
                 frame,
-                albedo: if self.sh.is_some() { crate::ambientocclusion::diffuse_albedo(scene, &si) } else { Rgb::ZERO },
+                albedo: if self.sh.is_some() { crate::common::diffuse_albedo(scene, &si) } else { Rgb::ZERO },
             });
         }
         None

@@ -108,7 +108,7 @@ fn irradiance_table(texels: &[RegionTexel], (w, h): (usize, usize), m: glam::DMa
     (0..6 * res * res)
         .map(|t| {
             let (face, j, i) = (t / (res * res), (t / res) % res, t % res);
-            let n = super::lighting::texel_dir(face, i, j, res);
+            let n = super::cubemap::texel_dir(face, i, j, res);
             let mut e = [0.0; 3];
             for (p, d) in &blocks {
                 let c = n.dot(*d);
@@ -136,7 +136,7 @@ impl BrightLight {
     /// The region's unshadowed irradiance per channel at unit normal `n` (interpolated).
     pub fn irradiance_at(&self, n: DVec3) -> [f64; 3] {
         let mut out = [0.0; 3];
-        for (t, w) in super::lighting::cubemap_bilinear(n, IRR_RES) {
+        for (t, w) in super::cubemap::cubemap_bilinear(n, IRR_RES) {
             for (o, x) in out.iter_mut().zip(self.irr[t]) {
                 *o += w * x;
             }

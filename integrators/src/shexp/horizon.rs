@@ -22,10 +22,10 @@
 
 use super::bright::EnvSource;
 use super::lighting::frame;
+use crate::shexp::sphereset::GroundPlane;
 use glam::{DVec3, Vec2};
 use penumbra_core::mesh::TriangleMesh;
 use penumbra_core::sh::quadrature::gauss_legendre;
-use penumbra_core::sphereset::GroundPlane;
 use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI};
 

@@ -5,7 +5,7 @@
 //! At the first non-specular surface, the Lambertian part of the BSDF (albedo `ρ`) under the
 //! scene's `infinite` lights is `ρ/π · LH(N) · V` ([`lighting`], [`visibility`]):
 //! - `V = exp*(Σ_i G_{θ_i} turned to ω_i) ∗ Π_big B_θ` over the leaf spheres of every
-//!   occluder ([`penumbra_core::sphereset`], built only for this integrator), each adjusted by
+//!   occluder ([`sphereset`], built by [`Integrator::prepare`]), each adjusted by
 //!   the receiver-inside rules; caps wider than `"float bigblocker"` are multiplied explicitly;
 //! - `LH(N)`: the exact order-n projection of `L · max(0, N·ω)`, with the environment cut at
 //!   the ground plane's horizon when the scene has one (an open planar mesh under everything);
@@ -44,9 +44,11 @@
 //!   light onto what stands on it ([`reflect::ground`]; not in the thesis).
 
 pub mod bright;
+pub mod cubemap;
 pub mod horizon;
 pub mod lighting;
 pub mod reflect;
+pub mod sphereset;
 pub mod visibility;
 
 use crate::common::direct::{estimate_direct, specular};
@@ -60,18 +62,20 @@ use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, Ray};
 use penumbra_core::integrator::{
-    render_pixels, with_threads, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, with_threads, Integrator, PixelEstimator, Preparation, RenderContext, RenderError, RenderStats,
+    ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfacePoint};
 use penumbra_core::sh::ShOrder;
-use penumbra_core::sphereset::{Source, SphereSets};
 use penumbra_core::{Rgb, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
+use sphereset::{Source, SphereSets};
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 use visibility::{ExpChoice, Visibility};
 
 pub struct Shexp {
@@ -575,10 +579,14 @@ impl PixelEstimator for Estimator<'_> {
     }
 }
 
-/// An empty set of sphere sets, for scenes built without them.
-fn no_sets() -> &'static SphereSets {
-    static EMPTY: std::sync::OnceLock<SphereSets> = std::sync::OnceLock::new();
-    EMPTY.get_or_init(SphereSets::default)
+impl Shexp {
+    /// The sphere sets of `scene`'s occluders with this integrator's `"integer spheres"`
+    /// (fits read from and written to the disk cache).
+    fn sphere_sets(&self, scene: &Scene) -> SphereSets {
+        let params = sphereset::fit::FitParams { spheres: self.spheres, ..Default::default() };
+        let dir = sphereset::cache::default_dir();
+        sphereset::build_for_scene(&scene.meshes, &scene.objects, &params, dir.as_deref())
+    }
 }
 
 impl Integrator for Shexp {
@@ -591,16 +599,28 @@ impl Integrator for Shexp {
         !self.pixel_shading
     }
     fn requirements(&self) -> Requirements {
-        Requirements {
-            accel: true,
-            lights: true,
-            materials: true,
-            sphere_sets: Some(self.spheres),
-            ..Default::default()
-        }
+        Requirements { accel: true, lights: true, materials: true, ..Default::default() }
+    }
+    /// The sphere sets of the occluders.
+    fn prepare(&self, scene: &Scene) -> Option<Preparation> {
+        let sets = self.sphere_sets(scene);
+        Some(Preparation {
+            stage: "sphere sets".into(),
+            summary: sets.summary(),
+            details: sets.describe(&scene.objects),
+            value: Arc::new(sets),
+        })
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
-        let sets = scene.sphere_sets.as_ref().unwrap_or_else(|| no_sets());
+        // Prepared with the scene (`build_scene`), or built here for a scene built without it.
+        let built;
+        let sets = match scene.prepared::<SphereSets>().filter(|s| s.spheres == self.spheres) {
+            Some(s) => s,
+            None => {
+                built = self.sphere_sets(scene);
+                &built
+            }
+        };
         for s in sets.sets.iter().filter(|s| s.source == Source::Shell) {
             ctx.warnings.warn(
                 scene.objects.get(s.object).map(|o| o.loc.clone()),

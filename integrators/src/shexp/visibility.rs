@@ -4,9 +4,9 @@
 //! (near contact, where the clipped log round-trips badly: digest §8.2) are multiplied in as
 //! explicit SH products of their blocker `B_θ = 1 − cap_θ` instead.
 
+use crate::shexp::sphereset::{Sphere, SphereSets};
 use glam::DVec3;
 use penumbra_core::sh::{self, ExpScratch, LogBlockerTable, ShExp, ShOrder, TripleProduct, SQRT_4PI};
-use penumbra_core::sphereset::{Sphere, SphereSets};
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// Relative tolerance of the inside/behind tests (of the sphere's radius).

@@ -3,7 +3,7 @@
 //! order chosen from the BRDF's roughness, shaded with the material's BRDF").
 //!
 //! With `L_k` the SH coefficients (world basis, order `N`) of the visibility-masked
-//! environment `L·V·H` (from [`penumbra_core::silhouette::ShTable`] over the point's visible
+//! environment `L·V·H` (from [`super::shtable::ShTable`] over the point's visible
 //! intervals) and `g_k` those of the lobes' `f(ω_o, ω)·|n_s·ω|` over the same hemisphere `H`
 //! (the face-forwarded geometric normal's, where pbrt-v3's `BSDF::f` counts reflection lobes),
 //! the reflected radiance is `Σ_k L_k g_k = ∫ P_N[L·V·H] · g`: exact when either factor is

@@ -3,8 +3,7 @@
 //! Spherical Integration", CGF 2014).
 //!
 //! At each shading point the contour edges come from the scene's 4D dual-edge hierarchy
-//! (`core::silhouette::DualEdges`, built under `Requirements::dual_edges`), culled behind the
-//! tangent plane; their arcs are bucketed on `"integer resolution"` meridians of the
+//! ([`dual::DualEdges`], built by [`Integrator::prepare`]), culled behind the tangent plane; their arcs are bucketed on `"integer resolution"` meridians of the
 //! `(φ, cos θ)` parameterisation about the coordinate axis closest to the normal, each
 //! meridian is walked from the pole with the relative depth complexity `W`, and one shadow
 //! ray through the longest interval of minimal `W` decides whether those intervals are the
@@ -46,14 +45,28 @@
 //! lights, emission and specular recursion stay per sample). `sample`: every camera sample is
 //! integrated, as `prt` always is.
 
+//!
+//! Files: [`dual`] the 4D dual-edge hierarchy, whose hyperplane query gives a shading point's
+//! contour edges (exactly the brute-force set), culled behind the tangent plane; [`param`] the
+//! `(φ, cos θ)` sphere parameterisation (Jacobian 1, one shared start for every isoline) used
+//! instead of the paper's octahedral map; [`table`] prefix sums of radiance-weighted moments
+//! along meridians (environment lighting); [`shtable`] the same for radiance-weighted SH basis
+//! functions (glossy lobes); [`traverse`] per-meridian crossing buckets, the depth-complexity
+//! walk and the intervals of minimal depth complexity; [`orient`] the orientation predicate
+//! everything is decided by; [`glossy`] the SH shading of glossy lobes; this file the
+//! parameters and the estimator.
+
 use crate::common::direct::{estimate_direct, specular};
 use crate::common::params::{ParamSpec, Params};
 use crate::common::pixel_shading::{parse_shading, rgb_differs, Refine, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, SH_ORDER};
+use dual::{Contour, DualEdges};
+use param::{moment, Meridians, PoleFrame};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray};
+use penumbra_core::integrator::Preparation;
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
@@ -63,16 +76,25 @@ use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::uniform_sample_hemisphere;
 use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfacePoint};
 use penumbra_core::sh::{basis, quadrature::gauss_legendre, transfer::TransferChannels, ShOrder, MAX_ORDER};
-use penumbra_core::silhouette::{
-    param::moment, Contour, DualEdges, Interval, Meridians, MomentTable, PoleFrame, ShTable, Traversal,
-};
 use penumbra_core::{Rgb, Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
+use shtable::ShTable;
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
+use table::MomentTable;
+use traverse::{Interval, Traversal};
 
+pub mod dual;
 pub mod glossy;
+pub mod orient;
+pub mod param;
+pub mod shtable;
+pub mod table;
+pub mod traverse;
+
+#[cfg(test)]
+mod tests;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
@@ -166,7 +188,7 @@ struct Counters {
 /// times and a sun a few texels wide keeps its power in every axis frame ([`CellNodes`]).
 /// A constant light (a 1 × 1 map) needs only the tables' fixed 3 × 3 nodes per cell.
 ///
-/// [`CellNodes`]: penumbra_core::silhouette::param::CellNodes
+/// [`CellNodes`]: param::CellNodes
 fn table_spacing(infinite: &[&Light]) -> f64 {
     let texel = infinite
         .iter()
@@ -376,11 +398,7 @@ impl Estimator<'_> {
             });
         }
         if let Some((order, ..)) = &self.sh {
-            TransferChannels::new(*order, 0).write(
-                aov,
-                &transfer[..k],
-                crate::ambientocclusion::diffuse_albedo(scene, &si),
-            );
+            TransferChannels::new(*order, 0).write(aov, &transfer[..k], crate::common::diffuse_albedo(scene, &si));
         }
         Rgb::splat((nd.dot(sum * m.dphi + sum_mc)).max(0.0) as f32)
     }
@@ -630,6 +648,12 @@ impl PixelEstimator for Estimator<'_> {
     }
 }
 
+/// The dual-edge hierarchy over `scene`'s objects that occlude.
+fn dual_edges(scene: &Scene) -> DualEdges {
+    let occluders: Vec<bool> = scene.objects.iter().map(|o| o.occluder).collect();
+    DualEdges::build(&scene.meshes, &occluders)
+}
+
 impl Integrator for Silhouette {
     fn name(&self) -> &str {
         "silhouette"
@@ -639,7 +663,23 @@ impl Integrator for Silhouette {
         !self.pixel_shading || self.mode == Some(Mode::Prt)
     }
     fn requirements(&self) -> Requirements {
-        Requirements { accel: true, lights: true, materials: true, dual_edges: true, ..Default::default() }
+        Requirements { accel: true, lights: true, materials: true, ..Default::default() }
+    }
+    /// The dual-edge hierarchy over the objects that occlude.
+    fn prepare(&self, scene: &Scene) -> Option<Preparation> {
+        let d = dual_edges(scene);
+        Some(Preparation {
+            stage: "dual edges".into(),
+            summary: format!(
+                "{} edges ({} boundary, {} non-manifold, {} tested at every point)",
+                d.edge_count(),
+                d.boundary_edges,
+                d.non_manifold_edges,
+                d.always_tested()
+            ),
+            details: Vec::new(),
+            value: Arc::new(d),
+        })
     }
     fn extra_channels(&self) -> Vec<String> {
         match self.mode {
@@ -648,10 +688,15 @@ impl Integrator for Silhouette {
         }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
-        let dual = scene
-            .dual_edges
-            .as_ref()
-            .ok_or_else(|| RenderError::Failed("silhouette: the scene was built without its dual edges".into()))?;
+        // Prepared with the scene (`build_scene`), or built here for a scene built without it.
+        let built;
+        let dual = match scene.prepared::<DualEdges>() {
+            Some(d) => d,
+            None => {
+                built = dual_edges(scene);
+                &built
+            }
+        };
         let infinite: Vec<&Light> = scene.light_list().iter().filter(|l| l.is_infinite()).collect();
         let mode = self.mode.unwrap_or(if infinite.is_empty() { Mode::Ao } else { Mode::Shade });
         let meridians = Meridians::new(self.resolution);

@@ -1,4 +1,5 @@
 use super::*;
+use crate::sh::eigen::*;
 use crate::sh::tables::{blocker, LogBlockerTable, OptimalLinearTable};
 use crate::sh::zonal::{add_rotated_zh, zh_to_sh};
 use glam::DVec3;
@@ -74,10 +75,10 @@ fn exp_of_log_blocker_round_trips() {
         let gz = log_star_zonal(p, &b, 0.02).unwrap();
         assert!(rel(&g, &full(&gz)) < 1e-9, "{deg}°: general and zonal logs differ");
         let plain = rel(&exp_eigen(p, &g).unwrap(), &full(&b));
-        let refined = crate::sh::exp::log_star_zonal_refined(p, &b, 0.02, 4).unwrap();
+        let refined = crate::sh::eigen::log_star_zonal_refined(p, &b, 0.02, 4).unwrap();
         let back = exp_eigen(p, &full(&refined)).unwrap();
         let err = rel(&back, &full(&b));
-        let zonal_exp = crate::sh::exp::exp_eigen_zonal(p, &refined).unwrap();
+        let zonal_exp = crate::sh::eigen::exp_eigen_zonal(p, &refined).unwrap();
         assert!(rel(&full(&zonal_exp), &back) < 1e-12, "zonal exp* = exp*");
         println!("{deg}°: |exp*(log B) − B|/|B| plain {plain:.1e}, refined {err:.1e}");
         assert!(err <= plain * (1.0 + 1e-9) + 1e-15, "refinement never worsens");

@@ -16,12 +16,12 @@
 use super::super::bright::BrightLight;
 use super::super::lighting::{cut_hemisphere, frame, EnvLighting, NZ};
 use super::super::split_lambertian;
+use crate::shexp::sphereset::GroundPlane;
 use glam::{DMat3, DVec3, Vec3};
 use penumbra_core::accel::Hit;
 use penumbra_core::geometry::Ray;
 use penumbra_core::scene::Scene;
 use penumbra_core::sh::{quadrature::gauss_legendre, ShOrder, ShRotation, SQRT_4PI};
-use penumbra_core::sphereset::GroundPlane;
 use penumbra_core::Rgb;
 
 /// Triangles whose centroid albedo is averaged (evenly strided beyond this).

@@ -61,10 +61,10 @@ pub mod surface;
 pub mod tables;
 
 use super::visibility::{self, adjust, cap_of, for_each_leaf_seen, Visibility};
+use crate::shexp::sphereset::{Source, SphereSets};
 use glam::DVec3;
 use penumbra_core::scene::Scene;
 use penumbra_core::sh::{self, ShOrder, SphereQuadrature, TripleProduct};
-use penumbra_core::sphereset::{Source, SphereSets};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -21,12 +21,12 @@
 //! is inside iff the ray crosses the surface an odd number of times; crossings alternate).
 
 use super::super::split_lambertian;
+use crate::shexp::sphereset::{Sphere, SphereSet};
 use glam::{DVec3, Vec3};
 use penumbra_core::geometry::Ray;
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::scene::Scene;
 use penumbra_core::sh::{self, ShOrder, SphereQuadrature};
-use penumbra_core::sphereset::{Sphere, SphereSet};
 
 /// Hits followed along one ray before giving up (a pathological stack of surfaces).
 const MAX_HITS: usize = 256;

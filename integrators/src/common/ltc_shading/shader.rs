@@ -1,45 +1,33 @@
-//! What `ltc` prepares per scene (object bounds, convexity, the object hierarchy, the area
-//! lights gathered per emitting mesh with their shapes) and the analytic shading of the area
-//! lights at a point: shared with the `ratio` estimator, which needs the unshadowed term.
+//! What the shading prepares per scene (the objects, see [`super::objects`]; the area lights
+//! gathered per emitting mesh with their shapes) and the analytic shading of the area lights
+//! at a point, light by light.
 
 use super::fresnel::{fresnel_weight, FresnelMode};
-use super::integrate::{Accum, LobeLtc, PieceFrame};
-use super::occluders::{ConvexLight, Occluders, PieceQuery};
-use super::{Glossy, LtcIntegrator, Mode};
+use super::integrate::{integrate_piece, Accum, LobeLtc, PieceFrame};
+use super::objects::{object_info, ConvexShape, Objects, Receiver, Skip};
+use super::occluders::{ConvexLight, PieceQuery};
+use super::region::Occluders;
+use super::settings::{Glossy, Mode, ShaderSettings};
+use crate::common::ltc::{Ltc, LtcCoeffs};
+use crate::common::pixel_shading::{rgb_differs, ClusterExtent, Refine, SharedPixel, NEAR_FIELD};
 use glam::DVec3;
 use penumbra_core::accel::objects::ObjectBvh;
-use penumbra_core::geometry::Bounds3;
-use penumbra_core::geometry::Frame;
+use penumbra_core::camera::CameraSample;
+use penumbra_core::geometry::{Frame, Ray};
+use penumbra_core::integrator::{RenderStats, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::emitting_normal;
-use penumbra_core::ltc::{Ltc, LtcCoeffs};
 use penumbra_core::material::LtcDescription;
 use penumbra_core::mesh::{EdgeAdjacency, TriangleMesh};
-use penumbra_core::scene::Scene;
-use penumbra_core::spherical::SilhouetteMesh;
+use penumbra_core::scene::{Scene, SurfacePoint};
 use penumbra_core::{Rgb, Vec3};
+use penumbra_parser::DiagSink;
 use std::cell::OnceCell;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// What the estimator knows about each object (mesh `i` = object `i`).
-pub(super) struct ObjectInfo {
-    pub(super) bounds: Bounds3,
-    pub(super) occluder: bool,
-    /// Closed and convex (proven by the builder), with its adjacency for silhouettes.
-    pub(super) silhouette: Option<SilhouetteMesh>,
-    /// A hierarchy over the object's triangles, for the per-triangle cone query.
-    pub(super) tris: ObjectBvh,
-    /// All vertices in one plane: as a light, it cannot shadow itself.
-    pub(super) planar: bool,
-    /// Mesh vertex index → id shared by vertices at the same position (for triangle outlines).
-    pub(super) weld: Vec<u32>,
-    /// A closed, consistently wound mesh (after welding; known for silhouette meshes, and for
-    /// others with `mergeoccluders`): +1 when its winding normals point out of the solid, −1
-    /// when in, 0 otherwise or unknown. From outside or inside, the triangles facing away from a
-    /// point cover exactly the directions in which a ray from it meets the solid (every such ray
-    /// leaves it through one): the others need not be subtracted.
-    pub(super) closed: f64,
-}
+/// What pixel shading computes once per surface a pixel sees: the analytic area lighting
+/// `(Σ L·form factor, glossy)` ([`LtcShader::area_lights_split`]).
+pub type AreaLighting = (Rgb, Rgb);
 
 /// How an area light's emitting surface is turned into spherical polygons at a shading point.
 enum LightShape {
@@ -52,18 +40,18 @@ enum LightShape {
     /// its silhouette loop (the front faces tile it, none overlap), integrated once.
     Convex(ConvexShape),
     /// A `sphere` shape (its tessellation's vertices on one sphere): the true sphere pbrt-v3
-    /// renders, whose silhouette from a point outside is a circle — taken as the regular
-    /// [`SPHERE_SIDES`]-gon of the same solid angle, whatever the tessellation (12 600
-    /// triangles for a default sphere, whose silhouette loop would have hundreds of edges).
+    /// renders, whose silhouette from a point outside is a circle — taken as the regular polygon
+    /// of the same solid angle ([`sphere_sides`]), whatever the tessellation (12 600 triangles
+    /// for a default sphere, whose silhouette loop would have hundreds of edges).
     Sphere(SphereShape),
 }
 
 /// A sphere light: its mesh as a convex shape (for the occluders' separation tests) and the
 /// sphere.
-pub(super) struct SphereShape {
-    pub(super) convex: ConvexShape,
-    pub(super) center: DVec3,
-    pub(super) radius: f64,
+struct SphereShape {
+    convex: ConvexShape,
+    center: DVec3,
+    radius: f64,
 }
 
 /// Sides of the polygon that stands for a sphere light's silhouette circle (a regular polygon
@@ -72,7 +60,7 @@ pub(super) struct SphereShape {
 /// narrower than the circle (it resolves the outline), 16 when narrower than 4 times it, 8
 /// otherwise (a smooth integrand over an equal-area polygon: the difference is of fourth
 /// order in the circle's radius).
-pub(super) fn sphere_sides(angular_radius: f64, lobe_width: f64) -> usize {
+fn sphere_sides(angular_radius: f64, lobe_width: f64) -> usize {
     if lobe_width < angular_radius {
         32
     } else if lobe_width < 4.0 * angular_radius {
@@ -86,7 +74,7 @@ pub(super) fn sphere_sides(angular_radius: f64, lobe_width: f64) -> usize {
 /// [`sphere_sides`]-gon of the same solid angle for a lobe `lobe_width` wide (radians), as
 /// world points at the tangent distance (so that their bounding sphere bounds the circle);
 /// `None` when `p` is inside the sphere.
-pub(super) fn sphere_outline(p: DVec3, center: DVec3, radius: f64, lobe_width: f64) -> Option<Vec<DVec3>> {
+fn sphere_outline(p: DVec3, center: DVec3, radius: f64, lobe_width: f64) -> Option<Vec<DVec3>> {
     let axis = center - p;
     let d = axis.length();
     if !(d > radius * (1.0 + 1e-9)) {
@@ -103,7 +91,7 @@ pub(super) fn sphere_outline(p: DVec3, center: DVec3, radius: f64, lobe_width: f
     let b = (omega - std::f64::consts::TAU + n * std::f64::consts::PI) / (2.0 * n);
     let cos_r = (1.0 / b.tan() / (std::f64::consts::PI / n).tan()).clamp(-1.0, 1.0);
     let sin_r = (1.0 - cos_r * cos_r).max(0.0).sqrt();
-    let (u, v) = penumbra_core::spherical::orthonormal_basis(axis);
+    let (u, v) = crate::common::spherical_polygon::orthonormal_basis(axis);
     let tangent = (d * d - radius * radius).max(0.0).sqrt();
     Some(
         (0..sides)
@@ -115,34 +103,18 @@ pub(super) fn sphere_outline(p: DVec3, center: DVec3, radius: f64, lobe_width: f
     )
 }
 
-/// What a convex light mesh needs at every shading point, computed once.
-pub(super) struct ConvexShape {
-    sil: SilhouetteMesh,
-    /// Edge-on tolerance of its faces: 1e-9 of the mesh's extent.
-    pub(super) eps: f64,
-    /// (a point of the face, outward unit normal) of every non-degenerate face.
-    pub(super) faces: Vec<(DVec3, DVec3)>,
-    pub(super) vertices: Vec<DVec3>,
-    pub(super) center: DVec3,
-    /// The largest distance of a vertex from `center`.
-    pub(super) radius: f64,
-}
-
-impl ConvexShape {
-    fn new(mesh: &TriangleMesh, adj: &EdgeAdjacency) -> ConvexShape {
-        let faces = (0..mesh.triangle_count())
-            .filter_map(|t| {
-                let [a, b, c] = mesh.vertices(t).map(d3);
-                let n = (b - a).cross(c - a).normalize_or_zero();
-                (n != DVec3::ZERO).then_some((a, n))
-            })
-            .collect();
-        let vertices: Vec<DVec3> = mesh.positions.iter().map(|q| d3(*q)).collect();
-        let center = vertices.iter().copied().sum::<DVec3>() / vertices.len().max(1) as f64;
-        let sil = SilhouetteMesh::new(mesh, adj);
-        let radius = vertices.iter().map(|v| (*v - center).length()).fold(0.0, f64::max);
-        ConvexShape { sil, eps: 1e-9 * mesh.extent(), faces, vertices, center, radius }
-    }
+/// The sphere through all of `vertices` (the centre of their bounding box and the largest
+/// distance from it, all distances within 1e-5 of it), if there is one.
+fn on_one_sphere(vertices: &[DVec3]) -> Option<(DVec3, f64)> {
+    let (lo, hi) = vertices
+        .iter()
+        .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let center = (lo + hi) * 0.5;
+    let (near, far) = vertices
+        .iter()
+        .map(|v| (*v - center).length())
+        .fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r), b.max(r)));
+    (far > 0.0 && near >= far * (1.0 - 1e-5)).then_some((center, far))
 }
 
 impl LightShape {
@@ -196,48 +168,16 @@ impl LightShape {
     }
 }
 
-/// The sphere through all of `vertices` (the centre of their bounding box and the largest
-/// distance from it, all distances within 1e-5 of it), if there is one.
-fn on_one_sphere(vertices: &[DVec3]) -> Option<(DVec3, f64)> {
-    let (lo, hi) = vertices
-        .iter()
-        .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
-    let center = (lo + hi) * 0.5;
-    let (near, far) = vertices
-        .iter()
-        .map(|v| (*v - center).length())
-        .fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r), b.max(r)));
-    (far > 0.0 && near >= far * (1.0 - 1e-5)).then_some((center, far))
-}
-
 /// The area lights of one emitting mesh with one radiance.
-pub(crate) struct LightGroup {
-    pub(crate) mesh: usize,
-    pub(crate) tris: Vec<u32>,
+pub struct LightGroup {
+    pub mesh: usize,
+    pub tris: Vec<u32>,
     /// Bounding sphere of the emitting triangles (centred on their vertices' mean).
-    pub(crate) center: DVec3,
-    pub(crate) radius: f64,
-    pub(crate) l: Rgb,
-    pub(crate) two_sided: bool,
+    pub center: DVec3,
+    pub radius: f64,
+    pub l: Rgb,
+    pub two_sided: bool,
     shape: LightShape,
-}
-
-/// The surface being shaded: its mesh and triangle, and `ωo` · its winding normal (with the
-/// orientation of a closed mesh: negative when seen from inside).
-#[derive(Clone, Copy)]
-pub(super) struct Receiver {
-    pub(super) mesh: usize,
-    pub(super) tri: usize,
-    pub(super) facing: f64,
-}
-
-/// Which of the light's own triangles are not occluders of the piece being shaded.
-#[derive(Clone, Copy)]
-pub(super) enum Skip {
-    /// The whole light mesh (planar or convex lights cannot shadow themselves).
-    Mesh(usize),
-    /// One triangle of the light mesh (the others may shadow it).
-    Triangle(usize, usize),
 }
 
 /// The winding normal of the triangle `si` lies on (zero if there is none).
@@ -252,42 +192,38 @@ fn d3(v: Vec3) -> DVec3 {
     v.as_dvec3()
 }
 
-/// The analytic area-light shading of `ltc` (see the module doc).
-pub struct LtcShader<'a> {
-    pub(super) ltc: &'a LtcIntegrator,
-    pub(super) objects: Vec<ObjectInfo>,
-    pub(super) bvh: ObjectBvh,
+/// The analytic area-light shading of `ltc` and `ratio` (see the module doc).
+pub struct LtcShader {
+    pub settings: ShaderSettings,
+    objects: Objects,
     /// The area lights, gathered per emitting mesh (pbrt-v3 makes one light per triangle).
     groups: Vec<LightGroup>,
-    pub(crate) counters: ShaderCounters,
+    counters: ShaderCounters,
     /// The integrator's name, for warnings (`ltc` or `ratio`).
-    pub(crate) name: &'static str,
+    name: &'static str,
 }
 
 /// What the shader counts over a render (for `stats.json`).
 #[derive(Default)]
-pub(crate) struct ShaderCounters {
+struct ShaderCounters {
     /// Shading points integrated analytically.
-    pub(crate) points: AtomicU64,
+    points: AtomicU64,
     /// Evaluations of a glossy lobe by the exact integration's quadrature.
-    pub(crate) quadrature_evals: AtomicU64,
+    quadrature_evals: AtomicU64,
     /// Quadrature triangles split for accuracy.
-    pub(crate) quadrature_splits: AtomicU64,
+    quadrature_splits: AtomicU64,
     /// Points whose material's lobes the table does not reach (`"glossy" "ltc"`): shaded by
     /// `directlighting`'s estimator.
-    pub(crate) beyond_table: AtomicU64,
+    beyond_table: AtomicU64,
 }
 
-impl ShaderCounters {
-    /// The counters as `stats.json`'s `counters` entries.
-    pub(crate) fn report(&self, out: &mut std::collections::BTreeMap<String, f64>) {
-        let get = |c: &AtomicU64| c.load(Ordering::Relaxed) as f64;
-        out.insert("ltc_points".into(), get(&self.points));
-        out.insert("ltc_quadrature_evals".into(), get(&self.quadrature_evals));
-        out.insert("ltc_quadrature_splits".into(), get(&self.quadrature_splits));
-        out.insert("ltc_beyond_table_points".into(), get(&self.beyond_table));
-    }
-}
+/// A glossy lobe narrower than this many times a pixel cluster's angular extent (its camera
+/// rays' spread) is shaded at every member: the highlight (a sharp reflection of the light's
+/// outline) moves across the pixel by about that angle, while the lobe is `~2α` wide.
+const SHARP_EVERY: f32 = 0.5;
+/// … and narrower than this many times, at the representative and the farthest member, and at
+/// every member when the two differ by more than 10 %.
+const SHARP_COMPARE: f32 = 8.0;
 
 /// A shading point's query: where it is and whether occluders are searched.
 struct PointQuery<'s> {
@@ -297,10 +233,10 @@ struct PointQuery<'s> {
     scratch: &'s mut Vec<usize>,
 }
 
-impl<'a> LtcShader<'a> {
+impl LtcShader {
     /// Prepares the per-object data `settings` needs on `scene` (silhouette adjacency only for
     /// the objects its mode takes as silhouettes).
-    pub fn new(settings: &'a LtcIntegrator, scene: &Scene, name: &'static str) -> LtcShader<'a> {
+    pub fn new(settings: ShaderSettings, scene: &Scene, name: &'static str) -> LtcShader {
         let cells: Vec<OnceCell<EdgeAdjacency>> = scene.meshes.iter().map(|_| OnceCell::new()).collect();
         // The scene's (built once when the integrator asks: `ltc` does); `ratio` asks for none
         // and builds only its light meshes' here.
@@ -312,7 +248,7 @@ impl<'a> LtcShader<'a> {
         let mut boxes = Vec::new();
         for (i, mesh) in scene.meshes.iter().enumerate() {
             let occluder = scene.objects.get(i).is_none_or(|o| o.occluder);
-            let info = object_info(settings, mesh, occluder, || adjacency(i));
+            let info = object_info(&settings, mesh, occluder, || adjacency(i));
             if occluder && mesh.triangle_count() > 0 {
                 boxes.push((i, info.bounds));
             }
@@ -331,13 +267,69 @@ impl<'a> LtcShader<'a> {
                 }
             };
         }
-        LtcShader { ltc: settings, objects, bvh: ObjectBvh::build(&boxes), groups, counters: ShaderCounters::default(), name }
+        let objects =
+            Objects { info: objects, bvh: ObjectBvh::build(&boxes), merge_occluders: settings.merge_occluders };
+        LtcShader { settings, objects, groups, counters: ShaderCounters::default(), name }
+    }
+
+    /// Traces a pixel's camera `rays` and shades each surface they see once (with or without
+    /// `shadows`): `begin_pixel` of `ltc` and `ratio`.
+    pub fn trace_pixel(
+        &self,
+        rays: &[Ray],
+        samples: &[CameraSample],
+        scene: &Scene,
+        shadows: bool,
+        stats: &mut ThreadStats,
+    ) -> SharedPixel<AreaLighting> {
+        let mut scratch = Vec::new();
+        SharedPixel::trace(
+            rays,
+            samples,
+            scene,
+            stats,
+            |p, extent| self.refine(scene, p, extent),
+            Some(|a: &AreaLighting, b: &AreaLighting| rgb_differs(a.0, b.0) || rgb_differs(a.1, b.1)),
+            |h, _| {
+                let desc = self.lobes(scene, &h.si)?;
+                Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
+            },
+        )
+    }
+
+    /// How finely pixel shading shades a cluster at `p`: every member near a light (the
+    /// cluster's extent above [`NEAR_FIELD`] of its distance) or for a lobe far sharper than the
+    /// cluster's angle ([`SHARP_EVERY`]); compared with its farthest member for a sharp one
+    /// ([`SHARP_COMPARE`]); once otherwise.
+    fn refine(&self, scene: &Scene, p: &SurfacePoint, extent: ClusterExtent) -> Refine {
+        if extent.world > NEAR_FIELD * self.nearest_light_distance(p.si.p.as_dvec3()) {
+            return Refine::Every;
+        }
+        let alpha = scene
+            .material_of(&p.si)
+            .and_then(|(m, materials, tx)| m.ltc_lobes(&p.si, materials, tx))
+            .and_then(|d| d.lobes.iter().filter_map(|l| l.ggx_alpha()).reduce(f32::min));
+        let angle = extent.angle as f32;
+        match alpha {
+            Some(a) if a < SHARP_EVERY * angle => Refine::Every,
+            Some(a) if a < SHARP_COMPARE * angle => Refine::Compare,
+            _ => Refine::Once,
+        }
     }
 
     /// After the render: the counters into `stats`, and the warnings they call for.
-    pub(crate) fn finish(&self, stats: &mut penumbra_core::integrator::RenderStats, warnings: &penumbra_parser::DiagSink) {
-        self.counters.report(&mut stats.counters);
-        let beyond = self.counters.beyond_table.load(Ordering::Relaxed);
+    pub fn finish(&self, stats: &mut RenderStats, warnings: &DiagSink) {
+        let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
+        let c = &self.counters;
+        for (k, v) in [
+            ("ltc_points", get(&c.points)),
+            ("ltc_quadrature_evals", get(&c.quadrature_evals)),
+            ("ltc_quadrature_splits", get(&c.quadrature_splits)),
+            ("ltc_beyond_table_points", get(&c.beyond_table)),
+        ] {
+            stats.counters.insert(k.into(), v as f64);
+        }
+        let beyond = get(&c.beyond_table);
         if beyond > 0 {
             let alpha_max = Ltc::ggx().map_or(0.0, |t| t.alpha_max);
             warnings.warn(
@@ -353,13 +345,13 @@ impl<'a> LtcShader<'a> {
     }
 
     /// The area lights, one per emitting mesh and radiance.
-    pub(crate) fn light_groups(&self) -> &[LightGroup] {
+    pub fn light_groups(&self) -> &[LightGroup] {
         &self.groups
     }
 
     /// Distance from `p` to the nearest area light's bounding sphere (0 inside one; infinite
     /// without area lights).
-    pub(crate) fn nearest_light_distance(&self, p: DVec3) -> f64 {
+    pub fn nearest_light_distance(&self, p: DVec3) -> f64 {
         self.groups.iter().map(|g| ((p - g.center).length() - g.radius).max(0.0)).fold(f64::INFINITY, f64::min)
     }
 
@@ -369,7 +361,9 @@ impl<'a> LtcShader<'a> {
     pub fn lobes(&self, scene: &Scene, si: &SurfaceInteraction) -> Option<LtcDescription> {
         let (m, materials, tx) = scene.material_of(si)?;
         let d = m.ltc_lobes(si, materials, tx)?;
-        if self.ltc.glossy == Glossy::Ltc && d.lobes.iter().any(|l| l.ggx_alpha().is_some_and(|a| !Ltc::covers(a))) {
+        if self.settings.glossy == Glossy::Ltc
+            && d.lobes.iter().any(|l| l.ggx_alpha().is_some_and(|a| !Ltc::covers(a)))
+        {
             self.counters.beyond_table.fetch_add(1, Ordering::Relaxed);
             return None;
         }
@@ -377,7 +371,7 @@ impl<'a> LtcShader<'a> {
     }
 
     /// The diffuse albedo of [`Self::lobes`] (`None` when the material has no LTC form).
-    pub(super) fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Option<Rgb> {
+    pub fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Option<Rgb> {
         let (m, materials, tx) = scene.material_of(si)?;
         m.ltc_diffuse(si, materials, tx)
     }
@@ -458,7 +452,7 @@ impl<'a> LtcShader<'a> {
         let diffuse = le * acc.diffuse_ff.max(0.0) as f32;
         let mut out = Rgb::ZERO;
         for (k, lc) in q.at.lobes.iter().enumerate() {
-            let term = match (self.ltc.glossy, self.ltc.fresnel) {
+            let term = match (self.settings.glossy, self.settings.fresnel) {
                 (Glossy::Exact, _) => acc.exact[k].as_vec3().max(Rgb::ZERO),
                 (Glossy::Ltc, FresnelMode::Schlick) => {
                     let c = &lc.coeffs;
@@ -509,11 +503,11 @@ impl<'a> LtcShader<'a> {
                     separate: None,
                     receiver: q.receiver,
                 };
-                self.occluders(scene, &pq, q.scratch)
+                self.objects.occluders(scene, &pq, q.scratch)
             } else {
                 Some(Occluders::default())
             };
-            self.integrate_piece(&q.at, outline, occ.unwrap_or_default(), acc);
+            integrate_piece(&self.settings, &q.at, outline, occ.unwrap_or_default(), acc);
         }
     }
 
@@ -540,13 +534,13 @@ impl<'a> LtcShader<'a> {
                 separate: Some(&cl),
                 receiver: q.receiver,
             };
-            self.occluders(scene, &pq, q.scratch)
+            self.objects.occluders(scene, &pq, q.scratch)
         } else {
             Some(Occluders::default())
         };
         match occ {
             Some(occ) => {
-                self.integrate_piece(&q.at, outline, occ, acc);
+                integrate_piece(&self.settings, &q.at, outline, occ, acc);
                 true
             }
             None => false,
@@ -591,18 +585,18 @@ impl<'a> LtcShader<'a> {
                     separate: None,
                     receiver: q.receiver,
                 };
-                self.occluders(scene, &pq, q.scratch).unwrap_or_default()
+                self.objects.occluders(scene, &pq, q.scratch).unwrap_or_default()
             } else {
                 Occluders::default()
             };
-            self.integrate_piece(&q.at, &pv, occ, acc);
+            integrate_piece(&self.settings, &q.at, &pv, occ, acc);
         }
     }
 }
 
 /// The shading frame at `si` for `desc` (its normal turned to ωo's side: pbrt-v3's BSDFs
 /// reflect on whichever side ωo is, so a mesh wound inwards still lights up), ωo in it and
-/// the glossy lobe's LTC; `None` without a normal.
+/// the glossy lobes' LTCs; `None` without a normal.
 fn piece_frame(si: &SurfaceInteraction, desc: &LtcDescription) -> Option<PieceFrame> {
     let n = desc.n.normalize_or_zero();
     if n == Vec3::ZERO {
@@ -625,33 +619,6 @@ fn piece_frame(si: &SurfaceInteraction, desc: &LtcDescription) -> Option<PieceFr
         })
         .collect();
     Some(PieceFrame { p: d3(si.p), frame, wo_local, lobes })
-}
-
-/// What `settings` needs of object `mesh` (`adjacency`: its edge adjacency, asked for only
-/// when needed).
-fn object_info<'m>(
-    settings: &LtcIntegrator,
-    mesh: &TriangleMesh,
-    occluder: bool,
-    adjacency: impl Fn() -> &'m EdgeAdjacency,
-) -> ObjectInfo {
-    let bounds = mesh.bounds();
-    let shadowing = settings.shadows && occluder;
-    let silhouette = match settings.mode {
-        Mode::PerTriangle => None,
-        _ if !shadowing => None,
-        Mode::Auto => mesh.is_closed_convex_with(adjacency(), 1e-4).then(|| SilhouetteMesh::new(mesh, adjacency())),
-        Mode::Silhouette => adjacency().is_closed_manifold().then(|| SilhouetteMesh::new(mesh, adjacency())),
-    };
-    let tris = if shadowing { ObjectBvh::over_triangles(mesh) } else { ObjectBvh::build(&[]) };
-    let (weld, closed) = if shadowing && settings.merge_occluders {
-        let adj = adjacency();
-        (adj.weld.clone(), if adj.is_closed_manifold() { mesh.winding_sign() } else { 0.0 })
-    } else {
-        // (Silhouette meshes are closed: their orientation says which side is inside.)
-        (Vec::new(), if silhouette.is_some() { mesh.winding_sign() } else { 0.0 })
-    };
-    ObjectInfo { bounds, occluder, silhouette, tris, planar: mesh.is_planar(), weld, closed }
 }
 
 /// The scene's area lights gathered per emitting mesh, radiance and sidedness, with the

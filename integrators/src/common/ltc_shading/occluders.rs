@@ -4,30 +4,16 @@
 //! (the paper's `GetBetween`), then each candidate's silhouette or triangles: triangles that
 //! cannot be between the point and the light are dropped, those crossing the light's plane
 //! clipped to its half-space, and one object's unclipped triangles merged into the outline of
-//! their union ([`spherical::triangle_chains`]).
+//! their union ([`spherical_polygon::triangle_chains`]).
 
-use super::shader::{ConvexShape, ObjectInfo, Receiver, Skip};
-use super::LtcShader;
+use super::objects::{ConvexShape, ObjectInfo, Objects, Receiver, Skip};
+use super::region::Occluders;
+use crate::common::spherical_polygon;
 use glam::DVec3;
 use penumbra_core::accel::objects::Cone;
 use penumbra_core::geometry::Bounds3;
 use penumbra_core::scene::Scene;
-use penumbra_core::spherical;
 use penumbra_core::Vec3;
-
-/// What may hide a light piece from the shading point, projected: loops each covering a
-/// region of its own, and chains covering by winding number (outlines of adjacent triangles).
-#[derive(Default)]
-pub(super) struct Occluders {
-    pub(super) loops: Vec<Vec<DVec3>>,
-    pub(super) chains: Vec<Vec<DVec3>>,
-}
-
-impl Occluders {
-    pub(super) fn is_empty(&self) -> bool {
-        self.loops.is_empty() && self.chains.is_empty()
-    }
-}
 
 /// One occluder query: the light piece `piece` (world positions of a triangle, a planar
 /// outline or a convex light's silhouette) seen from `p`.
@@ -74,7 +60,7 @@ enum TriangleOcc {
     Loop(Vec<DVec3>),
 }
 
-impl LtcShader<'_> {
+impl Objects {
     /// The occluder loops (world-space directions from `q.p`) of the piece; `None` when
     /// `q.separate` is given and an occluder is not separated from the light (the caller then
     /// takes the light triangle by triangle).
@@ -90,7 +76,7 @@ impl LtcShader<'_> {
         let mut g = Gather::default();
         self.bvh.query(&reach.cone, scratch);
         for &o in scratch.iter() {
-            let info = &self.objects[o];
+            let info = &self.info[o];
             if skips_object(q, &reach, o, info) {
                 continue;
             }
@@ -125,7 +111,7 @@ impl LtcShader<'_> {
     fn triangles_separated(&self, scene: &Scene, reach: &Reach, o: usize, cl: &ConvexLight, p: DVec3) -> bool {
         let mesh = &scene.meshes[o];
         let mut candidates = Vec::new();
-        self.objects[o].tris.query(&reach.cone, &mut candidates);
+        self.info[o].tris.query(&reach.cone, &mut candidates);
         candidates.iter().all(|&t| {
             let pv = mesh.vertices(t).map(|v| v.as_dvec3());
             let n = (pv[1] - pv[0]).cross(pv[2] - pv[0]);
@@ -157,12 +143,12 @@ impl LtcShader<'_> {
         straddles: bool,
         g: &mut Gather,
     ) {
-        let info = &self.objects[o];
+        let info = &self.info[o];
         let mesh = &scene.meshes[o];
         let Gather { occ, candidates, whole } = g;
         info.tris.query(&reach.cone, candidates);
         whole.clear();
-        let cull = self.ltc.merge_occluders && info.closed != 0.0 && !straddles && o != reach.light_mesh;
+        let cull = self.merge_occluders && info.closed != 0.0 && !straddles && o != reach.light_mesh;
         let receiver = q.receiver;
         for &t in candidates.iter() {
             // The light triangle itself, and the receiver's own triangle (flat: it cannot
@@ -178,15 +164,16 @@ impl LtcShader<'_> {
             }
         }
         // Adjacent triangles: their outline instead of each one (exact, far fewer edges).
-        if whole.len() > 1 && self.ltc.merge_occluders {
-            let outline = spherical::triangle_chains(mesh, whole, &info.weld, q.p);
-            let projected: Vec<Vec<DVec3>> = outline.iter().map(|l| spherical::project(q.p, l)).collect();
+        if whole.len() > 1 && self.merge_occluders {
+            let outline = spherical_polygon::triangle_chains(mesh, whole, &info.weld, q.p);
+            let projected: Vec<Vec<DVec3>> = outline.iter().map(|l| spherical_polygon::project(q.p, l)).collect();
             if projected.iter().flatten().all(|d| *d != DVec3::ZERO) {
                 occ.chains.extend(projected);
                 return;
             }
         }
-        occ.loops.extend(whole.iter().map(|&t| spherical::project(q.p, &mesh.vertices(t).map(|v| v.as_dvec3()))));
+        occ.loops
+            .extend(whole.iter().map(|&t| spherical_polygon::project(q.p, &mesh.vertices(t).map(|v| v.as_dvec3()))));
     }
 }
 
@@ -215,7 +202,7 @@ fn silhouette_occluder(q: &PieceQuery, info: &ObjectInfo, occ: &mut Occluders) -
     if sil_loops.is_empty() {
         return false;
     }
-    occ.loops.extend(sil_loops.iter().map(|l| spherical::project(q.p, l)));
+    occ.loops.extend(sil_loops.iter().map(|l| spherical_polygon::project(q.p, l)));
     true
 }
 
@@ -252,7 +239,7 @@ fn classify_triangle(q: &PieceQuery, reach: &Reach, pv: [DVec3; 3], closed: f64)
     // minor arcs): only triangles wholly in the one around the light are merged.
     let in_hemisphere = pv.iter().all(|v| (*v - p).dot(reach.axis) > 1e-3 * (*v - p).length());
     let Some((plane_o, ln)) = q.plane else {
-        return if in_hemisphere { TriangleOcc::Whole } else { TriangleOcc::Loop(spherical::project(p, &pv)) };
+        return if in_hemisphere { TriangleOcc::Whole } else { TriangleOcc::Loop(spherical_polygon::project(p, &pv)) };
     };
     // Nothing strictly in front of the light's plane (e.g. the other half of a quad light,
     // coplanar with it): it cannot occlude the light.
@@ -269,7 +256,7 @@ fn classify_triangle(q: &PieceQuery, reach: &Reach, pv: [DVec3; 3], closed: f64)
     if clipped.is_empty() {
         return TriangleOcc::Skip;
     }
-    TriangleOcc::Loop(spherical::project(p, &clipped))
+    TriangleOcc::Loop(spherical_polygon::project(p, &clipped))
 }
 
 /// Sutherland–Hodgman in 3D: the part of polygon `poly` with `(x − o)·n ≥ 0`.

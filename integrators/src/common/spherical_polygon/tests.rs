@@ -1,6 +1,6 @@
 use super::*;
-use crate::rng::Rng;
 use glam::Vec3;
+use penumbra_core::rng::Rng;
 use std::f64::consts::PI;
 
 fn cos_sample(rng: &mut Rng) -> DVec3 {

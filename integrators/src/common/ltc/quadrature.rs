@@ -24,8 +24,8 @@
 
 use glam::{DMat3, DVec3};
 
-use crate::geometry::Frame;
-use crate::spherical;
+use penumbra_core::geometry::Frame;
+use crate::common::spherical_polygon as spherical;
 
 /// Subdivision levels of a fan triangle at most (4⁵ = 1024 pieces).
 pub const MAX_DEPTH: u32 = 5;
@@ -123,7 +123,7 @@ pub struct Lobe<'a, F: Fn(DVec3) -> DVec3> {
 }
 
 /// `∫_P f − base·∫_P D` over the region of `loops` (world-space directions, oriented as in
-/// [`crate::spherical`]; positive loops give positive values), by adaptive quadrature in the
+/// [`crate::common::spherical_polygon`]; positive loops give positive values), by adaptive quadrature in the
 /// LTC's cosine space to the absolute tolerance `tol` per loop. Add `base ·`
 /// [`super::ltc_integrate`] of the same loops for `∫_P f`.
 pub fn integrate_residual<F: Fn(DVec3) -> DVec3>(

@@ -22,7 +22,7 @@
 use glam::{DMat3, DVec2, DVec3, Vec2};
 
 use super::{cosine_sample, ltc_pdf, Ltc};
-use crate::microfacet::MicrofacetDistribution;
+use penumbra_core::microfacet::MicrofacetDistribution;
 
 /// Fit settings.
 #[derive(Clone, Copy, Debug, PartialEq)]

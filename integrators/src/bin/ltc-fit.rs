@@ -1,7 +1,7 @@
 //! Fits the LTC table for core's Trowbridge–Reitz reflection, writes it in
-//! `penumbra_core::ltc::Ltc`'s binary format and the fit's error per cell beside it.
+//! `penumbra_integrators::common::ltc::Ltc`'s binary format and the fit's error per cell beside it.
 //!
-//! `cargo run --release -p penumbra-core --bin ltc-fit -- --out core/data/ltc_ggx.bin [--n 64]
+//! `cargo run --release -p penumbra-integrators --bin ltc-fit -- --out integrators/data/ltc_ggx.bin [--n 64]
 //! [--n-alpha N] [--samples 24] [--alpha-min 0.001] [--alpha-max 3] [--report FILE.tsv]`
 //!
 //! The report (default: the output's name with `_fit.tsv` for `.bin`) has one row per cell:
@@ -13,8 +13,8 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use penumbra_core::ltc::fit::{cell_error, fit_table, FitOptions};
-use penumbra_core::ltc::{alpha_axis, alpha_of_axis, Ltc};
+use penumbra_integrators::common::ltc::fit::{cell_error, fit_table, FitOptions};
+use penumbra_integrators::common::ltc::{alpha_axis, alpha_of_axis, Ltc};
 
 fn usage(msg: &str) -> ! {
     eprintln!("ltc-fit: {msg}");
@@ -68,7 +68,7 @@ fn report(table: &Ltc) -> (String, String) {
 
 fn main() {
     let mut opts = FitOptions::default();
-    let mut out = String::from("core/data/ltc_ggx.bin");
+    let mut out = String::from("integrators/data/ltc_ggx.bin");
     let mut report_path: Option<String> = None;
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;

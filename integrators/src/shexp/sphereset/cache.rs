@@ -8,8 +8,8 @@
 
 use super::fit::{Fit, FitParams};
 use super::Sphere;
-use crate::mesh::TriangleMesh;
 use glam::DVec3;
+use penumbra_core::mesh::TriangleMesh;
 use std::path::{Path, PathBuf};
 
 /// Bumped whenever the fit changes what it produces.

@@ -14,8 +14,8 @@
 
 use super::canonical::{argmax_tol, argmin_tol, TIE};
 use super::Sphere;
-use crate::mesh::TriangleMesh;
 use glam::DVec3;
+use penumbra_core::mesh::TriangleMesh;
 use std::f64::consts::PI;
 
 /// How finely a solid is discretised and how long it is optimised.

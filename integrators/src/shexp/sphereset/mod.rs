@@ -1,5 +1,5 @@
-//! Sphere-set approximations of the scene's occluders, for `shexp` (seed 003 §4.1): built at
-//! scene build only when an integrator asks for them ([`crate::scene::Requirements::sphere_sets`]).
+//! Sphere-set approximations of the scene's occluders, for `shexp` (seed 003 §4.1): built once
+//! per scene by `shexp`'s [`Integrator::prepare`](penumbra_core::integrator::Integrator::prepare).
 //!
 //! Every object that casts shadows gets one of:
 //! - **exact**: a `sphere` shape (full, closed, uniformly scaled) is its own sphere;
@@ -21,11 +21,11 @@ pub mod canonical;
 pub mod fit;
 pub mod hierarchy;
 
-use crate::interaction::SceneObject;
-use crate::mesh::TriangleMesh;
 use fit::{Fit, FitParams};
 use glam::DVec3;
 use hierarchy::Hierarchy;
+use penumbra_core::interaction::SceneObject;
+use penumbra_core::mesh::TriangleMesh;
 use std::path::Path;
 use std::time::Instant;
 
@@ -87,6 +87,8 @@ pub struct GroundPlane {
 /// Everything built for a scene.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SphereSets {
+    /// The leaves asked for per fitted object (`"integer spheres"`).
+    pub spheres: u32,
     pub sets: Vec<SphereSet>,
     pub ground: Option<GroundPlane>,
     /// Objects given nothing, with the reason (for `penumbra info`).
@@ -99,6 +101,39 @@ pub struct SphereSets {
 }
 
 impl SphereSets {
+    /// One line per object for `penumbra info`: where its spheres came from, how many, how
+    /// much they stick out, how long they took.
+    pub fn describe(&self, objects: &[SceneObject]) -> Vec<String> {
+        let mut o = Vec::new();
+        for s in &self.sets {
+            let Some(obj) = objects.get(s.object) else { continue };
+            let rel = if s.volume > 0.0 {
+                format!(" ({:.1} % of its volume)", 100.0 * s.outside_volume / s.volume)
+            } else {
+                String::new()
+            };
+            o.push(format!(
+                "object {} ({} at {}:{}): {:?}, {} spheres, {} triangles, outside volume {:.4}{rel}, {:.3} s",
+                s.object,
+                obj.kind,
+                obj.loc.file,
+                obj.loc.line,
+                s.source,
+                s.leaves.len(),
+                s.triangles,
+                s.outside_volume,
+                s.seconds
+            ));
+        }
+        if let Some(g) = &self.ground {
+            o.push(format!("object {} (ground plane): cuts the environment below normal {:.3}", g.object, g.normal));
+        }
+        for (i, why) in &self.skipped {
+            o.push(format!("object {i}: no spheres ({why})"));
+        }
+        o
+    }
+
     pub fn leaf_count(&self) -> usize {
         self.sets.iter().map(|s| s.leaves.len()).sum()
     }
@@ -234,7 +269,7 @@ pub fn build_for_scene(
     params: &FitParams,
     cache_dir: Option<&Path>,
 ) -> SphereSets {
-    let mut out = SphereSets::default();
+    let mut out = SphereSets { spheres: params.spheres, ..Default::default() };
     let mut open: Vec<(usize, Option<(DVec3, DVec3)>)> = Vec::new();
     for (i, (mesh, obj)) in meshes.iter().zip(objects).enumerate() {
         if !obj.occluder {

@@ -5,12 +5,12 @@
 //! per coefficient, and times `Δφ`, summed over the visible intervals, it is the SH projection
 //! of the visibility-masked environment `L·V·H` that `silhouette` shades glossy lobes with
 //! (the paper's "one SAT at the maximum order", §5). The `−axis` pole reads the `+axis` set
-//! from the other end, as [`super::MomentTable`] does. Stored in f32 (a 128-meridian table
+//! from the other end, as [`super::table::MomentTable`] does. Stored in f32 (a 128-meridian table
 //! at order 12 is 85 MB); accumulated in f64.
 
 use super::param::{CellNodes, Meridians, PoleFrame};
-use crate::sh::{basis, ShOrder, MAX_ORDER};
 use glam::DVec3;
+use penumbra_core::sh::{basis, ShOrder, MAX_ORDER};
 use rayon::prelude::*;
 
 /// The fewest sub-cells per cell (in `v`, and sub-wedges in `φ`) at which the radiance is sampled.
@@ -115,7 +115,7 @@ impl ShTable {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sh::quadrature::SphereQuadrature;
+    use penumbra_core::sh::quadrature::SphereQuadrature;
 
     /// Summed over every meridian of either pole, the table projects the environment onto SH
     /// as a fine quadrature does (to the cell discretisation), and a constant environment to
@@ -158,7 +158,7 @@ mod tests {
         for i in 0..m.n {
             t.add(&PoleFrame::new(2, -1.0), i, -1.0, 1.0, order, &mut out);
         }
-        assert!((out[0] * m.dphi - crate::sh::SQRT_4PI).abs() < 1e-5, "{}", out[0] * m.dphi);
+        assert!((out[0] * m.dphi - penumbra_core::sh::SQRT_4PI).abs() < 1e-5, "{}", out[0] * m.dphi);
         assert!(out[1..k].iter().all(|v| (v * m.dphi).abs() < 2e-3), "{:?}", &out[1..k]);
     }
 }

@@ -47,8 +47,8 @@ use i_overlay::core::fill_rule::FillRule;
 use i_overlay::core::overlay_rule::OverlayRule;
 use i_overlay::float::overlay::FloatOverlay;
 
-pub use crate::geometry::orthonormal_basis;
-use crate::mesh::{EdgeAdjacency, TriangleMesh, BOUNDARY};
+pub use penumbra_core::geometry::orthonormal_basis;
+use penumbra_core::mesh::{EdgeAdjacency, TriangleMesh, BOUNDARY};
 
 pub mod cone;
 

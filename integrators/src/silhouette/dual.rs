@@ -26,8 +26,8 @@
 //! to the scene and scaled scenes give the same contours.
 
 use super::orient::orient3d;
-use crate::mesh::TriangleMesh;
 use glam::{DVec3, Vec3};
+use penumbra_core::mesh::TriangleMesh;
 
 /// Edges per leaf.
 const LEAF: usize = 4;

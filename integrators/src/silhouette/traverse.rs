@@ -64,7 +64,7 @@ pub struct Traversal {
 }
 
 impl Traversal {
-    /// Traverses the contours of `p` (normalised coordinates, as [`super::DualEdges`] gives
+    /// Traverses the contours of `p` (normalised coordinates, as [`super::dual::DualEdges`] gives
     /// them) in the visible half-space of `n` (unit), about `frame`'s pole (`n·pole > 0`).
     pub fn run(&mut self, contours: &[Contour], p: DVec3, n: DVec3, frame: &PoleFrame, m: &Meridians) -> Visibility {
         if self.buckets.len() != m.n {
@@ -196,8 +196,8 @@ mod tests {
     use super::super::dual::DualEdges;
     use super::super::param::moment;
     use super::*;
-    use crate::mesh::TriangleMesh;
     use glam::Vec3;
+    use penumbra_core::mesh::TriangleMesh;
     use std::f64::consts::PI;
 
     fn rng(seed: u64) -> impl FnMut() -> f64 {

@@ -1,6 +1,6 @@
 //! Linearly Transformed Cosines (Heitz, Dupuy, Hill & Neubelt 2016) fitted to
 //! pbrt-v3's Trowbridge–Reitz (GGX) microfacet reflection as core evaluates it
-//! ([`crate::microfacet::MicrofacetDistribution`], height-correlated Smith `G`,
+//! ([`penumbra_core::microfacet::MicrofacetDistribution`], height-correlated Smith `G`,
 //! no Fresnel): `f(ωo, ωi) cos θi = D(ωh) G(ωo, ωi) / (4 cos θo)`.
 //!
 //! # Frame and table
@@ -24,9 +24,10 @@
 //! Fresnel 1) and the `fresnel` ratio `∫ f cos (1 − ωo·ωh)⁵ dωi / magnitude`, so
 //! that with Schlick's `F = F0 + (1 − F0)(1 − ωo·ωh)⁵`,
 //! `∫ f F cos ≈ magnitude · (F0 + (1 − F0) · fresnel)` ([`LtcCoeffs::schlick_scale`]).
-//! It is produced by `ltc-fit` (`cargo run --release -p penumbra-core --bin
-//! ltc-fit -- --out core/data/ltc_ggx.bin`, see [`fit`]), which also writes the fit's error
-//! per cell beside it (`core/data/ltc_ggx_fit.tsv`), and embedded with `include_bytes!`.
+//! It is produced by `ltc-fit` (`cargo run --release -p penumbra-integrators --bin
+//! ltc-fit -- --out integrators/data/ltc_ggx.bin`, see [`fit`]), which also writes the fit's
+//! error per cell beside it (`integrators/data/ltc_ggx_fit.tsv`), and embedded with
+//! `include_bytes!`.
 //! The embedded table spans pbrt-v3's whole range: α from 0.001 (pbrt-v3's
 //! `TrowbridgeReitzDistribution` clamps smaller values to it) to 3 (roughness 1 remaps to
 //! 1.62; `remaproughness false` passes any value: beyond α_max, [`Ltc::eval`] returns the
@@ -37,7 +38,7 @@
 //!
 //! `∫_P f(ωo, ω) cos θ dω ≈ magnitude · ltc_integrate(&minv, &frame, loops)` for
 //! a region `P` given as loops of world-space directions (see
-//! [`crate::spherical`] for the loop conventions; the result is signed by
+//! [`crate::common::spherical_polygon`] for the loop conventions; the result is signed by
 //! orientation, positive loops give positive values). That is the LTC's approximation of
 //! the lobe; [`quadrature::integrate_residual`] adds what it misses, for the exact integral.
 
@@ -45,11 +46,11 @@ use std::sync::OnceLock;
 
 use glam::{DMat3, DVec2, DVec3};
 
-use crate::geometry::Frame;
-use crate::spherical;
+use crate::common::spherical_polygon;
+use penumbra_core::geometry::Frame;
 
 /// The embedded GGX table (see the module documentation for the format).
-static LTC_GGX_BIN: &[u8] = include_bytes!("../data/ltc_ggx.bin");
+static LTC_GGX_BIN: &[u8] = include_bytes!("../../../data/ltc_ggx.bin");
 
 /// One LTC: its inverse matrix (local frame) and the scalar terms.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -158,7 +159,7 @@ pub fn ltc_integrate_vector(minv: &DMat3, frame: &Frame<DVec3>, loops: &[Vec<DVe
     let mut sum = DVec3::ZERO;
     let flip = minv.determinant() < 0.0;
     for l in loops {
-        let f = spherical::horizon_vector_form_factor(l.len(), |i| *minv * frame.to_local(l[i]));
+        let f = spherical_polygon::horizon_vector_form_factor(l.len(), |i| *minv * frame.to_local(l[i]));
         sum += if flip { -f } else { f };
     }
     sum

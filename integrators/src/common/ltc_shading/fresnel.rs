@@ -3,14 +3,14 @@
 //! with rings around the total-internal-reflection circle of a dielectric seen from its
 //! dense side.
 
-use super::integrate::{LightLoop, Visible};
+use super::region::{LightLoop, Visible};
+use crate::common::ltc::{ltc_integrate_vector, LtcCoeffs};
 use crate::common::params::{ParamSpec, Params};
+use crate::common::spherical_polygon::{self, cone::BoundingCone};
 use glam::DVec3;
 use penumbra_core::geometry::Frame;
-use penumbra_core::ltc::{ltc_integrate_vector, LtcCoeffs};
 use penumbra_core::material::LtcFresnel;
 use penumbra_core::spectrum::luminance;
-use penumbra_core::spherical::{self, cone::BoundingCone};
 use penumbra_core::Rgb;
 use penumbra_parser::Diagnostic;
 
@@ -195,7 +195,7 @@ impl<'a> FresnelAverage<'a> {
 /// orientation.
 fn positive(l: &[DVec3]) -> Vec<Vec<DVec3>> {
     let mut l = l.to_vec();
-    if spherical::solid_angle(&l) < 0.0 {
+    if spherical_polygon::solid_angle(&l) < 0.0 {
         l.reverse();
     }
     vec![l]
@@ -274,18 +274,18 @@ fn fresnel_circle(f: &LtcFresnel, y: f32) -> Option<f64> {
 /// `{ω : ω·axis ≥ t}` approximated by its inscribed `n`-gon: Sutherland–Hodgman against the
 /// polygon's `n` great-circle half-spaces, exact in every additive integral and far cheaper
 /// than a general overlay. Caps of a hemisphere or more (t ≤ 0.02: not convex enough) go
-/// through [`spherical::intersection`].
+/// through [`spherical_polygon::intersection`].
 pub(super) fn clip_to_cap(region: &[Vec<DVec3>], axis: DVec3, t: f64, n: usize) -> Vec<Vec<DVec3>> {
     let cap = cap_loop(axis, t, n);
     if t <= 0.02 {
-        return spherical::intersection(region, &[cap]);
+        return spherical_polygon::intersection(region, &[cap]);
     }
     let sign = if cap[0].cross(cap[1]).dot(axis) >= 0.0 { 1.0 } else { -1.0 };
     let planes: Vec<DVec3> = (0..n).map(|i| cap[i].cross(cap[(i + 1) % n]) * sign).collect();
     region
         .iter()
         .filter_map(|l| {
-            let (c, _) = spherical::clip_to_halfspaces(l, planes.iter().copied());
+            let (c, _) = spherical_polygon::clip_to_halfspaces(l, planes.iter().copied());
             (c.len() >= 3).then_some(c)
         })
         .collect()
@@ -298,7 +298,7 @@ fn cap_loop(axis: DVec3, t: f64, n: usize) -> Vec<DVec3> {
         /// (n, cos and sin of 2πk/n): the last polygon's angles.
         static ANGLES: std::cell::RefCell<(usize, Vec<(f64, f64)>)> = const { std::cell::RefCell::new((0, Vec::new())) };
     }
-    let (u, v) = spherical::orthonormal_basis(axis);
+    let (u, v) = spherical_polygon::orthonormal_basis(axis);
     let r = (1.0 - t * t).max(0.0).sqrt();
     ANGLES.with(|a| {
         let mut a = a.borrow_mut();

@@ -1,10 +1,10 @@
 use super::fit::{m_from_params, minv_params};
 use super::*;
-use crate::bxdf::{Bxdf, Fresnel};
-use crate::microfacet::MicrofacetDistribution;
-use crate::rng::Rng;
-use crate::spherical::{form_factor, orthonormal_basis, solid_angle, winding_number_loops};
+use crate::common::spherical_polygon::{form_factor, orthonormal_basis, solid_angle, winding_number_loops};
 use glam::{Vec2, Vec3};
+use penumbra_core::bxdf::{Bxdf, Fresnel};
+use penumbra_core::microfacet::MicrofacetDistribution;
+use penumbra_core::rng::Rng;
 use std::f64::consts::PI;
 
 fn table() -> &'static Ltc {
@@ -211,7 +211,7 @@ fn sample_and_pdf_agree_by_chi_square() {
             }
         }
         assert!((total - 1.0).abs() < 5e-3, "pdf integrates to {total}");
-        let (chi2, dof, p) = crate::stats::chi2_test(&obs, &exp, 5.0);
+        let (chi2, dof, p) = penumbra_core::stats::chi2_test(&obs, &exp, 5.0);
         assert!(p > 1e-3, "cos {cos} alpha {alpha}: chi2 {chi2} dof {dof} p {p}");
     }
 }
