@@ -73,7 +73,8 @@ struct CellError {
 }
 
 fn cell_error(ours: &Image, reference: &Image) -> CellError {
-    let (a, b) = (block_means(ours), reference.data.chunks(3).map(|p| p.iter().map(|v| *v as f64).sum()).collect::<Vec<f64>>());
+    let (a, b) =
+        (block_means(ours), reference.data.chunks(3).map(|p| p.iter().map(|v| *v as f64).sum()).collect::<Vec<f64>>());
     assert_eq!(b.len(), 64, "references are 8×8 images of block means");
     let mean = a.iter().sum::<f64>() / b.iter().sum::<f64>() - 1.0;
     let (mut block, mut at) = (0.0f64, 0);
@@ -102,7 +103,13 @@ fn check_cells(integrator: &str, params: &[&str], spp: u32, keep: impl Fn(usize)
             continue;
         }
         let reference = penumbra_core::image::read(&path).expect("reference");
-        let opts = Opts { integrator: Some(integrator), params, spp: Some(spp), resolution: Some((64, 64)), ..Default::default() };
+        let opts = Opts {
+            integrator: Some(integrator),
+            params,
+            spp: Some(spp),
+            resolution: Some((64, 64)),
+            ..Default::default()
+        };
         let r = render_text(&scene_text(&floor), &opts);
         assert!(r.image.data.iter().all(|v| v.is_finite() && *v >= 0.0), "{name}: bad values");
         let e = cell_error(&r.image, &reference);

@@ -9,8 +9,9 @@
 //! are left to the integrator: [`LtcDescription::transmits`]) and mix (the sub-materials'
 //! lobes scaled as pbrt-v3's `ScaledBxDF` scales them, in the first one's shading frame).
 //! Not described (`None`): Oren–Nayar matte, anisotropic roughness (`uroughness ≠
-//! vroughness`), mirror, glass, a mix with such a sub-material or more than [`MAX_LOBES`]
-//! lobes.
+//! vroughness`), mirror, glass, fourier, hair, subsurface, disney (Burley's diffuse is not
+//! Lambertian, its retro-reflection lobe is always present, its masking term is separable and
+//! its Fresnel its own), a mix with such a sub-material or more than [`MAX_LOBES`] lobes.
 
 use super::{eval_f, eval_s, is_black, Material, Materials, ShadingGeometry};
 use crate::bxdf::{Bxdf, Fresnel};
@@ -47,8 +48,7 @@ pub struct LtcLobes {
 
 impl Default for LtcLobes {
     fn default() -> Self {
-        const NONE: LtcLobe =
-            LtcLobe { alpha: 1.0, kind: LtcLobeKind::Microfacet(LtcFresnel::NoOp), scale: Rgb::ZERO };
+        const NONE: LtcLobe = LtcLobe { alpha: 1.0, kind: LtcLobeKind::Microfacet(LtcFresnel::NoOp), scale: Rgb::ZERO };
         LtcLobes { len: 0, items: [NONE; MAX_LOBES] }
     }
 }
@@ -197,7 +197,11 @@ impl LtcLobe {
             LtcLobeKind::BlendSpecular { rs } => Bxdf::fresnel_blend(Rgb::ZERO, rs, dist()).f(wo, wi),
             LtcLobeKind::BlendDiffuse { rd, rs } => {
                 let pow5 = |v: f32| (v * v) * (v * v) * v;
-                (28.0 / (23.0 * PI)) * rd * (Rgb::ONE - rs) * (1.0 - pow5(1.0 - 0.5 * wi.z)) * (1.0 - pow5(1.0 - 0.5 * wo.z))
+                (28.0 / (23.0 * PI))
+                    * rd
+                    * (Rgb::ONE - rs)
+                    * (1.0 - pow5(1.0 - 0.5 * wi.z))
+                    * (1.0 - pow5(1.0 - 0.5 * wo.z))
             }
         };
         f * self.scale * wi.z
@@ -309,9 +313,14 @@ pub(super) struct PartsAt<'a> {
 
 impl Material {
     /// The material in LTC terms (see [`LtcDescription`]); `None` when it has no such form.
-    pub fn ltc_lobes(&self, si: &SurfaceInteraction, materials: &Materials, textures: &Textures) -> Option<LtcDescription> {
+    pub fn ltc_lobes(
+        &self,
+        si: &SurfaceInteraction,
+        materials: &Materials,
+        textures: &Textures,
+    ) -> Option<LtcDescription> {
         let ctx = TextureEvalContext::from_si(si);
-        let geom = ShadingGeometry::infer(si);
+        let geom = ShadingGeometry::of(si);
         self.ltc_lobes_ext(si, &ctx, &geom, materials, textures)
     }
 
@@ -407,11 +416,17 @@ impl Material {
                     let fresnel = LtcFresnel::Dielectric { eta_i: 1.0, eta_t: 1.5 };
                     add(LtcLobe { alpha, kind: LtcLobeKind::Microfacet(fresnel), scale: r * ks })?;
                 }
-                let transmits = !is_black(t) && !(is_black(eval_s(tx, kd, ctx)) && is_black(ks));
+                let transmits = !(is_black(t) || is_black(eval_s(tx, kd, ctx)) && is_black(ks));
                 return Some((r * eval_s(tx, kd, ctx), lobes, transmits));
             }
             Material::Mix { amount, m1, m2 } => return self.mix_parts(at, amount, [m1, m2]),
-            Material::Mirror { .. } | Material::Glass { .. } => return None,
+            // No Lambertian-plus-GGX form (see `ltc_lobes`).
+            Material::Mirror { .. }
+            | Material::Glass { .. }
+            | Material::Disney(_)
+            | Material::Fourier(_)
+            | Material::Hair(_)
+            | Material::Subsurface(_) => return None,
         };
         Some((diffuse, lobes, false))
     }

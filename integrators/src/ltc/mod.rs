@@ -48,9 +48,10 @@ use crate::common::{max_depth, max_depth_param};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::Ray;
+use penumbra_core::geometry::RayDifferential;
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, SampleContext,
+    ThreadStats,
 };
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
@@ -141,8 +142,10 @@ impl LtcIntegrator {
 impl Estimator<'_> {
     /// Radiance from `hit`, the `depth`-th surface of a camera ray's specular chain (0: the
     /// first); `area` is its analytic area lighting when already computed for the pixel.
+    #[allow(clippy::too_many_arguments)]
     fn shade(
         &self,
+        ray: &RayDifferential,
         hit: &SurfacePoint,
         area: Option<(Rgb, Rgb)>,
         scene: &Scene,
@@ -157,8 +160,9 @@ impl Estimator<'_> {
         let (lit, coverage) = match area {
             Some((diffuse, specular)) => {
                 let lit = LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular);
-                let transmits =
-                    lit.is_some() && may_transmit(scene, si) && self.shader.lobes(scene, si).is_some_and(|d| d.transmits);
+                let transmits = lit.is_some()
+                    && may_transmit(scene, si)
+                    && self.shader.lobes(scene, si).is_some_and(|d| d.transmits);
                 (lit, Coverage::of(lit.is_some(), transmits))
             }
             None => match self.shader.lobes(scene, si) {
@@ -184,11 +188,11 @@ impl Estimator<'_> {
                 }
                 if follow && has_specular(&hit.bsdf) {
                     for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-                        l += specular(&hit.si, &hit.bsdf, sampler, stats, kind, |r, sampler, stats| {
+                        l += specular(&hit.si, &hit.bsdf, ray, sampler, stats, kind, |r, sampler, stats| {
                             let (next, queries) = scene.first_point(r);
                             stats.add_continued(queries);
                             match next {
-                                Ok(h) => self.shade(&h, None, scene, sampler, stats, depth + 1),
+                                Ok(h) => self.shade(r, &h, None, scene, sampler, stats, depth + 1),
                                 Err(escaped) => escaped,
                             }
                         });
@@ -210,18 +214,12 @@ fn may_transmit(scene: &Scene, si: &penumbra_core::interaction::SurfaceInteracti
 impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<AreaLighting>;
 
-    fn li(
-        &self,
-        ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         let (first, queries) = scene.first_point(ray);
         stats.add_continued(queries);
         match first {
-            Ok(h) => self.shade(&h, None, scene, sampler, stats, 0),
+            Ok(h) => self.shade(ray, &h, None, scene, sampler, stats, 0),
             Err(escaped) => escaped,
         }
     }
@@ -232,7 +230,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn begin_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
@@ -240,27 +238,16 @@ impl PixelEstimator for Estimator<'_> {
         Some(self.shader.trace_pixel(rays, samples, scene, self.ltc.shadows, stats))
     }
 
-    fn li_shared(
-        &self,
-        _ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         match shared.sample(index) {
-            (Ok(h), area) => self.shade(h, area, scene, sampler, stats, 0),
+            (Ok(h), area) => self.shade(ray, h, area, scene, sampler, stats, 0),
             (Err(escaped), _) => *escaped,
         }
     }
 }
 
 impl Integrator for LtcIntegrator {
-    fn name(&self) -> &str {
-        "ltc"
-    }
     fn requirements(&self) -> Requirements {
         Requirements {
             accel: true,

@@ -12,8 +12,8 @@ use crate::common::pixel_shading::SharedPixel;
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::camera::CameraSample;
-use penumbra_core::geometry::{gamma, Frame, Ray};
-use penumbra_core::integrator::{PixelEstimator, ThreadStats};
+use penumbra_core::geometry::{gamma, Frame, Ray, RayDifferential};
+use penumbra_core::integrator::{PixelEstimator, SampleContext, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{emitting_normal, DiffuseAreaLight, Light, LightContext};
 use penumbra_core::material::{LtcDescription, LtcLobe};
@@ -372,7 +372,7 @@ impl Estimator<'_> {
     /// its specular chains reach ([`follow_specular`](Self::follow_specular)).
     fn shade(
         &self,
-        ray: &Ray,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         area: Option<AreaLighting>,
         scene: &Scene,
@@ -382,7 +382,7 @@ impl Estimator<'_> {
         let (mut rest, mut sample) = self.shade_surface(ray, hit, area, scene, sampler, stats);
         if has_specular(&hit.bsdf) {
             let mut chain = Chain::default();
-            self.follow_specular(hit, Rgb::ONE, 0, scene, sampler, stats, &mut chain);
+            self.follow_specular(ray, hit, Rgb::ONE, 0, scene, sampler, stats, &mut chain);
             rest += chain.rest;
             sample.chain = chain.terms;
         }
@@ -396,6 +396,7 @@ impl Estimator<'_> {
     #[allow(clippy::too_many_arguments)]
     fn follow_specular(
         &self,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         beta: Rgb,
         depth: u32,
@@ -408,7 +409,7 @@ impl Estimator<'_> {
             return;
         }
         for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-            let Some(sr) = specular_ray(&hit.si, &hit.bsdf, sampler, stats, kind) else { continue };
+            let Some(sr) = specular_ray(&hit.si, &hit.bsdf, ray, sampler, stats, kind) else { continue };
             let beta = beta * sr.f * sr.scale;
             let (next, queries) = scene.first_surface(&sr.ray);
             stats.add_continued(queries);
@@ -416,7 +417,7 @@ impl Estimator<'_> {
                 Ok(h) => {
                     let (rest, t) = self.shade_surface(&sr.ray, &h, None, scene, sampler, stats);
                     chain.add(beta, rest, &t);
-                    self.follow_specular(&h, beta, depth + 1, scene, sampler, stats, chain);
+                    self.follow_specular(&sr.ray, &h, beta, depth + 1, scene, sampler, stats, chain);
                 }
                 Err(escaped) => chain.rest += beta * escaped,
             }
@@ -528,7 +529,8 @@ impl PixelEstimator for Estimator<'_> {
         }
     }
 
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         let (first, queries) = scene.first_surface(ray);
         stats.add_continued(queries);
         match first {
@@ -549,7 +551,7 @@ impl PixelEstimator for Estimator<'_> {
     /// stochastic `S_N`, `U_N` stay per camera sample.
     fn begin_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
@@ -557,16 +559,8 @@ impl PixelEstimator for Estimator<'_> {
         Some(self.shader.trace_pixel(rays, samples, scene, false, stats))
     }
 
-    fn li_shared(
-        &self,
-        ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         match shared.sample(index) {
             (Ok(pt), area) => match pt.with_bsdf(scene) {
                 Some(h) => {

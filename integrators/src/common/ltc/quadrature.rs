@@ -24,8 +24,8 @@
 
 use glam::{DMat3, DVec3};
 
-use penumbra_core::geometry::Frame;
 use crate::common::spherical_polygon as spherical;
+use penumbra_core::geometry::Frame;
 
 /// Subdivision levels of a fan triangle at most (4⁵ = 1024 pieces).
 pub const MAX_DEPTH: u32 = 5;

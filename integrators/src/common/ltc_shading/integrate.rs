@@ -115,8 +115,8 @@ fn exact_piece(
     let base = f(peak / l) * (std::f64::consts::PI * det.recip().abs() / (l * l * l));
     let base = if base.is_finite() { base } else { DVec3::ZERO };
     let analytic = base * ltc_integrate(&minv, &at.frame, loops);
-    let tol = tol
-        .unwrap_or(QUADRATURE_REL * analytic.abs().max_element() + QUADRATURE_FLOOR * base.abs().max_element());
+    let tol =
+        tol.unwrap_or(QUADRATURE_REL * analytic.abs().max_element() + QUADRATURE_FLOOR * base.abs().max_element());
     (analytic + integrate_residual(&Lobe { minv: &minv, base, f }, &at.frame, loops, tol, st), tol)
 }
 
@@ -124,22 +124,19 @@ fn exact_piece(
 /// the LTC's with its Fresnel treatment) of the part of the light piece `piece` (world
 /// positions) not covered by the `occ` loops.
 pub(super) fn integrate_piece(
-settings: &ShaderSettings,
-at: &PieceFrame,
-piece: &[DVec3],
-mut occ: Occluders,
-acc: &mut Accum,
+    settings: &ShaderSettings,
+    at: &PieceFrame,
+    piece: &[DVec3],
+    mut occ: Occluders,
+    acc: &mut Accum,
 ) {
     let light = LightLoop::new(spherical::project(at.p, piece));
     cull_occluders(&mut occ, &light);
     let vis = Visible::of(&light, &occ);
     // The diffuse form factor in the shading frame, then the LTC integral together with
     // its vector form factor (one pass over the edges for both).
-    let ff: f64 = vis
-        .loops
-        .iter()
-        .map(|l| spherical::horizon_vector_form_factor(l.len(), |i| at.frame.to_local(l[i])).z)
-        .sum();
+    let ff: f64 =
+        vis.loops.iter().map(|l| spherical::horizon_vector_form_factor(l.len(), |i| at.frame.to_local(l[i])).z).sum();
     acc.diffuse_ff += if vis.single { ff.abs() } else { ff };
     if at.lobes.is_empty() {
         return;

@@ -13,7 +13,7 @@ use crate::common::pixel_shading::{rgb_differs, ClusterExtent, Refine, SharedPix
 use glam::DVec3;
 use penumbra_core::accel::objects::ObjectBvh;
 use penumbra_core::camera::CameraSample;
-use penumbra_core::geometry::{Frame, Ray};
+use penumbra_core::geometry::{Frame, RayDifferential};
 use penumbra_core::integrator::{RenderStats, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::emitting_normal;
@@ -110,10 +110,8 @@ fn on_one_sphere(vertices: &[DVec3]) -> Option<(DVec3, f64)> {
         .iter()
         .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
     let center = (lo + hi) * 0.5;
-    let (near, far) = vertices
-        .iter()
-        .map(|v| (*v - center).length())
-        .fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r), b.max(r)));
+    let (near, far) =
+        vertices.iter().map(|v| (*v - center).length()).fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r), b.max(r)));
     (far > 0.0 && near >= far * (1.0 - 1e-5)).then_some((center, far))
 }
 
@@ -276,7 +274,7 @@ impl LtcShader {
     /// `shadows`): `begin_pixel` of `ltc` and `ratio`.
     pub fn trace_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         shadows: bool,
@@ -361,8 +359,7 @@ impl LtcShader {
     pub fn lobes(&self, scene: &Scene, si: &SurfaceInteraction) -> Option<LtcDescription> {
         let (m, materials, tx) = scene.material_of(si)?;
         let d = m.ltc_lobes(si, materials, tx)?;
-        if self.settings.glossy == Glossy::Ltc
-            && d.lobes.iter().any(|l| l.ggx_alpha().is_some_and(|a| !Ltc::covers(a)))
+        if self.settings.glossy == Glossy::Ltc && d.lobes.iter().any(|l| l.ggx_alpha().is_some_and(|a| !Ltc::covers(a)))
         {
             self.counters.beyond_table.fetch_add(1, Ordering::Relaxed);
             return None;
