@@ -39,8 +39,9 @@ fn embedded_table_is_valid() {
         assert!(c.iter().all(|v| v.is_finite()));
         assert!(c[4] > 0.0 && c[4] <= 1.0 + 1e-3, "magnitude {}", c[4]);
         assert!((0.0..=1.0).contains(&c[5]), "fresnel {}", c[5]);
-        let m = minv_from_params([c[0] as f64, c[1] as f64, c[2] as f64, c[3] as f64]);
-        assert!(m.determinant() > 0.0);
+        // a cell is the shape [m11, m22, m13, θz] of M (see `m_from_shape`)
+        let m = m_from_shape([c[0] as f64, c[1] as f64, c[2] as f64, c[3] as f64]);
+        assert!(m.determinant() > 0.0, "{c:?}");
     }
     // round trip of the format
     assert_eq!(Ltc::from_bytes(&t.to_bytes()).as_ref(), Ok(t));
