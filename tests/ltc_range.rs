@@ -150,7 +150,7 @@ const KNOWN_BLOCK_FAILURES: &[(&str, &str)] = &[("ratio", "metal-r0.001")];
 const LTC_PARAMS: &[&str] = &["coveragesamples=256"];
 
 /// The targets (image mean within 1 %, every 8×8 block within 3 %), which every cell
-/// meets with `ltc` at 16 spp; measured worst: see `docs/integrators/ltc.md`.
+/// meets with `ltc` at 16 spp; measured worst: see `docs/integrators/ltc-range.md`.
 const TOL: (f64, f64) = (0.01, 0.03);
 
 /// Half of the cells in the default run (the other half: `every_cell_ltc_and_ratio`, ignored
