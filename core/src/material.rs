@@ -147,36 +147,6 @@ impl Default for BsdfOptions {
     }
 }
 
-/// How an LTC-based integrator can describe a material: a diffuse albedo and an
-/// optional GGX (Trowbridge–Reitz) lobe.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LtcDescription {
-    /// Shading normal (after bump mapping).
-    pub n: Vec3,
-    /// Lambertian albedo (for `substrate`, the `Kd` of its Ashikhmin–Shirley diffuse term).
-    pub diffuse: Rgb,
-    pub specular: Option<LtcSpecular>,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LtcSpecular {
-    /// Isotropic GGX alpha (already remapped).
-    pub alpha: f32,
-    pub fresnel: LtcFresnel,
-    /// Multiplier of the microfacet lobe (`Ks` for plastic/uber, 1 for metal/substrate).
-    pub scale: Rgb,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum LtcFresnel {
-    /// pbrt-v3's `FresnelDielectric(eta_i, eta_t)` (plastic uses 1.5, 1 — sic).
-    Dielectric { eta_i: f32, eta_t: f32 },
-    /// `FresnelConductor(1, eta, k)`.
-    Conductor { eta: Rgb, k: Rgb },
-    /// Schlick's approximation with normal-incidence reflectance `f0` (substrate's `Ks`).
-    Schlick { f0: Rgb },
-}
-
 /// The scene's materials, by index in `SceneDescription::materials`; only those some
 /// object uses (and the materials a used `mix` refers to) are built.
 #[derive(Clone, Debug, Default)]
@@ -835,113 +805,10 @@ impl Material {
             _ => None,
         }
     }
-
-    /// The material as a diffuse albedo plus an optional isotropic GGX lobe, for
-    /// analytic (LTC) integrators; `None` when it is not of that form (Oren–Nayar
-    /// matte, anisotropic roughness, mirror, glass, mix, translucent, fourier, hair,
-    /// subsurface, and disney at every setting: Burley's diffuse is not Lambertian and its
-    /// retro-reflection lobe is always present, its specular masking term is separable, not
-    /// the height-correlated one the LTC tables were fitted to, and its Fresnel is its own).
-    /// For `uber` only its diffuse and glossy parts are described.
-    pub fn ltc_lobes(&self, si: &SurfaceInteraction, textures: &Textures) -> Option<LtcDescription> {
-        let ctx = TextureEvalContext::from_si(si);
-        let geom = ShadingGeometry::of(si);
-        self.ltc_lobes_ext(si, &ctx, &geom, textures)
-    }
-
-    /// [`Self::ltc_lobes`] with an explicit texture context and shading geometry.
-    pub fn ltc_lobes_ext(
-        &self,
-        si: &SurfaceInteraction,
-        ctx: &TextureEvalContext,
-        geom: &ShadingGeometry,
-        tx: &Textures,
-    ) -> Option<LtcDescription> {
-        let (diffuse, specular) = self.ltc_parts(ctx, tx, true)?;
-        let (n, _) = self.frame(si, ctx, geom, tx);
-        Some(LtcDescription { n, diffuse, specular })
-    }
-
-    /// The diffuse albedo of [`Self::ltc_lobes`] alone (`None` exactly when it is `None`):
-    /// neither the shading frame nor the glossy lobe's Fresnel and remapped roughness are
-    /// evaluated — what a pixel sample needs when its surface's lighting was integrated once
-    /// for the pixel.
-    pub fn ltc_diffuse(&self, si: &SurfaceInteraction, tx: &Textures) -> Option<Rgb> {
-        self.ltc_parts(&TextureEvalContext::from_si(si), tx, false).map(|(d, _)| d)
-    }
-
-    /// The diffuse albedo and, with `specular`, the glossy lobe of [`Self::ltc_lobes`]
-    /// (without it, only what decides whether there is an LTC form is evaluated).
-    fn ltc_parts(&self, ctx: &TextureEvalContext, tx: &Textures, specular: bool) -> Option<(Rgb, Option<LtcSpecular>)> {
-        let alpha = |r: f32, remap: bool| if remap { roughness_to_alpha(r) } else { r };
-        let iso = |ur: f32, vr: f32, remap: bool| {
-            let (a, b) = (alpha(ur, remap), alpha(vr, remap));
-            (a == b).then(|| MicrofacetDistribution::trowbridge_reitz(a, a).alphas().0)
-        };
-        Some(match *self {
-            Material::Matte { kd, sigma, .. } => {
-                if eval_f(tx, sigma, ctx).clamp(0.0, 90.0) != 0.0 {
-                    return None;
-                }
-                (eval_s(tx, kd, ctx), None)
-            }
-            Material::Plastic { kd, .. } if !specular => (eval_s(tx, kd, ctx), None),
-            Material::Plastic { kd, ks, roughness, remap, .. } => {
-                let ks = eval_s(tx, ks, ctx);
-                let r = eval_f(tx, roughness, ctx);
-                let spec = (!is_black(ks)).then(|| LtcSpecular {
-                    alpha: iso(r, r, remap).unwrap_or(1.0),
-                    fresnel: LtcFresnel::Dielectric { eta_i: 1.5, eta_t: 1.0 },
-                    scale: ks,
-                });
-                (eval_s(tx, kd, ctx), spec)
-            }
-            Material::Metal { eta, k, roughness, uroughness, vroughness, remap, .. } => {
-                let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
-                let vr = eval_f(tx, vroughness.unwrap_or(roughness), ctx);
-                let a = iso(ur, vr, remap)?;
-                let spec = specular.then(|| LtcSpecular {
-                    alpha: a,
-                    fresnel: LtcFresnel::Conductor { eta: tx.eval_spectrum(eta, ctx), k: tx.eval_spectrum(k, ctx) },
-                    scale: Rgb::ONE,
-                });
-                (Rgb::ZERO, spec)
-            }
-            Material::Substrate { kd, ks, uroughness, vroughness, remap, .. } => {
-                let ur = eval_f(tx, uroughness, ctx);
-                let vr = eval_f(tx, vroughness, ctx);
-                let a = iso(ur, vr, remap)?;
-                let spec = specular.then(|| LtcSpecular {
-                    alpha: a,
-                    fresnel: LtcFresnel::Schlick { f0: eval_s(tx, ks, ctx) },
-                    scale: Rgb::ONE,
-                });
-                (eval_s(tx, kd, ctx), spec)
-            }
-            Material::Uber { kd, ks, roughness, uroughness, vroughness, eta, opacity, remap, .. } => {
-                let op = eval_s(tx, opacity, ctx);
-                let ks = op * eval_s(tx, ks, ctx);
-                let spec = if is_black(ks) {
-                    None
-                } else {
-                    let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
-                    let vr = match vroughness {
-                        Some(v) => eval_f(tx, v, ctx),
-                        None => ur,
-                    };
-                    let a = iso(ur, vr, remap)?;
-                    specular.then(|| LtcSpecular {
-                        alpha: a,
-                        fresnel: LtcFresnel::Dielectric { eta_i: 1.0, eta_t: eval_f(tx, eta, ctx) },
-                        scale: ks,
-                    })
-                };
-                (op * eval_s(tx, kd, ctx), spec)
-            }
-            _ => return None,
-        })
-    }
 }
+
+mod ltc;
+pub use ltc::{LobeEval, LtcDescription, LtcFresnel, LtcLobe, LtcLobeKind, LtcLobes, MAX_LOBES};
 
 #[cfg(test)]
 mod tests;

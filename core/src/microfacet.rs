@@ -4,14 +4,14 @@
 //! after Heitz & d'Eon 2014).
 //!
 //! Directions are in the local shading frame (z = normal). Alphas are clamped to
-//! at least [`MIN_ALPHA`] so that `alpha = 0` (which pbrt-v3 turns into NaNs)
-//! stays finite; use a specular lobe for a perfectly smooth surface.
+//! at least [`MIN_ALPHA`], as pbrt-v3's distributions clamp them (0.001; a negative or NaN
+//! alpha becomes it too); use a specular lobe for a perfectly smooth surface.
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
-/// Smallest alpha a distribution is built with.
-pub const MIN_ALPHA: f32 = 1e-4;
+/// Smallest alpha a distribution is built with (pbrt-v3's `std::max(Float(0.001), alpha)`).
+pub const MIN_ALPHA: f32 = 1e-3;
 
 /// pbrt-v3's roughness → alpha remapping (`RoughnessToAlpha`, the same polynomial
 /// in `ln(roughness)` for both distributions), with roughness clamped to ≥ 1e-3.
@@ -81,7 +81,7 @@ fn sane_alpha(a: f32) -> f32 {
     if a.is_nan() {
         MIN_ALPHA
     } else {
-        a.abs().clamp(MIN_ALPHA, 1e4)
+        a.clamp(MIN_ALPHA, 1e4)
     }
 }
 

@@ -415,29 +415,35 @@ fn ltc_descriptions() {
     );
     let b = build(&desc, &[true; 7]);
     let si = flat_si();
-    let l = |i: usize| b.materials.get(i).unwrap().ltc_lobes(&si, &b.textures);
+    let l = |i: usize| b.materials.get(i).unwrap().ltc_lobes(&si, &b.materials, &b.textures);
     let a = roughness_to_alpha(0.1);
+    let plastic = LtcLobe {
+        alpha: a,
+        kind: LtcLobeKind::Microfacet(LtcFresnel::Dielectric { eta_i: 1.5, eta_t: 1.0 }),
+        scale: Vec3::splat(0.25),
+    };
     assert_eq!(
         l(0),
         Some(LtcDescription {
             n: Vec3::Z,
             diffuse: Vec3::new(0.1, 0.2, 0.3),
-            specular: Some(LtcSpecular {
-                alpha: a,
-                fresnel: LtcFresnel::Dielectric { eta_i: 1.5, eta_t: 1.0 },
-                scale: Vec3::splat(0.25)
-            }),
+            lobes: LtcLobes::from_slice(&[plastic]).unwrap(),
+            transmits: false,
         })
     );
     assert_eq!(l(1), None);
     assert_eq!(l(2), None);
     let m = l(3).unwrap();
     assert_eq!(m.diffuse, Vec3::ZERO);
-    assert_eq!(m.specular.unwrap().fresnel, LtcFresnel::Conductor { eta: copper_eta(), k: copper_k() });
-    assert_eq!(m.specular.unwrap().alpha, roughness_to_alpha(0.01));
-    assert_eq!(l(4).unwrap().specular.unwrap().fresnel, LtcFresnel::Schlick { f0: Vec3::splat(0.5) });
+    let metal = m.lobes.as_slice()[0];
+    assert_eq!(metal.kind, LtcLobeKind::Microfacet(LtcFresnel::Conductor { eta: copper_eta(), k: copper_k() }));
+    assert_eq!(metal.alpha, roughness_to_alpha(0.01));
+    assert_eq!(l(4).unwrap().lobes.as_slice()[0].kind, LtcLobeKind::BlendSpecular { rs: Vec3::splat(0.5) });
     assert_eq!(l(5), None);
-    assert_eq!(l(6), Some(LtcDescription { n: Vec3::Z, diffuse: Vec3::splat(0.5), specular: None }));
+    assert_eq!(
+        l(6),
+        Some(LtcDescription { n: Vec3::Z, diffuse: Vec3::splat(0.5), lobes: LtcLobes::default(), transmits: false })
+    );
 }
 
 #[test]

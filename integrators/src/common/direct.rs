@@ -37,7 +37,23 @@ pub fn estimate_direct(
     scene: &Scene,
     stats: &mut ThreadStats,
 ) -> Rgb {
-    let flags = BxdfFlags::NON_SPECULAR;
+    estimate_direct_with(si, bsdf, BxdfFlags::NON_SPECULAR, u_scatter, light_index, light, u_light, scene, stats)
+}
+
+/// [`estimate_direct`] with the BSDF's lobes restricted to those matching `flags` (pbrt-v3's
+/// `bsdfFlags` argument; `NON_SPECULAR` there).
+#[allow(clippy::too_many_arguments)]
+pub fn estimate_direct_with(
+    si: &SurfaceInteraction,
+    bsdf: &Bsdf,
+    flags: BxdfFlags,
+    u_scatter: Vec2,
+    light_index: usize,
+    light: &Light,
+    u_light: Vec2,
+    scene: &Scene,
+    stats: &mut ThreadStats,
+) -> Rgb {
     let ns = bsdf.shading_normal();
     let ctx = LightContext { p: si.p, p_error: si.p_error, n: si.n };
     let mut ld = Rgb::ZERO;

@@ -71,9 +71,11 @@ pub fn pixel_bounds_param(params: &Params) -> Result<Option<Bounds2i>, Diagnosti
 /// `albedo.*` channels written beside SH transfer channels (`ambientocclusion`, `sheared-ao`,
 /// `silhouette`).
 pub fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Rgb {
-    let Some((material, _, textures)) = scene.material_of(si) else { return Rgb::ZERO };
+    let Some((material, materials, textures)) = scene.material_of(si) else { return Rgb::ZERO };
     match material {
         Material::Matte { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
-        m => m.ltc_diffuse(si, textures).unwrap_or(Rgb::ZERO),
+        // (substrate: its Kd, though its FresnelBlend is not Lambertian)
+        Material::Substrate { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
+        m => m.ltc_diffuse(si, materials, textures).unwrap_or(Rgb::ZERO),
     }
 }

@@ -4,7 +4,7 @@
 //! specular surface (mirror, smooth glass) receives nothing from any light directly: what it
 //! shows comes through its specular chain, which the integrators follow themselves.
 
-use crate::common::direct::estimate_direct;
+use crate::common::direct::{estimate_direct, estimate_direct_with};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::integrator::ThreadStats;
 use penumbra_core::interaction::SurfaceInteraction;
@@ -51,15 +51,39 @@ impl<'a> FallbackWarning<'a> {
     }
 }
 
+/// What the analytic shading covered of a point's area lights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Coverage {
+    /// Nothing: the material has no LTC form.
+    None,
+    /// The reflection: the material also transmits (translucent), and the transmission lobes
+    /// take the area lights by directlighting's estimator.
+    Reflection,
+    /// All of it.
+    Area,
+}
+
+impl Coverage {
+    /// From whether the material has an LTC form and whether that form leaves transmission out.
+    pub fn of(ltc_form: bool, transmits: bool) -> Coverage {
+        match (ltc_form, transmits) {
+            (false, _) => Coverage::None,
+            (true, true) => Coverage::Reflection,
+            (true, false) => Coverage::Area,
+        }
+    }
+}
+
 /// Adds to `l` every light `ltc` and `ratio` do not shade analytically, at `hit`: delta lights
 /// by [`delta_light`]; infinite lights, and area lights when the material has no LTC form
-/// (`ltc_form` false, with one warning), by directlighting's estimator (two 2D samples each).
-/// Nothing (no sample, no warning) when the BSDF has no lobe but perfectly specular ones: no
-/// light sample could reach it.
+/// (`Coverage::None`, with one warning), by directlighting's estimator (two 2D samples each);
+/// with `Coverage::Reflection`, the area lights through the transmission lobes only, by the
+/// same estimator restricted to them. Nothing (no sample, no warning) when the BSDF has no
+/// lobe but perfectly specular ones: no light sample could reach it.
 pub fn add_other_lights(
     l: &mut Rgb,
     hit: &SurfaceHit,
-    ltc_form: bool,
+    coverage: Coverage,
     scene: &Scene,
     sampler: &mut dyn Sampler,
     stats: &mut ThreadStats,
@@ -69,11 +93,16 @@ pub fn add_other_lights(
     if bsdf.num_components(BxdfFlags::NON_SPECULAR) == 0 {
         return;
     }
+    let transmission = BxdfFlags::TRANSMISSION | BxdfFlags::DIFFUSE | BxdfFlags::GLOSSY;
     for (k, light) in scene.light_list().iter().enumerate() {
-        match light {
-            Light::Area(_) if ltc_form => {} // shaded analytically
-            Light::Infinite(_) | Light::Area(_) => {
-                if !ltc_form && matches!(light, Light::Area(_)) {
+        match (light, coverage) {
+            (Light::Area(_), Coverage::Area) => {} // shaded analytically
+            (Light::Area(_), Coverage::Reflection) => {
+                let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
+                *l += estimate_direct_with(si, bsdf, transmission, u_scatter, k, light, u_light, scene, stats);
+            }
+            (Light::Infinite(_) | Light::Area(_), _) => {
+                if coverage == Coverage::None && matches!(light, Light::Area(_)) {
                     warning.no_ltc_form(scene, hit);
                 }
                 let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());

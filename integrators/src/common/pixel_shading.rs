@@ -35,6 +35,30 @@ pub fn parse_shading(params: &Params) -> Result<bool, Diagnostic> {
     params.choice("shading", [true, false])
 }
 
+/// How finely a cluster is shaded (a shader's answer for its representative point and extent).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Refine {
+    /// Once, at the representative member.
+    Once,
+    /// At the representative and the farthest member, and at every member when `differs`
+    /// finds the two apart (as `Once` without a `differs` test).
+    Compare,
+    /// At every member.
+    Every,
+}
+
+/// The size of a pixel cluster: the largest distance of a member's point from the
+/// representative's (world units) and the largest angle between their camera rays (radians).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClusterExtent {
+    pub world: f64,
+    pub angle: f64,
+}
+
+/// A pixel cluster whose extent exceeds this fraction of its distance to the nearest light is
+/// shaded sample by sample ([`Refine::Every`]): the lighting varies across it.
+pub const NEAR_FIELD: f64 = 0.05;
+
 /// A camera ray's first surface (its BSDF not built), or the radiance it escaped with
 /// ([`Scene::first_point`]).
 pub type FirstSurface = Result<SurfacePoint, Rgb>;
@@ -49,14 +73,14 @@ pub struct SharedPixel<T> {
 impl<T: Copy> SharedPixel<T> {
     /// Traces the pixel's camera `rays` (one traversal for the bundle when it meets few
     /// triangles) and shades each cluster once with `shade` ([`shade_clusters`]), which is
-    /// given `stats` to count its own rays; `samples` are the rays' camera samples; `differs`
-    /// as [`shade_clusters`]'.
+    /// given `stats` to count its own rays; `samples` are the rays' camera samples; `refine`
+    /// and `differs` as [`shade_clusters`]'.
     pub fn trace(
         rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
-        light_distance: impl Fn(DVec3) -> f64,
+        refine: impl Fn(&SurfacePoint, ClusterExtent) -> Refine,
         differs: Option<fn(&T, &T) -> bool>,
         mut shade: impl FnMut(&SurfacePoint, &mut ThreadStats) -> Option<T>,
     ) -> SharedPixel<T> {
@@ -69,7 +93,7 @@ impl<T: Copy> SharedPixel<T> {
             stats.add_continued(queries);
             hits.push(first);
         }
-        let shaded = shade_clusters(rays, samples, &hits, light_distance, differs, |p| shade(p, stats));
+        let shaded = shade_clusters(rays, samples, &hits, refine, differs, |p| shade(p, stats));
         SharedPixel { hits, shaded }
     }
 
@@ -89,10 +113,6 @@ impl<T: Copy> SharedPixel<T> {
         }
     }
 }
-
-/// A pixel cluster whose extent exceeds this fraction of its distance to the nearest light is
-/// shaded sample by sample.
-const NEAR_FIELD: f64 = 0.05;
 
 /// Samples of a pixel that see the same smooth piece of surface (its members are the samples
 /// whose `cluster` entry is its index).
@@ -136,20 +156,22 @@ fn clusters_of(
 
 /// Groups the pixel's hits into clusters and shades each cluster once, at the member whose
 /// camera sample lies closest to the members' mean film position (the first such member on a
-/// tie) — every member when the cluster's extent is not small against `light_distance` of that
-/// point (the lighting varies across the pixel: a light grazing the floor). The choice is made
-/// on the film, not on the rays' world directions, so that it is the same for the scene
-/// rotated, scaled or moved (`penumbra stability`): near-ties between world-space dot products
-/// fell either way with rounding and picked another shading point.
+/// tie) — or more finely as `refine` asks for that point and the cluster's extent (every
+/// member when the lighting varies across the pixel: a light grazing the floor, a sharp
+/// highlight). The choice is made on the film, not on the rays' world directions, so that it
+/// is the same for the scene rotated, scaled or moved (`penumbra stability`): near-ties
+/// between world-space dot products fell either way with rounding and picked another shading
+/// point.
 ///
-/// With `differs`, a cluster is also shaded at its member farthest from that one on the film
-/// (the first on a tie), which keeps its own value; when `differs` finds the two values apart
-/// (a shadow edge or a highlight crossing the pixel), every member is shaded.
+/// With `differs` and [`Refine::Compare`], a cluster is also shaded at its member farthest from
+/// that one on the film (the first on a tie), which keeps its own value; when `differs` finds
+/// the two values apart (a shadow edge or a highlight crossing the pixel), every member is
+/// shaded.
 pub fn shade_clusters<T: Copy>(
     rays: &[RayDifferential],
     samples: &[CameraSample],
     hits: &[FirstSurface],
-    light_distance: impl Fn(DVec3) -> f64,
+    refine: impl Fn(&SurfacePoint, ClusterExtent) -> Refine,
     differs: Option<fn(&T, &T) -> bool>,
     mut shade: impl FnMut(&SurfacePoint) -> Option<T>,
 ) -> Vec<Option<T>> {
@@ -169,10 +191,14 @@ pub fn shade_clusters<T: Copy>(
             continue;
         };
         let extent = members().map(|m| (pos(m) - pos(rep)).length()).fold(0.0, f64::max);
-        let mut every = extent > NEAR_FIELD * light_distance(pos(rep));
+        let dir = |i: usize| rays[i].d.as_dvec3().normalize_or_zero();
+        let angle = members().map(|m| dir(m).dot(dir(rep)).clamp(-1.0, 1.0).acos()).fold(0.0, f64::max);
+        let Ok(rep_point) = &hits[rep] else { continue };
+        let how = refine(rep_point, ClusterExtent { world: extent, angle });
+        let mut every = how == Refine::Every;
         let v = shade_one(rep);
         let mut far = None;
-        if let (Some(differs), false) = (differs, every) {
+        if let (Some(differs), Refine::Compare) = (differs, how) {
             let by_distance = |a: &usize, b: &usize| {
                 let (da, db) = ((film(*a) - film(rep)).length_squared(), (film(*b) - film(rep)).length_squared());
                 da.total_cmp(&db).then(b.cmp(a))

@@ -40,8 +40,8 @@
 //! not shade are in [`crate::common`] too. This file: parameters, the estimator, specular chains.
 
 use crate::common::direct::{has_specular, specular};
-use crate::common::ltc_shading::{AreaLighting, FresnelMode, LtcShader, Mode, ShaderSettings};
-use crate::common::other_lights::{add_other_lights, warn_infinite_lights, FallbackWarning};
+use crate::common::ltc_shading::{AreaLighting, FresnelMode, Glossy, LtcShader, Mode, ShaderSettings};
+use crate::common::other_lights::{add_other_lights, warn_infinite_lights, Coverage, FallbackWarning};
 use crate::common::params::{ParamSpec, Params};
 use crate::common::pixel_shading::{parse_shading, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param};
@@ -62,6 +62,7 @@ use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 pub struct LtcIntegrator {
     pub mode: Mode,
     pub shadows: bool,
+    pub glossy: Glossy,
     pub fresnel: FresnelMode,
     /// `"string shading" "pixel"` (default): the samples of a pixel only resolve visibility
     /// (edges, which surface is seen); each surface seen in the pixel is shaded once
@@ -91,6 +92,7 @@ pub const PARAMS: &[ParamSpec] = &[
         "occluders as silhouettes where proven convex, always as silhouettes, or triangle by triangle (pertriangle: the same)",
     ),
     ParamSpec::bool("shadows", true, "false: the unshadowed term"),
+    Glossy::PARAM,
     FresnelMode::PARAM,
     SHADING,
     ParamSpec::bool("mergeoccluders", true, "subtract an object's triangles as their outline (false: one by one; same image)"),
@@ -106,6 +108,7 @@ impl LtcIntegrator {
         Ok(Box::new(LtcIntegrator {
             mode,
             shadows: p.bool("shadows")?,
+            glossy: Glossy::from_params(&p)?,
             fresnel: FresnelMode::from_params(&p)?,
             pixel_shading: parse_shading(&p)?,
             merge_occluders: p.bool("mergeoccluders")?,
@@ -129,6 +132,7 @@ impl LtcIntegrator {
         ShaderSettings {
             mode: self.mode,
             shadows: self.shadows,
+            glossy: self.glossy,
             fresnel: self.fresnel,
             merge_occluders: self.merge_occluders,
         }
@@ -151,24 +155,36 @@ impl Estimator<'_> {
     ) -> Rgb {
         let SurfacePoint { si, le, .. } = hit;
         let mut l = *le;
-        // With the pixel's lighting integrated already, only the sample's albedo is needed.
-        let lit = match area {
-            Some((diffuse, specular)) => LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular),
-            None => LtcShader::lobes(scene, si)
-                .map(|d| self.shader.area_lights(scene, si, &d, self.ltc.shadows, &mut Vec::new())),
+        // With the pixel's lighting integrated already, only the sample's albedo is needed (and
+        // whether the material transmits, which the shared value does not say).
+        let (lit, coverage) = match area {
+            Some((diffuse, specular)) => {
+                let lit = LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular);
+                let transmits = lit.is_some()
+                    && may_transmit(scene, si)
+                    && self.shader.lobes(scene, si).is_some_and(|d| d.transmits);
+                (lit, Coverage::of(lit.is_some(), transmits))
+            }
+            None => match self.shader.lobes(scene, si) {
+                Some(d) => {
+                    let v = self.shader.area_lights(scene, si, &d, self.ltc.shadows, &mut Vec::new());
+                    (Some(v), Coverage::of(true, d.transmits))
+                }
+                None => (None, Coverage::None),
+            },
         };
-        let ltc_form = lit.is_some();
         if let Some(v) = lit {
             l += v;
         }
         // The BSDF only for what the LTC does not shade (delta and infinite lights, materials
-        // without an LTC form) and for specular lobes to follow.
+        // without an LTC form, transmission) and for specular lobes to follow.
         let follow = depth + 1 < self.ltc.max_depth;
         let may_be_specular = || scene.material_of(si).is_some_and(|(m, _, _)| m.may_be_specular());
-        if !ltc_form || self.other_lights || (follow && may_be_specular()) {
+        let rest = coverage != Coverage::Area || self.other_lights;
+        if rest || (follow && may_be_specular()) {
             if let Some(hit) = hit.with_bsdf(scene) {
-                if !ltc_form || self.other_lights {
-                    add_other_lights(&mut l, &hit, ltc_form, scene, sampler, stats, &self.fallback);
+                if rest {
+                    add_other_lights(&mut l, &hit, coverage, scene, sampler, stats, &self.fallback);
                 }
                 if follow && has_specular(&hit.bsdf) {
                     for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
@@ -186,6 +202,13 @@ impl Estimator<'_> {
         }
         l
     }
+}
+
+/// Whether the material at `si` may have transmission lobes its LTC form leaves out (a cheap
+/// test before the full description).
+fn may_transmit(scene: &Scene, si: &penumbra_core::interaction::SurfaceInteraction) -> bool {
+    use penumbra_core::material::Material;
+    scene.material_of(si).is_some_and(|(m, _, _)| matches!(m, Material::Translucent { .. } | Material::Mix { .. }))
 }
 
 impl PixelEstimator for Estimator<'_> {
@@ -241,11 +264,13 @@ impl Integrator for LtcIntegrator {
         warn_infinite_lights("ltc", scene, ctx.warnings);
         let est = Estimator {
             ltc: self,
-            shader: LtcShader::new(self.shader_settings(), scene),
+            shader: LtcShader::new(self.shader_settings(), scene, "ltc"),
             fallback: FallbackWarning::new("ltc", ctx.warnings),
             other_lights: scene.light_list().iter().any(|l| !matches!(l, Light::Area(_))),
         };
-        render_pixels(&est, scene, ctx, film)
+        let mut stats = render_pixels(&est, scene, ctx, film)?;
+        est.shader.finish(&mut stats, ctx.warnings);
+        Ok(stats)
     }
     /// Occluders only remove parts of a light's polygon, whose integrand is non-negative
     /// (form factor, LTC), and the pixel clusters do not depend on shadows: the unshadowed
@@ -297,6 +322,7 @@ mod tests {
         LtcIntegrator {
             mode: Mode::Auto,
             shadows: true,
+            glossy: Glossy::Exact,
             fresnel: FresnelMode::Average,
             pixel_shading,
             merge_occluders: true,

@@ -64,7 +64,7 @@ mod estimator;
 pub use denoise::{cross_bilateral, guarded_ratio, noise_radius, FilterParams, Guide};
 
 use crate::common::image_pass::ImageBuffer;
-use crate::common::ltc_shading::{FresnelMode, LtcShader, Mode, ShaderSettings};
+use crate::common::ltc_shading::{FresnelMode, Glossy, LtcShader, Mode, ShaderSettings};
 use crate::common::other_lights::{warn_infinite_lights, FallbackWarning};
 use crate::common::params::{ParamSpec, Params, Range};
 use crate::common::pixel_shading::{parse_shading, SHADING};
@@ -117,6 +117,7 @@ pub const PARAMS: &[ParamSpec] = &[
         .within(Range::NonNegativeFinite),
     ParamSpec::float("ratiofloor", D.ratio_floor, "added to the ratio edge stop's noise scale")
         .within(Range::PositiveFinite),
+    Glossy::PARAM,
     FresnelMode::PARAM,
     SHADING,
     max_depth(1024),
@@ -140,6 +141,7 @@ impl RatioIntegrator {
             shading: ShaderSettings {
                 mode: Mode::Auto, // shadows off: only the lights' shapes (one polygon where possible)
                 shadows: false,
+                glossy: Glossy::from_params(&p)?,
                 fresnel: FresnelMode::from_params(&p)?,
                 merge_occluders: true,
             },
@@ -283,7 +285,7 @@ impl Integrator for RatioIntegrator {
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ratio", scene, ctx.warnings);
-        let shader = LtcShader::new(self.shading, scene);
+        let shader = LtcShader::new(self.shading, scene, "ratio");
         let groups = SampleGroup::of(&shader, scene);
         let est = Estimator {
             shader,
@@ -301,6 +303,7 @@ impl Integrator for RatioIntegrator {
             })?;
         stats.counters.insert("denoise_seconds".into(), seconds);
         stats.counters.insert("mean_radius".into(), filtered);
+        est.shader.finish(&mut stats, ctx.warnings);
         stats.render_seconds += seconds;
         Ok(stats)
     }

@@ -54,7 +54,7 @@ pub mod visibility;
 use crate::common::direct::{estimate_direct, specular};
 use crate::common::other_lights::FallbackWarning;
 use crate::common::params::{ParamSpec, Params, Range};
-use crate::common::pixel_shading::{parse_shading, rgb_differs, SharedPixel, SHADING};
+use crate::common::pixel_shading::{parse_shading, rgb_differs, Refine, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use glam::DVec3;
 use lighting::EnvLighting;
@@ -558,7 +558,7 @@ impl PixelEstimator for Estimator<'_> {
             (split_lambertian(&hit.bsdf).0 != Rgb::ZERO).then(|| self.lambertian_irradiance(&hit, scene, stats))?
         };
         let differs = |a: &Rgb, b: &Rgb| rgb_differs(*a, *b);
-        Some(SharedPixel::trace(rays, samples, scene, stats, |_| f64::INFINITY, Some(differs), shade))
+        Some(SharedPixel::trace(rays, samples, scene, stats, |_, _| Refine::Compare, Some(differs), shade))
     }
 
     fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {

@@ -59,7 +59,7 @@
 use crate::common::direct::{estimate_direct, specular};
 use crate::common::other_lights::FallbackWarning;
 use crate::common::params::{ParamSpec, Params};
-use crate::common::pixel_shading::{parse_shading, rgb_differs, SharedPixel, SHADING};
+use crate::common::pixel_shading::{parse_shading, rgb_differs, Refine, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, SH_ORDER};
 use dual::{Contour, DualEdges};
 use param::{moment, Meridians, PoleFrame};
@@ -376,7 +376,9 @@ impl Estimator<'_> {
         // The transfer's cosine is the shading normal's (bumped; face-forwarded), as `shade`
         // and pbrt-v3's BSDFs use it, so that relighting reproduces `shade`.
         let ns = match (&self.sh, scene.material_of(&si)) {
-            (Some(_), Some((material, _, textures))) => material.ltc_lobes(&si, textures).map_or(si.shading.z, |d| d.n),
+            (Some(_), Some((material, materials, textures))) => {
+                material.ltc_lobes(&si, materials, textures).map_or(si.shading.z, |d| d.n)
+            }
             _ => si.shading.z,
         };
         let ns = face_forward(ns, n).as_dvec3();
@@ -434,8 +436,8 @@ impl Estimator<'_> {
         self.table.as_ref()?;
         let lambertian = scene
             .material_of(&hit.si)
-            .and_then(|(material, _, textures)| material.ltc_lobes(&hit.si, textures))
-            .filter(|d| d.specular.is_none());
+            .and_then(|(material, materials, textures)| material.ltc_lobes(&hit.si, materials, textures))
+            .filter(|d| d.lobes.is_empty() && !d.transmits);
         match lambertian {
             Some(d) => Some(EnvKind::Lambertian { albedo: d.diffuse, n: d.n }),
             None => {
@@ -641,7 +643,7 @@ impl PixelEstimator for Estimator<'_> {
             samples,
             scene,
             stats,
-            |_| f64::INFINITY,
+            |_, _| Refine::Compare,
             Some(differs),
             |p: &SurfacePoint, stats: &mut ThreadStats| match self.mode {
                 Mode::Shade => {

@@ -35,7 +35,7 @@ fn disney_defaults_are_pbrt_v3s_lobes() {
     let m = b.materials.get(0).unwrap();
     assert_eq!(m.type_name(), "disney");
     assert!(!m.may_have_bssrdf());
-    assert!(m.ltc_lobes(&flat_si(), &b.textures).is_none(), "Disney has no Lambertian-plus-GGX form");
+    assert!(m.ltc_lobes(&flat_si(), &b.materials, &b.textures).is_none(), "Disney has no Lambertian-plus-GGX form");
 }
 
 #[test]
@@ -223,7 +223,7 @@ fn subsurface_interface_media_and_bssrdf() {
     );
     assert_eq!(bsdf.eta, 1.33);
     let m = b.materials.get(0).unwrap();
-    assert!(m.may_have_bssrdf() && m.may_be_specular() && m.ltc_lobes(&si, &b.textures).is_none());
+    assert!(m.may_have_bssrdf() && m.may_be_specular() && m.ltc_lobes(&si, &b.materials, &b.textures).is_none());
     let Material::Subsurface(s) = m else { panic!() };
     // A measured medium sets g to 0 (its σ'_s are reduced coefficients).
     assert_eq!(s.g, 0.0);
