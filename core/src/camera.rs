@@ -1,7 +1,7 @@
 //! Cameras with pbrt-v3's conventions: left-handed camera space looking down
 //! +z, `fov` spanning the shorter image axis, the screen window, thin lenses.
 
-use crate::geometry::Ray;
+use crate::geometry::{Ray, RayDifferential, RayOffsets};
 use glam::{DVec3, Vec2, Vec3};
 use penumbra_parser::{CameraDesc, DiagSink, Diagnostic, Transform};
 
@@ -132,7 +132,6 @@ impl Camera {
         })
     }
 
-    /// The camera ray for a film sample, in world space, with a unit direction.
     /// Whether [`Camera::generate_ray`] reads `CameraSample::p_lens` (a thin lens).
     pub fn uses_lens(&self) -> bool {
         self.lens_radius > 0.0
@@ -144,27 +143,74 @@ impl Camera {
         false
     }
 
+    /// The camera ray for a film sample, in world space, with a unit direction.
     pub fn generate_ray(&self, s: &CameraSample) -> Ray {
-        let (w, h) = (self.resolution.0 as f32, self.resolution.1 as f32);
-        let (o, d) = match self.projection {
+        let (o, d) = self.camera_space_ray(s.p_film, s.p_lens);
+        self.to_world(o, d)
+    }
+
+    /// The camera ray with its offset rays one pixel step away in x and y (pbrt-v3's
+    /// `GenerateRayDifferential`; the caller scales them to the sample spacing with
+    /// [`RayDifferential::scale_offsets`]). Perspective and orthographic cameras shift the
+    /// film point by one pixel through the same lens point, as pbrt-v3's do; the environment
+    /// camera takes pbrt-v3's generic `Camera::GenerateRayDifferential`, a finite difference
+    /// over 0.05 pixel.
+    pub fn generate_ray_differential(&self, s: &CameraSample) -> RayDifferential {
+        let (o, d) = self.camera_space_ray(s.p_film, s.p_lens);
+        let ray = self.to_world(o, d);
+        let shifted = |dx: f32, dy: f32| self.camera_space_ray(s.p_film + Vec2::new(dx, dy), s.p_lens);
+        let offsets = match self.projection {
+            Projection::Perspective { .. } | Projection::Orthographic => {
+                let ((rx_o, rx_d), (ry_o, ry_d)) = (shifted(1.0, 0.0), shifted(0.0, 1.0));
+                Some(self.offsets_to_world(rx_o, rx_d, ry_o, ry_d))
+            }
             Projection::Environment => {
-                let theta = std::f32::consts::PI * s.p_film.y / h;
-                let phi = 2.0 * std::f32::consts::PI * s.p_film.x / w;
+                const EPS: f32 = 0.05;
+                let rx = self.generate_ray(&CameraSample { p_film: s.p_film + Vec2::new(EPS, 0.0), ..*s });
+                let ry = self.generate_ray(&CameraSample { p_film: s.p_film + Vec2::new(0.0, EPS), ..*s });
+                Some(RayOffsets {
+                    rx_o: ray.o + (rx.o - ray.o) / EPS,
+                    rx_d: ray.d + (rx.d - ray.d) / EPS,
+                    ry_o: ray.o + (ry.o - ray.o) / EPS,
+                    ry_d: ray.d + (ry.d - ray.d) / EPS,
+                })
+            }
+        };
+        RayDifferential { ray, offsets }
+    }
+
+    /// The camera ray as the render driver hands it to estimators: with its offset rays scaled
+    /// by `1/√spp` (pbrt-v3's `ScaleDifferentials`), so they span the spacing of a pixel's
+    /// `spp` samples.
+    pub fn sample_ray(&self, s: &CameraSample, spp: u32) -> RayDifferential {
+        let mut ray = self.generate_ray_differential(s);
+        ray.scale_offsets(1.0 / (spp.max(1) as f32).sqrt());
+        ray
+    }
+
+    /// Camera-space origin and (unnormalised) direction of the ray through film point
+    /// `p_film` and lens point `p_lens`.
+    fn camera_space_ray(&self, p_film: Vec2, p_lens: Vec2) -> (Vec3, Vec3) {
+        let (w, h) = (self.resolution.0 as f32, self.resolution.1 as f32);
+        match self.projection {
+            Projection::Environment => {
+                let theta = std::f32::consts::PI * p_film.y / h;
+                let phi = 2.0 * std::f32::consts::PI * p_film.x / w;
                 (Vec3::ZERO, Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()))
             }
             _ => {
                 let [x0, x1, y0, y1] = self.screen_window;
-                let sx = x0 + (s.p_film.x / w) * (x1 - x0);
-                let sy = y1 - (s.p_film.y / h) * (y1 - y0);
+                let sx = x0 + (p_film.x / w) * (x1 - x0);
+                let sy = y1 - (p_film.y / h) * (y1 - y0);
                 let (mut o, mut d) = match self.projection {
-                    // Not normalised here: the world direction is normalised once, below.
+                    // Not normalised here: the world direction is normalised once, in `to_world`.
                     Projection::Perspective { tan_half_fov } => {
                         (Vec3::ZERO, Vec3::new(sx * tan_half_fov, sy * tan_half_fov, 1.0))
                     }
                     _ => (Vec3::new(sx, sy, 0.0), Vec3::Z),
                 };
                 if self.lens_radius > 0.0 {
-                    let lens = self.lens_radius * concentric_disk(s.p_lens);
+                    let lens = self.lens_radius * concentric_disk(p_lens);
                     // The plane of focus is z = focal_distance in camera space.
                     let focus = o + d * (self.focal_distance / d.z);
                     o = Vec3::new(o.x + lens.x, o.y + lens.y, 0.0);
@@ -172,12 +218,25 @@ impl Camera {
                 }
                 (o, d)
             }
-        };
+        }
+    }
+
+    fn to_world(&self, o: Vec3, d: Vec3) -> Ray {
+        let (ow, dw) = self.point_and_direction_to_world(o, d);
+        Ray::new(ow, dw, f32::INFINITY)
+    }
+
+    fn point_and_direction_to_world(&self, o: Vec3, d: Vec3) -> (Vec3, Vec3) {
         let t = &self.world_from_camera;
         let ow = t.apply_point([o.x as f64, o.y as f64, o.z as f64]);
         let dw = t.apply_vector([d.x as f64, d.y as f64, d.z as f64]);
-        let dw = DVec3::from(dw).normalize_or_zero();
-        Ray::new(DVec3::from(ow).as_vec3(), dw.as_vec3(), f32::INFINITY)
+        (DVec3::from(ow).as_vec3(), DVec3::from(dw).normalize_or_zero().as_vec3())
+    }
+
+    fn offsets_to_world(&self, rx_o: Vec3, rx_d: Vec3, ry_o: Vec3, ry_d: Vec3) -> RayOffsets {
+        let (rx_o, rx_d) = self.point_and_direction_to_world(rx_o, rx_d);
+        let (ry_o, ry_d) = self.point_and_direction_to_world(ry_o, ry_d);
+        RayOffsets { rx_o, rx_d, ry_o, ry_d }
     }
 }
 
@@ -223,5 +282,59 @@ mod tests {
         let e = cam("environment", ParamSet::new(), (200, 100));
         let up = e.generate_ray(&sample(0.0, 0.0));
         assert!((up.d - Vec3::Y).length() < 1e-5);
+    }
+
+    /// The offset rays of each projection, turned into the differentials of a plane facing the
+    /// camera at distance 5 with u = x/2, v = y/3: the pixel footprint on the plane in closed
+    /// form (one pixel of the screen window at that distance, over √spp).
+    #[test]
+    fn differentials_on_a_facing_plane_are_the_pixel_footprint() {
+        use crate::interaction::SurfaceInteraction;
+        let res = 64u32;
+        let spp = 16u32;
+        let plane_hit = |r: &RayDifferential| {
+            let t = -r.o.z / r.d.z;
+            let p = r.o + t * r.d;
+            let mut si = SurfaceInteraction {
+                p,
+                n: -Vec3::Z,
+                uv: Vec2::new(p.x / 2.0, p.y / 3.0),
+                dpdu: Vec3::new(2.0, 0.0, 0.0),
+                dpdv: Vec3::new(0.0, 3.0, 0.0),
+                ..Default::default()
+            };
+            si.compute_differentials(r);
+            si.diff
+        };
+        let mut fov90 = ParamSet::new();
+        fov90.add(Param::new("fov", ParamValue::Float(vec![90.0]), penumbra_parser::FileLoc::builtin()));
+        // Perspective, fov 90 on a square image: the screen window [-1, 1]² spans 10 at distance 5.
+        let mut ortho = ParamSet::new();
+        ortho.add(Param::new(
+            "screenwindow",
+            ParamValue::Float(vec![-2.0, 2.0, -2.0, 2.0]),
+            penumbra_parser::FileLoc::builtin(),
+        ));
+        for (kind, params, span) in [("perspective", fov90, 10.0f32), ("orthographic", ortho, 4.0)] {
+            let c = cam(kind, params, (res, res));
+            let centre = sample(res as f32 / 2.0, res as f32 / 2.0);
+            let d = plane_hit(&c.sample_ray(&centre, spp));
+            let step = span / res as f32 / (spp as f32).sqrt();
+            let close = |a: f32, b: f32| (a.abs() - b).abs() <= 2e-3 * b;
+            assert!(close(d.dpdx.length(), step) && close(d.dpdy.length(), step), "{kind}: {d:?} vs {step}");
+            assert!(close(d.dudx, step / 2.0) && close(d.dvdy, step / 3.0), "{kind}: {d:?}");
+            assert!(d.dvdx.abs() < 1e-6 && d.dudy.abs() < 1e-6, "{kind}: {d:?}");
+            // Without scaling: one whole pixel.
+            let full = plane_hit(&c.generate_ray_differential(&centre));
+            assert!(close(full.dpdx.length(), span / res as f32), "{kind}: {full:?}");
+        }
+        // The environment camera's offsets are a 0.05-pixel finite difference of its directions:
+        // at the equator, one pixel in x turns the direction by 2π/width.
+        let e = cam("environment", ParamSet::new(), (128, 64));
+        let r = e.generate_ray_differential(&sample(17.3, 32.0));
+        let o = r.offsets.unwrap();
+        let turn = (o.rx_d - r.d).length();
+        assert!((turn - std::f32::consts::TAU / 128.0).abs() < 2e-3 * turn, "{turn}");
+        assert!((o.ry_d - r.d).length() > 0.0 && o.rx_o == r.o);
     }
 }

@@ -3,7 +3,7 @@
 use crate::camera::CameraSample;
 use crate::film::Film;
 use crate::geometry::Bounds2i;
-use crate::geometry::Ray;
+use crate::geometry::RayDifferential;
 use crate::sampler::Sampler;
 use crate::scene::{BuildOptions, Requirements, Scene};
 use crate::Rgb;
@@ -177,15 +177,24 @@ pub trait PixelEstimator: Send + Sync {
     /// Request sample arrays before rendering (pbrt-v3's `Request*Array`), on the prototype sampler.
     fn request_samples(&self, _sampler: &mut dyn Sampler) {}
     /// Radiance along a camera ray; `aov` holds the integrator's extra channels for this sample.
-    /// The driver has counted the camera ray (see [`ThreadStats`]).
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb;
+    /// The driver has counted the camera ray (see [`ThreadStats`]). The ray carries its offset
+    /// rays, scaled by `1/√spp` as pbrt-v3 scales them ([`Scene::first_point`] turns them
+    /// into the surface's differentials, for texture filtering and bump mapping).
+    fn li(
+        &self,
+        ray: &RayDifferential,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        aov: &mut [f32],
+    ) -> Rgb;
     /// Work shared by all samples of one pixel (e.g. `ltc` shading each surface seen in the
     /// pixel once): called with the pixel's camera samples and their rays, in sample order,
     /// before any of its samples is estimated. `Some` makes the driver call [`li_shared`](Self::li_shared)
     /// instead of `li` for that pixel. Only called when [`shares_pixel_work`](Self::shares_pixel_work).
     fn begin_pixel(
         &self,
-        _rays: &[Ray],
+        _rays: &[RayDifferential],
         _samples: &[CameraSample],
         _scene: &Scene,
         _stats: &mut ThreadStats,
@@ -207,7 +216,7 @@ pub trait PixelEstimator: Send + Sync {
     #[allow(clippy::too_many_arguments)]
     fn li_shared(
         &self,
-        ray: &Ray,
+        ray: &RayDifferential,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -388,7 +397,7 @@ struct TileScratch {
     sampler: Box<dyn Sampler>,
     aov: Vec<f32>,
     cams: Vec<CameraSample>,
-    rays: Vec<Ray>,
+    rays: Vec<RayDifferential>,
 }
 
 impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
@@ -460,8 +469,10 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
         shared
     }
 
-    fn generate_ray(&self, cs: &CameraSample) -> Ray {
-        crate::phase::timed(crate::phase::Phase::CameraRay, || self.scene.camera.generate_ray(cs))
+    /// The camera ray with its offset rays scaled to the sample spacing (pbrt-v3's
+    /// `ScaleDifferentials(1 / √spp)`).
+    fn generate_ray(&self, cs: &CameraSample) -> RayDifferential {
+        crate::phase::timed(crate::phase::Phase::CameraRay, || self.scene.camera.sample_ray(cs, self.spp))
     }
 }
 

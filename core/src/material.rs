@@ -97,30 +97,22 @@ pub enum Material {
     },
 }
 
-/// The shading-geometry derivatives pbrt-v3 bump-maps with (`si.shading.{n, dpdu, dpdv}`).
+/// The shading-geometry derivatives pbrt-v3 bump-maps with (`si.shading.{n, dpdu, dpdv,
+/// dndu, dndv}`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadingGeometry {
     pub n: Vec3,
     pub dpdu: Vec3,
     pub dpdv: Vec3,
+    pub dndu: Vec3,
+    pub dndv: Vec3,
 }
 
 impl ShadingGeometry {
-    /// As pbrt-v3's triangles set it up. Without per-vertex normals the shading
-    /// derivatives are the geometric ∂p/∂u, ∂p/∂v; with them, pbrt-v3 uses unit
-    /// tangents built as `ts = normalize(ss × ns)`, `ss = ts × ns`, which are the
-    /// *negated* x and y axes of penumbra's shading frame.
-    pub fn of(si: &SurfaceInteraction, interpolated_normals: bool) -> Self {
-        if interpolated_normals {
-            ShadingGeometry { n: si.shading.z, dpdu: -si.shading.x, dpdv: -si.shading.y }
-        } else {
-            ShadingGeometry { n: si.shading.z, dpdu: si.dpdu, dpdv: si.dpdv }
-        }
-    }
-    /// Guesses whether the interaction came from a mesh with normals: the shading
-    /// normal differs from the geometric one. Prefer [`Self::of`] when the mesh is known.
-    pub fn infer(si: &SurfaceInteraction) -> Self {
-        Self::of(si, si.shading.z != si.n)
+    /// The interaction's shading geometry, as the scene set it up for its shape (see
+    /// `SurfaceInteraction::shading_dpdu`).
+    pub fn of(si: &SurfaceInteraction) -> Self {
+        ShadingGeometry { n: si.shading.z, dpdu: si.shading_dpdu, dpdv: si.shading_dpdv, dndu: si.dndu, dndv: si.dndv }
     }
 }
 
@@ -389,7 +381,9 @@ fn eval_s(tx: &Textures, p: SpectrumParam, ctx: &TextureEvalContext) -> Rgb {
     clamp0(tx.eval_spectrum(p, ctx))
 }
 
-/// pbrt-v3's `Material::Bump`: the bumped shading normal and ∂p/∂u.
+/// pbrt-v3's `Material::Bump`: the bumped shading normal and ∂p/∂u. The displacement is
+/// differenced over half the pixel footprint in (u, v) (`du = ½(|∂u/∂x| + |∂u/∂y|)`), or over
+/// 0.0005 where the ray had no differentials, as pbrt-v3.
 pub fn bump(
     d: FloatParam,
     si: &SurfaceInteraction,
@@ -397,24 +391,34 @@ pub fn bump(
     ctx: &TextureEvalContext,
     textures: &Textures,
 ) -> (Vec3, Vec3) {
-    let mut du = 0.5 * (ctx.dudx.abs() + ctx.dudy.abs());
-    if du == 0.0 || !du.is_finite() {
-        du = 0.01;
-    }
-    let mut dv = 0.5 * (ctx.dvdx.abs() + ctx.dvdy.abs());
-    if dv == 0.0 || !dv.is_finite() {
-        dv = 0.01;
-    }
-    let base_n = geom.dpdu.cross(geom.dpdv).normalize_or_zero();
-    let shifted_u =
-        TextureEvalContext { p: ctx.p + du * geom.dpdu, uv: ctx.uv + Vec2::new(du, 0.0), n: base_n, ..*ctx };
-    let shifted_v =
-        TextureEvalContext { p: ctx.p + dv * geom.dpdv, uv: ctx.uv + Vec2::new(0.0, dv), n: base_n, ..*ctx };
+    let step = |a: f32, b: f32| {
+        let s = 0.5 * (a.abs() + b.abs());
+        if s == 0.0 || !s.is_finite() {
+            0.0005
+        } else {
+            s
+        }
+    };
+    let du = step(ctx.dudx, ctx.dudy);
+    let dv = step(ctx.dvdx, ctx.dvdy);
+    let base = geom.dpdu.cross(geom.dpdv);
+    let shifted_u = TextureEvalContext {
+        p: ctx.p + du * geom.dpdu,
+        uv: ctx.uv + Vec2::new(du, 0.0),
+        n: (base + du * geom.dndu).normalize_or_zero(),
+        ..*ctx
+    };
+    let shifted_v = TextureEvalContext {
+        p: ctx.p + dv * geom.dpdv,
+        uv: ctx.uv + Vec2::new(0.0, dv),
+        n: (base + dv * geom.dndv).normalize_or_zero(),
+        ..*ctx
+    };
     let u_disp = textures.eval_float(d, &shifted_u);
     let v_disp = textures.eval_float(d, &shifted_v);
     let disp = textures.eval_float(d, ctx);
-    let dpdu = geom.dpdu + (u_disp - disp) / du * geom.n;
-    let dpdv = geom.dpdv + (v_disp - disp) / dv * geom.n;
+    let dpdu = geom.dpdu + (u_disp - disp) / du * geom.n + disp * geom.dndu;
+    let dpdv = geom.dpdv + (v_disp - disp) / dv * geom.n + disp * geom.dndv;
     let ns = dpdu.cross(dpdv).normalize_or_zero();
     if ns == Vec3::ZERO || !ns.is_finite() {
         return (geom.n, geom.dpdu);
@@ -580,13 +584,12 @@ impl Material {
     }
 
     /// The BSDF at `si` as pbrt-v3's `directlighting` builds it (radiance transport,
-    /// no multiple-lobe glass), without ray differentials; shading derivatives are
-    /// inferred from `si` (see [`ShadingGeometry::infer`]).
+    /// no multiple-lobe glass), with `si`'s differentials and shading geometry.
     pub fn compute_bsdf(&self, si: &SurfaceInteraction, materials: &Materials, textures: &Textures) -> Bsdf {
         self.compute_bsdf_ext(
             si,
             &TextureEvalContext::from_si(si),
-            &ShadingGeometry::infer(si),
+            &ShadingGeometry::of(si),
             BsdfOptions::default(),
             materials,
             textures,
@@ -778,7 +781,7 @@ impl Material {
     /// only its diffuse and glossy parts are described.
     pub fn ltc_lobes(&self, si: &SurfaceInteraction, textures: &Textures) -> Option<LtcDescription> {
         let ctx = TextureEvalContext::from_si(si);
-        let geom = ShadingGeometry::infer(si);
+        let geom = ShadingGeometry::of(si);
         self.ltc_lobes_ext(si, &ctx, &geom, textures)
     }
 

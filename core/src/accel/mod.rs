@@ -337,8 +337,8 @@ impl Accel {
     /// traversal per ray. `None` when the rays do not share an origin, spread over more than
     /// ~75° from their mean, or more than `limit` triangles remain (the caller then traverses
     /// per ray). Use with [`intersect_among`](Self::intersect_among).
-    pub fn bundle_candidates(&self, rays: &[Ray], limit: usize) -> Option<Vec<u32>> {
-        let first = rays.first()?;
+    pub fn bundle_candidates<R: AsRef<Ray>>(&self, rays: &[R], limit: usize) -> Option<Vec<u32>> {
+        let first = rays.first()?.as_ref();
         if self.tris.is_empty() || !first.o.is_finite() || self.bvh.nodes.is_empty() {
             return None;
         }
@@ -348,7 +348,7 @@ impl Accel {
         let a = dir(first);
         let (u, v) = a.any_orthonormal_pair();
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for r in rays {
+        for r in rays.iter().map(AsRef::as_ref) {
             if r.o != first.o || !r.d.is_finite() || r.d == Vec3::ZERO {
                 return None;
             }

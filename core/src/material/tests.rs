@@ -16,9 +16,9 @@ fn si_at(uv: Vec2, dpdu: Vec3, dpdv: Vec3) -> SurfaceInteraction {
         dpdu,
         dpdv,
         shading: Frame::from_zx(n, dpdu),
-        wo: Vec3::Z,
-        mesh: 0,
-        tri: 0,
+        shading_dpdu: dpdu,
+        shading_dpdv: dpdv,
+        ..Default::default()
     }
 }
 
@@ -222,7 +222,7 @@ fn substrate_mirror_glass_uber_translucent_lobes() {
     let g2 = m.compute_bsdf_ext(
         &si,
         &TextureEvalContext::from_si(&si),
-        &ShadingGeometry::infer(&si),
+        &ShadingGeometry::of(&si),
         opts,
         &b.materials,
         &b.textures,
@@ -385,9 +385,12 @@ fn bump_mapping_constant_keeps_normal_and_ramp_tilts_it() {
     // so the same ramp tilts the other way (unit tangents: atan(k)).
     let m = b.materials.get(1).unwrap();
     let ctx = TextureEvalContext::from_si(&si);
-    let (n2, _) = bump(FloatParam::Tex(1), &si, &ShadingGeometry::of(&si, true), &ctx, &b.textures);
+    let unit = SurfaceInteraction { shading_dpdu: -si.shading.x, shading_dpdv: -si.shading.y, ..si };
+    let (n2, _) = bump(FloatParam::Tex(1), &unit, &ShadingGeometry::of(&unit), &ctx, &b.textures);
     let _ = m;
-    assert!((n2 - Vec3::new(k, 0.0, 1.0).normalize()).length() < 1e-5, "{n2}");
+    // Without differentials the displacement is differenced over pbrt-v3's 0.0005 in u: f32
+    // rounding of d(u + du) − d(u) leaves ~1e-4 in the slope.
+    assert!((n2 - Vec3::new(k, 0.0, 1.0).normalize()).length() < 1e-3, "{n2}");
 }
 
 #[test]

@@ -28,7 +28,7 @@ pub mod ply;
 mod quadrics;
 mod trianglemesh;
 
-use crate::mesh::{AlphaSpec, TriangleMesh};
+use crate::mesh::{AlphaSpec, NormalRule, Quadric, QuadricShape, TriangleMesh};
 use crate::parser::{DiagSink, Diagnostic, FileLoc, SceneDescription, ShapeDesc};
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
@@ -112,7 +112,11 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
             format!("shape \"{kind}\" has an animated transform; using its start transform"),
         );
     }
-    finish(obj, desc).map(Some)
+    let mut mesh = finish(obj, desc)?;
+    if matches!(kind, "sphere" | "disk" | "cylinder" | "cone" | "paraboloid" | "hyperboloid") {
+        mesh.normal_rule = NormalRule::Quadric;
+    }
+    Ok(Some(mesh))
 }
 
 /// Object-space mesh data before transformation.
@@ -126,6 +130,9 @@ pub(crate) struct ObjMesh {
     pub tris: Vec<[u32; 3]>,
     pub alpha: Option<AlphaSpec>,
     pub shadow_alpha: Option<AlphaSpec>,
+    /// A sphere's, disk's or cylinder's parameters (object space) and the tessellation's
+    /// largest distance from its surface.
+    pub quadric: Option<(QuadricShape, f64)>,
 }
 
 /// Reads pbrt-v3's `alpha`/`shadowalpha` parameters (meshes only, as pbrt-v3).
@@ -222,6 +229,8 @@ fn finish(obj: ObjMesh, desc: &ShapeDesc) -> Result<TriangleMesh, Diagnostic> {
         winding_reversed: reverse,
         alpha: obj.alpha,
         shadow_alpha: obj.shadow_alpha,
+        normal_rule: NormalRule::Triangle,
+        quadric: obj.quadric.map(|(shape, deviation)| Quadric { shape, world_from_object: *t, deviation }),
     })
 }
 

@@ -7,7 +7,7 @@
 use super::params::{ParamSpec, Params};
 use glam::{DVec2, DVec3};
 use penumbra_core::camera::CameraSample;
-use penumbra_core::geometry::Ray;
+use penumbra_core::geometry::RayDifferential;
 use penumbra_core::integrator::ThreadStats;
 use penumbra_core::scene::{Scene, SurfaceHit, SurfacePoint};
 use penumbra_core::{Rgb, Vec3};
@@ -52,7 +52,7 @@ impl<T: Copy> SharedPixel<T> {
     /// given `stats` to count its own rays; `samples` are the rays' camera samples; `differs`
     /// as [`shade_clusters`]'.
     pub fn trace(
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
@@ -106,7 +106,11 @@ struct Cluster {
 
 /// Each hit's cluster (same mesh, shading normals within ~11°, depths within 5 %;
 /// `usize::MAX`: none, the ray escaped) and the clusters.
-fn clusters_of(rays: &[Ray], samples: &[CameraSample], hits: &[FirstSurface]) -> (Vec<usize>, Vec<Cluster>) {
+fn clusters_of(
+    rays: &[RayDifferential],
+    samples: &[CameraSample],
+    hits: &[FirstSurface],
+) -> (Vec<usize>, Vec<Cluster>) {
     let mut clusters: Vec<Cluster> = Vec::new();
     let mut cluster = vec![usize::MAX; hits.len()];
     for (i, h) in hits.iter().enumerate() {
@@ -142,7 +146,7 @@ fn clusters_of(rays: &[Ray], samples: &[CameraSample], hits: &[FirstSurface]) ->
 /// (the first on a tie), which keeps its own value; when `differs` finds the two values apart
 /// (a shadow edge or a highlight crossing the pixel), every member is shaded.
 pub fn shade_clusters<T: Copy>(
-    rays: &[Ray],
+    rays: &[RayDifferential],
     samples: &[CameraSample],
     hits: &[FirstSurface],
     light_distance: impl Fn(DVec3) -> f64,

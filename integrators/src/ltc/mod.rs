@@ -48,7 +48,7 @@ use crate::common::{max_depth, max_depth_param};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::Ray;
+use penumbra_core::geometry::RayDifferential;
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, ThreadStats,
 };
@@ -137,8 +137,10 @@ impl LtcIntegrator {
 impl Estimator<'_> {
     /// Radiance from `hit`, the `depth`-th surface of a camera ray's specular chain (0: the
     /// first); `area` is its analytic area lighting when already computed for the pixel.
+    #[allow(clippy::too_many_arguments)]
     fn shade(
         &self,
+        ray: &RayDifferential,
         hit: &SurfacePoint,
         area: Option<(Rgb, Rgb)>,
         scene: &Scene,
@@ -169,11 +171,11 @@ impl Estimator<'_> {
                 }
                 if follow && has_specular(&hit.bsdf) {
                     for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-                        l += specular(&hit.si, &hit.bsdf, sampler, stats, kind, |r, sampler, stats| {
+                        l += specular(&hit.si, &hit.bsdf, ray, sampler, stats, kind, |r, sampler, stats| {
                             let (next, queries) = scene.first_point(r);
                             stats.add_continued(queries);
                             match next {
-                                Ok(h) => self.shade(&h, None, scene, sampler, stats, depth + 1),
+                                Ok(h) => self.shade(r, &h, None, scene, sampler, stats, depth + 1),
                                 Err(escaped) => escaped,
                             }
                         });
@@ -190,7 +192,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn li(
         &self,
-        ray: &Ray,
+        ray: &RayDifferential,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -199,7 +201,7 @@ impl PixelEstimator for Estimator<'_> {
         let (first, queries) = scene.first_point(ray);
         stats.add_continued(queries);
         match first {
-            Ok(h) => self.shade(&h, None, scene, sampler, stats, 0),
+            Ok(h) => self.shade(ray, &h, None, scene, sampler, stats, 0),
             Err(escaped) => escaped,
         }
     }
@@ -210,7 +212,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn begin_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
@@ -220,7 +222,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn li_shared(
         &self,
-        _ray: &Ray,
+        ray: &RayDifferential,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -229,7 +231,7 @@ impl PixelEstimator for Estimator<'_> {
         index: usize,
     ) -> Rgb {
         match shared.sample(index) {
-            (Ok(h), area) => self.shade(h, area, scene, sampler, stats, 0),
+            (Ok(h), area) => self.shade(ray, h, area, scene, sampler, stats, 0),
             (Err(escaped), _) => *escaped,
         }
     }
@@ -248,7 +250,6 @@ impl Integrator for LtcIntegrator {
             adjacency: self.mode != Mode::PerTriangle || (self.shadows && self.merge_occluders),
             min_pixel_samples: (self.pixel_shading && self.coverage_samples > 1)
                 .then_some((self.coverage_samples, COVERAGE_REASON)),
-            ..Default::default()
         }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {

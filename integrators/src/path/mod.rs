@@ -24,7 +24,7 @@ use crate::common::params::{ParamSpec, Params, Range};
 use crate::common::{max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{Bounds2i, Ray};
+use penumbra_core::geometry::{Bounds2i, RayDifferential};
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
 };
@@ -80,7 +80,14 @@ const BSDF_OPTIONS: BsdfOptions =
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = ();
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, _: &mut [f32]) -> Rgb {
+    fn li(
+        &self,
+        ray: &RayDifferential,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        _: &mut [f32],
+    ) -> Rgb {
         let (mut l, mut beta) = (Rgb::ZERO, Rgb::ONE);
         let mut ray = *ray;
         let mut specular_bounce = false;
@@ -126,7 +133,8 @@ impl PixelEstimator for Estimator<'_> {
                 let eta2 = bsdf.eta * bsdf.eta;
                 eta_scale *= if si.wo.dot(si.n) > 0.0 { eta2 } else { 1.0 / eta2 };
             }
-            ray = si.spawn_ray(s.wi);
+            // pbrt-v3's `path` spawns bounce rays without differentials.
+            ray = si.spawn_ray(s.wi).into();
             let rr_beta = (beta * eta_scale).max_element();
             if rr_beta < self.path.rr_threshold && bounces > 3 {
                 let q = (1.0 - rr_beta).max(0.05);

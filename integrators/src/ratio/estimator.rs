@@ -12,7 +12,7 @@ use crate::common::pixel_shading::SharedPixel;
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::camera::CameraSample;
-use penumbra_core::geometry::{gamma, Frame, Ray};
+use penumbra_core::geometry::{gamma, Frame, Ray, RayDifferential};
 use penumbra_core::integrator::{PixelEstimator, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{emitting_normal, DiffuseAreaLight, Light, LightContext};
@@ -332,7 +332,7 @@ impl Estimator<'_> {
     /// its specular chains reach ([`follow_specular`](Self::follow_specular)).
     fn shade(
         &self,
-        ray: &Ray,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         area: Option<AreaLighting>,
         scene: &Scene,
@@ -342,7 +342,7 @@ impl Estimator<'_> {
         let (mut rest, mut sample) = self.shade_surface(ray, hit, area, scene, sampler, stats);
         if has_specular(&hit.bsdf) {
             let mut chain = Chain::default();
-            self.follow_specular(hit, Rgb::ONE, 0, scene, sampler, stats, &mut chain);
+            self.follow_specular(ray, hit, Rgb::ONE, 0, scene, sampler, stats, &mut chain);
             rest += chain.rest;
             sample.chain = chain.terms;
         }
@@ -356,6 +356,7 @@ impl Estimator<'_> {
     #[allow(clippy::too_many_arguments)]
     fn follow_specular(
         &self,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         beta: Rgb,
         depth: u32,
@@ -368,7 +369,7 @@ impl Estimator<'_> {
             return;
         }
         for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-            let Some(sr) = specular_ray(&hit.si, &hit.bsdf, sampler, stats, kind) else { continue };
+            let Some(sr) = specular_ray(&hit.si, &hit.bsdf, ray, sampler, stats, kind) else { continue };
             let beta = beta * sr.f * sr.scale;
             let (next, queries) = scene.first_surface(&sr.ray);
             stats.add_continued(queries);
@@ -376,7 +377,7 @@ impl Estimator<'_> {
                 Ok(h) => {
                     let (rest, t) = self.shade_surface(&sr.ray, &h, None, scene, sampler, stats);
                     chain.add(beta, rest, &t);
-                    self.follow_specular(&h, beta, depth + 1, scene, sampler, stats, chain);
+                    self.follow_specular(&sr.ray, &h, beta, depth + 1, scene, sampler, stats, chain);
                 }
                 Err(escaped) => chain.rest += beta * escaped,
             }
@@ -487,7 +488,14 @@ impl PixelEstimator for Estimator<'_> {
         }
     }
 
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+    fn li(
+        &self,
+        ray: &RayDifferential,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        aov: &mut [f32],
+    ) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
         stats.add_continued(queries);
         match first {
@@ -508,7 +516,7 @@ impl PixelEstimator for Estimator<'_> {
     /// stochastic `S_N`, `U_N` stay per camera sample.
     fn begin_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
@@ -518,7 +526,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn li_shared(
         &self,
-        ray: &Ray,
+        ray: &RayDifferential,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,

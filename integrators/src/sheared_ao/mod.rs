@@ -252,15 +252,20 @@ fn camera_sample(scene: &Scene, sampler: &mut dyn Sampler, p: IVec2) -> CameraSa
 impl ShearedAo {
     /// Pass 1 for one camera sample: the first surface with a material and its cached rays
     /// (`None`: the ray escaped). `us` are the occlusion rays' 2D samples.
-    fn shade(&self, scene: &Scene, cs: &CameraSample, us: &[Vec2], rays: &mut RayCount) -> Option<Shading> {
-        let mut ray = scene.camera.generate_ray(cs);
-        for _ in 0..64 {
+    fn shade(&self, scene: &Scene, cs: &CameraSample, spp: u32, us: &[Vec2], rays: &mut RayCount) -> Option<Shading> {
+        let camera_ray = scene.camera.sample_ray(cs, spp);
+        let mut ray = camera_ray.ray;
+        for pass in 0..64 {
             rays.camera += 1;
             let hit = scene.intersect(&ray)?;
-            let si = scene.interaction(&ray, &hit);
+            let mut si = scene.interaction(&ray, &hit);
             if scene.objects[hit.mesh as usize].material.is_none() {
                 ray = si.spawn_ray(ray.d);
                 continue;
+            }
+            // The camera ray's differentials, for the albedo's texture lookups.
+            if pass == 0 {
+                si.compute_differentials(&camera_ray);
             }
             let n = face_forward(si.n, -ray.d);
             let frame = Frame::from_zx(n, si.dpdu);
@@ -521,7 +526,7 @@ fn sample_pass(
                             p.x as u32 as u64 | ((p.y as u32 as u64) << 32),
                             s as u64,
                         ]);
-                        let shading = ao.shade(scene, &cs, &us, &mut count);
+                        let shading = ao.shade(scene, &cs, spp, &us, &mut count);
                         CacheSample { p_film: cs.p_film, brute_seed, shading }
                     })
                     .collect()

@@ -60,7 +60,7 @@ use lighting::EnvLighting;
 use penumbra_core::bxdf::{Bsdf, Bxdf, BxdfFlags};
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{Bounds2i, Ray};
+use penumbra_core::geometry::{Bounds2i, Ray, RayDifferential};
 use penumbra_core::integrator::{
     render_pixels, with_threads, Integrator, PixelEstimator, Preparation, RenderContext, RenderError, RenderStats,
     ThreadStats,
@@ -404,11 +404,18 @@ impl Estimator<'_> {
         e.map(|v| v * std::f64::consts::FRAC_1_PI)
     }
 
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
+    fn li(
+        &self,
+        ray: &RayDifferential,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        depth: u32,
+    ) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
         stats.rays += queries.saturating_sub(1);
         match first {
-            Ok(hit) => self.shade_hit(&hit, None, scene, sampler, stats, depth),
+            Ok(hit) => self.shade_hit(ray, &hit, None, scene, sampler, stats, depth),
             Err(escaped) => escaped,
         }
     }
@@ -461,8 +468,10 @@ impl Estimator<'_> {
     /// Radiance from `hit`, the `depth`-th surface of a camera ray's specular chain;
     /// `irradiance` is its pixel cluster's [`Self::lambertian_irradiance`] when pixel shading
     /// computed it already.
+    #[allow(clippy::too_many_arguments)]
     fn shade_hit(
         &self,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         irradiance: Option<Rgb>,
         scene: &Scene,
@@ -499,7 +508,7 @@ impl Estimator<'_> {
         }
         if depth + 1 < self.shexp.max_depth {
             for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-                l += specular(si, bsdf, sampler, stats, kind, |r, sampler, stats| {
+                l += specular(si, bsdf, ray, sampler, stats, kind, |r, sampler, stats| {
                     self.li(r, scene, sampler, stats, depth + 1)
                 });
             }
@@ -532,7 +541,7 @@ impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<Rgb>;
     fn li(
         &self,
-        ray: &Ray,
+        ray: &RayDifferential,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -548,7 +557,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn begin_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
@@ -564,7 +573,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn li_shared(
         &self,
-        _ray: &Ray,
+        ray: &RayDifferential,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -572,7 +581,7 @@ impl PixelEstimator for Estimator<'_> {
         shared: &Self::Shared,
         index: usize,
     ) -> Rgb {
-        shared.shade_sample(index, scene, |hit, e| self.shade_hit(hit, e, scene, sampler, stats, 0))
+        shared.shade_sample(index, scene, |hit, e| self.shade_hit(ray, hit, e, scene, sampler, stats, 0))
     }
     fn pixel_bounds(&self) -> Option<Bounds2i> {
         self.shexp.pixel_bounds

@@ -65,7 +65,7 @@ use param::{moment, Meridians, PoleFrame};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray};
+use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray, RayDifferential};
 use penumbra_core::integrator::Preparation;
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
@@ -332,13 +332,22 @@ impl Estimator<'_> {
         l / (k * k) as f32
     }
 
-    /// The first surface with a material along `ray` (pbrt-v3's AO passes through the others).
-    fn first_surface(scene: &Scene, ray: &Ray, stats: &mut ThreadStats) -> Option<SurfaceInteraction> {
-        let mut ray = *ray;
-        for _ in 0..64 {
+    /// The first surface with a material along `ray` (pbrt-v3's AO passes through the others),
+    /// with the camera ray's differentials when it reached it directly (for the albedo's
+    /// texture lookups).
+    fn first_surface(
+        scene: &Scene,
+        camera_ray: &RayDifferential,
+        stats: &mut ThreadStats,
+    ) -> Option<SurfaceInteraction> {
+        let mut ray = camera_ray.ray;
+        for pass in 0..64 {
             let hit = scene.intersect(&ray)?;
-            let si = scene.interaction(&ray, &hit);
+            let mut si = scene.interaction(&ray, &hit);
             if scene.objects[hit.mesh as usize].material.is_some() {
+                if pass == 0 {
+                    si.compute_differentials(camera_ray);
+                }
                 return Some(si);
             }
             ray = si.spawn_ray(ray.d);
@@ -347,7 +356,7 @@ impl Estimator<'_> {
         None
     }
 
-    fn ao(&self, ray: &Ray, scene: &Scene, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+    fn ao(&self, ray: &RayDifferential, scene: &Scene, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
         match Self::first_surface(scene, ray, stats) {
             Some(si) => self.ao_at(&si, -ray.d, scene, stats, aov),
             None => Rgb::ZERO,
@@ -401,11 +410,18 @@ impl Estimator<'_> {
         Rgb::splat((nd.dot(sum * m.dphi + sum_mc)).max(0.0) as f32)
     }
 
-    fn shade(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
+    fn shade(
+        &self,
+        ray: &RayDifferential,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        depth: u32,
+    ) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
         stats.add_continued(queries);
         match first {
-            Ok(hit) => self.shade_hit(&hit, None, scene, sampler, stats, depth),
+            Ok(hit) => self.shade_hit(ray, &hit, None, scene, sampler, stats, depth),
             Err(escaped) => escaped,
         }
     }
@@ -449,8 +465,10 @@ impl Estimator<'_> {
     /// Radiance from `hit`, the `depth`-th surface of a camera ray's specular chain; `env` is
     /// its pixel cluster's [`Self::env_terms`] when pixel shading computed them already
     /// (`Some(None)`: the cluster's traversal failed).
+    #[allow(clippy::too_many_arguments)]
     fn shade_hit(
         &self,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         env: Option<Option<EnvTerms>>,
         scene: &Scene,
@@ -483,7 +501,7 @@ impl Estimator<'_> {
         }
         if depth + 1 < self.max_depth {
             for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-                l += specular(si, bsdf, sampler, stats, kind, |r, sampler, stats| {
+                l += specular(si, bsdf, ray, sampler, stats, kind, |r, sampler, stats| {
                     self.shade(r, scene, sampler, stats, depth + 1)
                 });
             }
@@ -587,7 +605,14 @@ impl Estimator<'_> {
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<ClusterValue>;
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+    fn li(
+        &self,
+        ray: &RayDifferential,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        aov: &mut [f32],
+    ) -> Rgb {
         match self.mode {
             Mode::Ao | Mode::Prt => self.ao(ray, scene, stats, aov),
             Mode::Shade => self.shade(ray, scene, sampler, stats, 0),
@@ -601,7 +626,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn begin_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
@@ -627,7 +652,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn li_shared(
         &self,
-        ray: &Ray,
+        ray: &RayDifferential,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -636,7 +661,8 @@ impl PixelEstimator for Estimator<'_> {
         index: usize,
     ) -> Rgb {
         if self.mode == Mode::Shade {
-            return shared.shade_sample(index, scene, |hit, env| self.shade_hit(hit, env, scene, sampler, stats, 0));
+            return shared
+                .shade_sample(index, scene, |hit, env| self.shade_hit(ray, hit, env, scene, sampler, stats, 0));
         }
         match shared.sample(index) {
             (Ok(_), Some(Some((ao, _)))) => ao,

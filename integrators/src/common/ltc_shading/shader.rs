@@ -13,7 +13,7 @@ use crate::common::pixel_shading::SharedPixel;
 use glam::DVec3;
 use penumbra_core::accel::objects::ObjectBvh;
 use penumbra_core::camera::CameraSample;
-use penumbra_core::geometry::{Frame, Ray};
+use penumbra_core::geometry::{Frame, RayDifferential};
 use penumbra_core::integrator::ThreadStats;
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::emitting_normal;
@@ -165,7 +165,7 @@ impl LtcShader {
     /// `shadows`): `begin_pixel` of `ltc` and `ratio`.
     pub fn trace_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         shadows: bool,
