@@ -240,6 +240,8 @@ class Cell:
             spp, res = REF_SPP, (2 * self.res[0], 2 * self.res[1])
         else:
             spp, res = 4 * REF_SPP, self.res
+        if self.sampler.startswith("stratified"):
+            spp = int(round(math.sqrt(spp))) ** 2  # xsamples x ysamples: 512 -> 23^2 = 529
         return self.options(spp, res, filename, integrator) + "WorldBegin\n" + self.world + "WorldEnd\n", spp, res
 
 
