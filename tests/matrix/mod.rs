@@ -195,7 +195,13 @@ pub fn measure(shot: &Shot, refi: &NoisyImage, mean_tol: f64, block_tol: f64, bl
     let mut tests = Vec::new();
     for b in agreement::blocks(w, h, 3, block) {
         let floor = BLOCK_FLOOR * scale(b.channel.unwrap_or(0));
-        tests.extend(agreement::test_regions(&test, &refi, RefNoise::Own, Tolerance { rel: block_tol, abs: floor }, &[b]));
+        tests.extend(agreement::test_regions(
+            &test,
+            &refi,
+            RefNoise::Own,
+            Tolerance { rel: block_tol, abs: floor },
+            &[b],
+        ));
     }
     let mut mean_err = 0.0f64;
     for (c, t) in wt.iter().enumerate() {
