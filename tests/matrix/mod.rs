@@ -101,8 +101,13 @@ pub struct Shot {
     pub seconds: f64,
 }
 
+/// Seconds one render may take before it is cancelled and recorded as timed out (a failure
+/// unless known): 5× the slowest run that finishes on a loaded 2-core machine (11 s), so that
+/// one pathological case cannot hold the whole matrix up.
+pub const BUDGET_SECONDS: f64 = 60.0;
+
 /// Renders `cell` with `integrator` and `params` at `spp` and 1/`shrink` of its resolution (1
-/// thread: cells run in parallel).
+/// thread: cells run in parallel). `Err` starting "timed out" after [`BUDGET_SECONDS`].
 pub fn shoot(cell: &Cell, integrator: &str, params: &[&str], spp: u32, shrink: usize) -> Result<Shot, String> {
     let path = dir().join(format!("{}.pbrt", cell.name));
     let parsed = penumbra_parser::parse_file(&path).map_err(|e| format!("{e}"))?;
@@ -124,8 +129,23 @@ pub fn shoot(cell: &Cell, integrator: &str, params: &[&str], spp: u32, shrink: u
         progress: None,
     };
     let t0 = std::time::Instant::now();
-    let r = pipeline::render(&parsed.scene, &opts, &warnings).map_err(|e| format!("{e}"))?;
+    let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
+    let r = std::thread::scope(|s| {
+        let cancel = &cancel;
+        s.spawn(move || {
+            if done_rx.recv_timeout(std::time::Duration::from_secs_f64(BUDGET_SECONDS)).is_err() {
+                cancel.store(true, Ordering::Relaxed);
+            }
+        });
+        let r = pipeline::render(&parsed.scene, &opts, &warnings);
+        let _ = done_tx.send(());
+        r
+    });
     let seconds = t0.elapsed().as_secs_f64();
+    if cancel.load(Ordering::Relaxed) {
+        return Err(format!("timed out after {seconds:.0} s"));
+    }
+    let r = r.map_err(|e| format!("{e}"))?;
     let rgb = r.image.select_channels(&["R", "G", "B"]).map_err(|e| format!("{e}"))?;
     let var = r.image.select_channels(&["variance.R", "variance.G", "variance.B"]).map_err(|e| format!("{e}"))?;
     assert_eq!(
