@@ -215,7 +215,7 @@ fn run_cell(cell: &Cell, samples: &std::collections::BTreeMap<(String, String), 
             continue;
         };
         let k = if cell.group == "filter" { 1 } else { run.shrink };
-        let shot = match shoot(cell, run.integrator, run.params, run.spp.unwrap_or(cell.spp), k) {
+        let shot = match shoot(cell, run.integrator, run.params, run.spp.unwrap_or(cell.spp), k, reference.samples) {
             Ok(s) => s,
             Err(e) if e.starts_with("timed out") => {
                 out.push(Outcome { result: Err(e), seconds: BUDGET_SECONDS, ..base });

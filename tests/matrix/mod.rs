@@ -107,8 +107,18 @@ pub struct Shot {
 pub const BUDGET_SECONDS: f64 = 60.0;
 
 /// Renders `cell` with `integrator` and `params` at `spp` and 1/`shrink` of its resolution (1
-/// thread: cells run in parallel). `Err` starting "timed out" after [`BUDGET_SECONDS`].
-pub fn shoot(cell: &Cell, integrator: &str, params: &[&str], spp: u32, shrink: usize) -> Result<Shot, String> {
+/// thread: cells run in parallel), its ray differentials scaled as for `footprint_spp` samples
+/// per pixel at the cell's resolution (the reference's: pbrt-v3 filters textures over 1/√spp of
+/// a pixel, so a render at another count or resolution filters them differently). `Err`
+/// starting "timed out" after [`BUDGET_SECONDS`].
+pub fn shoot(
+    cell: &Cell,
+    integrator: &str,
+    params: &[&str],
+    spp: u32,
+    shrink: usize,
+    footprint_spp: f64,
+) -> Result<Shot, String> {
     let path = dir().join(format!("{}.pbrt", cell.name));
     let parsed = penumbra_parser::parse_file(&path).map_err(|e| format!("{e}"))?;
     let warnings = DiagSink::new();
@@ -137,7 +147,7 @@ pub fn shoot(cell: &Cell, integrator: &str, params: &[&str], spp: u32, shrink: u
                 cancel.store(true, Ordering::Relaxed);
             }
         });
-        let r = pipeline::render(&parsed.scene, &opts, &warnings);
+        let r = render(&parsed.scene, &opts, footprint_spp * (shrink * shrink) as f64, &warnings);
         let _ = done_tx.send(());
         r
     });
@@ -145,7 +155,8 @@ pub fn shoot(cell: &Cell, integrator: &str, params: &[&str], spp: u32, shrink: u
     if cancel.load(Ordering::Relaxed) {
         return Err(format!("timed out after {seconds:.0} s"));
     }
-    let r = r.map_err(|e| format!("{e}"))?;
+    let (image, stats) = r.map_err(|e| format!("{e}"))?;
+    let r = Rendered { image, stats };
     let rgb = r.image.select_channels(&["R", "G", "B"]).map_err(|e| format!("{e}"))?;
     let var = r.image.select_channels(&["variance.R", "variance.G", "variance.B"]).map_err(|e| format!("{e}"))?;
     assert_eq!(
@@ -160,6 +171,24 @@ pub fn shoot(cell: &Cell, integrator: &str, params: &[&str], spp: u32, shrink: u
     msgs.sort();
     msgs.dedup();
     Ok(Shot { rgb: rgb.data, var: var.data, warnings: msgs, spp: r.stats.spp, seconds })
+}
+
+struct Rendered {
+    image: Image,
+    stats: penumbra_core::integrator::RenderStats,
+}
+
+/// `pipeline::render` with the camera's differentials scaled for `footprint_spp`.
+fn render(
+    desc: &penumbra_parser::SceneDescription,
+    opts: &RenderOptions,
+    footprint_spp: f64,
+    warnings: &DiagSink,
+) -> Result<(Image, penumbra_core::integrator::RenderStats), pipeline::PipelineError> {
+    let (integrator, mut scene) = pipeline::prepare(desc, opts, warnings)?;
+    scene.camera.footprint_spp = Some(footprint_spp.round() as u32);
+    let (film, stats) = pipeline::render_film(integrator.as_ref(), &scene, scene.film.clone(), opts, warnings)?;
+    Ok((film.to_image(opts.with_variance), stats))
 }
 
 /// What one (cell, integrator) run measured.
