@@ -220,7 +220,12 @@ impl Camera {
                     let lens = self.lens_radius * concentric_disk(p_lens);
                     // The plane of focus is z = focal_distance in camera space.
                     let focus = o + d * (self.focal_distance / d.z);
-                    o = Vec3::new(o.x + lens.x, o.y + lens.y, 0.0);
+                    // pbrt-v3 starts the ray at the lens point itself, for the orthographic
+                    // camera too (not at the film point moved by it): its orthographic depth
+                    // of field converges every ray through the lens disk at the camera's
+                    // origin, whatever its screen window. penumbra renders what pbrt-v3
+                    // renders (the conformance cell camera-orthographic-dof was −16 %).
+                    o = Vec3::new(lens.x, lens.y, 0.0);
                     d = focus - o;
                 }
                 (o, d)
