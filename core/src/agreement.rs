@@ -44,7 +44,7 @@
 //! a mean of about the same samples with nearly equal weights, so region tests (blocks of 8×8
 //! and up) stay right; per-value tests need a box filter.
 
-use crate::stats::{ln_gamma, regularized_gamma_q};
+use crate::goodness_of_fit::{ln_gamma, regularized_gamma_q};
 
 /// Two-sided p-value of a standard normal statistic: P(|Z| ≥ |z|).
 pub fn normal_two_sided_p(z: f64) -> f64 {

@@ -74,6 +74,9 @@ impl Scene {
         };
         let (materials, textures) = if req.materials {
             let (m, t) = materials(desc, &objects, warnings, &mut report)?;
+            if !req.subsurface {
+                warn_interface_only(desc, &m, warnings);
+            }
             (Some(m), Some(t))
         } else {
             (None, None)
@@ -317,6 +320,24 @@ fn materials(
         ),
     ));
     Ok((materials, textures))
+}
+
+/// One warning per material type with a BSSRDF, for an integrator that renders none.
+fn warn_interface_only(desc: &SceneDescription, materials: &Materials, warnings: &DiagSink) {
+    let mut warned = std::collections::HashSet::new();
+    for (i, md) in desc.materials.iter().enumerate() {
+        let Some(m) = materials.get(i).filter(|m| m.may_have_bssrdf()) else { continue };
+        if warned.insert(m.type_name()) {
+            warnings.warn(
+                Some(md.entity.loc.clone()),
+                format!(
+                    "material \"{}\": its subsurface scattering (BSSRDF) is rendered by \"path\" only; this \
+                     integrator renders its surface (BSDF) alone, as pbrt-v3's directlighting and whitted do",
+                    m.type_name()
+                ),
+            );
+        }
+    }
 }
 
 #[cfg(test)]
