@@ -12,7 +12,7 @@
 //! A 64-byte header — the 8 bytes `SCATFUN\x01`; `u32 flags` (1: a BSDF, no harmonic
 //! extrapolation); `i32 nMu, nCoeffs, mMax, nChannels, nBases, nMetadataBytes, nParameters,
 //! nParameterValues`; `f32 eta` (relative index below/above), `f32 alpha[2]`, `f32 unused[2]`
-//! — then `f32 mu[nMu]` (strictly increasing), `f32 cdf[nMu²]`, `i32 (offset, length)[nMu²]`
+//! — then `f32 mu[nMu]` (non-decreasing: pbrt-v3's files repeat 0), `f32 cdf[nMu²]`, `i32 (offset, length)[nMu²]`
 //! (row `µ_o`, column `µ_i`), `f32 coeffs[nCoeffs]` (each pair's `length` coefficients per
 //! channel, channel-major); metadata may follow and is ignored. pbrt-v3 reads only files with
 //! `flags = 1`, `nBases = 1` and 1 or 3 channels, as here.
