@@ -24,6 +24,15 @@
 //! `docs/conformance.md` (between its markers); the test fails when the document is stale and
 //! rewrites it with `PENUMBRA_BLESS=1 cargo test --release --test conformance_matrix`. Results
 //! also go to `target/conformance/results.tsv`.
+//!
+//! **What runs.** By default the representative subset [`DEFAULT_CELLS`] (30 of 148 cells, 226
+//! runs: 62 s wall on the loaded 2-core machine, the full matrix 391–789 s); `CONFORMANCE_FULL=1` runs every cell, `CONFORMANCE_CELLS=GLOB` the cells
+//! whose `group/name` matches. A partial run checks its rows of the document's table; only the
+//! full run checks (and, blessed, rewrites) the summary. The false-alarm family is always the
+//! full matrix, so a cell's verdict does not depend on what else ran.
+//!
+//! **Time.** Every render has a budget ([`matrix::BUDGET_SECONDS`]); one that takes longer is
+//! cancelled and fails (a known failure where the slowness is another issue's).
 
 mod common;
 mod matrix;
@@ -31,6 +40,42 @@ mod matrix;
 use matrix::*;
 use penumbra_core::agreement::{critical_z, sidak_alpha, NoisyImage};
 use std::fmt::Write as _;
+
+/// The cells of the default run (~1/6 of the matrix's time; `CONFORMANCE_FULL=1` runs all 148):
+/// each group's cheapest cells, every cell with a known failure cheap enough to check, and the
+/// defaults of the materials penumbra implements apart.
+const DEFAULT_CELLS: &[&str] = &[
+    "material/plastic-default",
+    "material/plastic-r0.8",
+    "material/metal-default",
+    "material/substrate-r0.4",
+    "material/mix-default",
+    "material/mirror-default",
+    "material/disney-default",
+    "material/hair-default",
+    "material/fourier-gold",
+    "texture/bump-bilerp",
+    "texture/tex-checker3d",
+    "texture/tex-image-ewa",
+    "texture/tex-marble",
+    "light/light-spot",
+    "light/light-distant",
+    "light/light-goniometric",
+    "light/light-projection",
+    "light/light-disk",
+    "light/light-quad",
+    "light/light-infinite-map",
+    "light/light-sphere",
+    "shape/shape-trianglemesh",
+    "shape/shape-cone",
+    "shape/shape-heightfield",
+    "shape/shape-curve",
+    "camera/camera-environment",
+    "camera/camera-orthographic-dof",
+    "sampler/sampler-sobol",
+    "filter/filter-gaussian",
+    "room/room-metal",
+];
 
 /// Family-wise false-alarm rate of the whole matrix.
 const FAMILY_ALPHA: f64 = 0.01;
@@ -179,7 +224,161 @@ struct Known {
     what: &'static str,
 }
 
-const KNOWN: &[Known] = &[];
+/// The known failures of the full matrix run of 2026-12-03 (`CONFORMANCE_FULL=1`), each with what
+/// it measured (image mean / worst 8×8 block against pbrt-v3).
+const KNOWN: &[Known] = &[
+    Known {
+        run: "ltc",
+        cells: &[
+            "material/plastic-r0.01",
+            "material/plastic-r0.05",
+            "material/plastic-r0.6",
+            "material/plastic-r0.8",
+            "material/plastic-r1",
+            "material/plastic-a0.1",
+            "material/plastic-a2",
+            "material/plastic-a3",
+            "material/metal-default",
+            "material/metal-r0.001",
+            "material/metal-r0.01",
+            "material/metal-r0.05",
+            "material/metal-r0.1",
+            "material/metal-r0.2",
+            "material/metal-r0.6",
+            "material/metal-r0.8",
+            "material/metal-r1",
+            "material/metal-a0.01",
+            "material/metal-a0.1",
+            "material/metal-a0.5",
+            "material/metal-a2",
+            "material/metal-a3",
+            "material/metal-spd",
+            "material/metal-spectrum",
+            "material/metal-rgb",
+            "material/substrate-default",
+            "material/substrate-r0.01",
+            "material/substrate-r0.1",
+            "material/substrate-r0.4",
+            "material/substrate-r1",
+            "material/substrate-a0.5",
+            "material/substrate-a2",
+            "texture/tex-roughness-image",
+            "room/room-glossy",
+        ],
+        issue: 43,
+        what: "LTC over pbrt-v3's roughness range: α > 1 clamped to the table (plastic-a3 +91 % mean, \
+               metal-a3 +546 %), substrate +40..+124 %, sharp lobes (metal-r0.05 −3.3 %, blocks to +30 %), \
+               room-glossy block +9 %",
+    },
+    Known {
+        run: "ltc",
+        cells: &["light/light-cylinder"],
+        issue: 42,
+        what: "ltc's per-triangle fallback on a tessellated cylinder light: over the 60 s budget",
+    },
+    Known {
+        run: "ratio",
+        cells: &[
+            "material/plastic-default",
+            "material/plastic-r0.001",
+            "material/plastic-r0.01",
+            "material/plastic-r0.05",
+            "material/plastic-r0.1",
+            "material/plastic-r0.2",
+            "material/plastic-r0.4",
+            "material/plastic-r0.6",
+            "material/plastic-r0.8",
+            "material/plastic-r1",
+            "material/plastic-a0.1",
+            "material/plastic-a0.5",
+            "material/plastic-a2",
+            "material/plastic-a3",
+            "material/metal-default",
+            "material/metal-r0.001",
+            "material/metal-r0.01",
+            "material/metal-r0.05",
+            "material/metal-r0.1",
+            "material/metal-r0.2",
+            "material/metal-r0.4",
+            "material/metal-r0.6",
+            "material/metal-r0.8",
+            "material/metal-r1",
+            "material/metal-a0.01",
+            "material/metal-a0.1",
+            "material/metal-a0.5",
+            "material/metal-a1",
+            "material/metal-a2",
+            "material/metal-a3",
+            "material/metal-spd",
+            "material/metal-spectrum",
+            "material/metal-rgb",
+            "material/substrate-default",
+            "material/substrate-r0.01",
+            "material/substrate-r0.1",
+            "material/substrate-r0.4",
+            "material/substrate-r1",
+            "material/substrate-a0.5",
+            "material/substrate-a2",
+            "material/uber-r0.01",
+            "material/uber-r1",
+            "material/uber-a2",
+            "material/uber-opacity",
+            "texture/bump-metal-fbm",
+            "texture/tex-roughness-image",
+            "texture/tex-scale-mix",
+            "texture/tex-dots",
+            "light/light-sphere",
+            "room/room-glossy",
+        ],
+        issue: 43,
+        what: "ratio = LTC × denoised ratio: LTC's roughness-range errors (metal-a3 +544 %) and the \
+               ratio's own bias (light-sphere −6.9 % mean, plastic-default block +3.4 %)",
+    },
+    Known {
+        run: "shexp",
+        cells: &["shape/shape-heightfield", "shape/shape-instances"],
+        issue: 39,
+        what: "shexp's open-mesh shadows: heightfield −2.4 % mean / +9.1 % block, instances +4.1 % / +19.5 %",
+    },
+    Known {
+        run: "silhouette mode=ao",
+        cells: &["camera/camera-orthographic-dof"],
+        issue: 37,
+        what: "a zero 4×4 block where pbrt-v3's AO is 0.014 (pixel shading under a thin lens)",
+    },
+    Known {
+        run: "*",
+        cells: &["shape/shape-curve", "shape/shape-nurbs", "camera/camera-realistic"],
+        issue: 34,
+        what: "curve and nurbs shapes are skipped, the realistic camera renders as perspective (each with \
+               a warning): +10 % mean (curve, nurbs), +78 % (realistic)",
+    },
+    Known {
+        run: "ltc",
+        cells: &["sampler/sampler-stratified-nojitter"],
+        issue: 32,
+        what: "16 spp: +5.1 % mean; unjittered strata alias differently at 16 spp \
+               than the reference's 529 (a flaw of this cell's comparison, not of the methods)",
+    },
+    Known {
+        run: "ratio",
+        cells: &["sampler/sampler-stratified-nojitter"],
+        issue: 32,
+        what: "as ltc's: +5.3 % mean, unjittered strata at 16 spp",
+    },
+    Known {
+        run: "directlighting",
+        cells: &["shape/shape-heightfield"],
+        issue: 32,
+        what: "+0.19 % mean, one block +2.5 % (|z| 6.7): not yet explained",
+    },
+    Known {
+        run: "path",
+        cells: &["texture/tex-marble"],
+        issue: 32,
+        what: "+7.3 % mean, a dim block +43 %: not yet explained (marble halved to keep albedo < 1)",
+    },
+];
 
 fn reference_run(kind: &str) -> &'static str {
     match kind {
@@ -211,8 +410,12 @@ fn run_cell(cell: &Cell, samples: &std::collections::BTreeMap<(String, String), 
             continue;
         };
         let k = if cell.group == "filter" { 1 } else { run.shrink };
-        let shot = match shoot(cell, run.integrator, run.params, run.spp.unwrap_or(cell.spp), k) {
+        let shot = match shoot(cell, run.integrator, run.params, run.spp.unwrap_or(cell.spp), k, reference.samples) {
             Ok(s) => s,
+            Err(e) if e.starts_with("timed out") => {
+                out.push(Outcome { result: Err(e), seconds: BUDGET_SECONDS, ..base });
+                continue;
+            }
             Err(e) => {
                 out.push(Outcome { result: Err(format!("refused: {e}")), ..base });
                 continue;
@@ -247,13 +450,14 @@ enum Verdict {
 }
 
 fn known_for(o: &Outcome) -> Option<&'static Known> {
-    KNOWN.iter().find(|k| k.run == o.run && k.cells.iter().any(|p| glob(p, &o.key)))
+    KNOWN.iter().find(|k| glob(k.run, &o.run) && k.cells.iter().any(|p| glob(p, &o.key)))
 }
 
 fn verdict(o: &Outcome, z_crit: f64) -> Verdict {
     let failed = match &o.result {
         Ok(m) => m.tests.iter().any(|t| !(t.z.abs() <= z_crit)),
         Err(e) if e.starts_with("refused") => return Verdict::Refused,
+        Err(e) if e.starts_with("timed out") => true,
         Err(_) => return Verdict::Missing,
     };
     match (failed, known_for(o)) {
@@ -266,26 +470,45 @@ fn verdict(o: &Outcome, z_crit: f64) -> Verdict {
 
 #[test]
 fn pbrt_v3_conformance_matrix() {
-    let cells = cells();
+    let mut cells = cells();
     assert!(cells.len() > 100, "cells.tsv lists {} cells", cells.len());
+    // The family of the false-alarm rate is the whole matrix, whichever part of it runs: the
+    // same threshold for every run, so a subset's verdicts are the full matrix's.
+    let m_full = planned_tests(&cells);
+    let z_crit = critical_z(sidak_alpha(FAMILY_ALPHA, m_full));
+    // CONFORMANCE_CELLS=glob runs only the matching cells (`group/name`); CONFORMANCE_FULL=1 all
+    // of them; by default the representative subset DEFAULT_CELLS.
+    let full = std::env::var_os("CONFORMANCE_FULL").is_some();
+    let pattern = std::env::var("CONFORMANCE_CELLS").ok();
+    match &pattern {
+        Some(p) => cells.retain(|c| glob(p, &c.key())),
+        None if !full => cells.retain(|c| DEFAULT_CELLS.contains(&c.key().as_str())),
+        None => {}
+    }
+    let whole = pattern.is_none() && full;
     let samples = reference_samples();
     let t0 = std::time::Instant::now();
     let outcomes: Vec<Outcome> =
         parallel(cells.len(), |i| run_cell(&cells[i], &samples)).into_iter().flatten().collect();
     let seconds = t0.elapsed().as_secs_f64();
     let m: usize = outcomes.iter().filter_map(|o| o.result.as_ref().ok()).map(|r| r.tests.len()).sum();
-    let z_crit = critical_z(sidak_alpha(FAMILY_ALPHA, m));
     let verdicts: Vec<Verdict> = outcomes.iter().map(|o| verdict(o, z_crit)).collect();
-    let report = report(&cells, &outcomes, &verdicts, m, z_crit);
+    let report = report(&cells, &outcomes, &verdicts, m_full, z_crit);
     let target = common::root().join("target/conformance");
     std::fs::create_dir_all(&target).unwrap();
     std::fs::write(target.join("conformance.md"), &report).unwrap();
     std::fs::write(target.join("results.tsv"), results_tsv(&outcomes, &verdicts, z_crit)).unwrap();
     eprintln!(
-        "{} runs over {} cells in {seconds:.1} s; {m} region tests, Šidák |z| threshold {z_crit:.2}",
+        "{} runs over {} cells in {seconds:.1} s; {m} region tests (of the full matrix's {m_full}), Šidák |z| threshold {z_crit:.2}",
         outcomes.len(),
         cells.len()
     );
+    for k in KNOWN {
+        let hit = |o: &Outcome| glob(k.run, &o.run) && k.cells.iter().any(|p| glob(p, &o.key));
+        if !outcomes.iter().any(hit) {
+            eprintln!("known failure of issue {} not checked by this run (cells not run): {}", k.issue, k.what);
+        }
+    }
     let mut problems = Vec::new();
     for (o, v) in outcomes.iter().zip(&verdicts) {
         let line = match (&o.result, v) {
@@ -304,13 +527,17 @@ fn pbrt_v3_conformance_matrix() {
                     w.reference
                 )
             }
-            (Err(e), Verdict::Missing) => format!("{} on {}: {e}", o.run, o.key),
+            (Err(e), Verdict::Missing | Verdict::Fail | Verdict::Stale(_)) => format!("{} on {}: {e}", o.run, o.key),
             _ => continue,
         };
         eprintln!("{line}");
         problems.push(line);
     }
-    check_docs(&report);
+    if whole {
+        check_docs(&report);
+    } else {
+        check_doc_rows(&report);
+    }
     assert!(
         problems.is_empty(),
         "{} runs fail (see above; known failures pass: remove them from KNOWN)",
@@ -393,6 +620,7 @@ fn report(cells: &[Cell], outcomes: &[Outcome], verdicts: &[Verdict], m: usize, 
                     };
                     match &outcomes[i].result {
                         Ok(m) => format!("{mark} {} / {}", pct(m.mean_err), pct(m.block_err).trim_start_matches('+')),
+                        Err(e) if e.starts_with("timed out") => format!("{mark} timed out"),
                         Err(_) => mark,
                     }
                 }
@@ -450,6 +678,30 @@ fn check_docs(report: &str) {
     );
 }
 
+/// Every region test of the full matrix: each (cell, run) with its reference, 3 channels of
+/// 8×8 blocks (the pixel-shading runs' half-resolution blocks are the same blocks) and the 3
+/// whole channels.
+fn planned_tests(cells: &[Cell]) -> usize {
+    let per = |c: &Cell| c.width.div_ceil(BLOCK) * c.height.div_ceil(BLOCK) * 3 + 3;
+    cells.iter().map(|c| RUNS.iter().filter(|r| c.has_ref(r.reference)).count() * per(c)).sum()
+}
+
+/// A partial run: the rows it rendered must be the document's (the summary needs the full run).
+fn check_doc_rows(report: &str) {
+    let doc = std::fs::read_to_string(common::root().join("docs/conformance.md")).unwrap_or_default();
+    let stale: Vec<&str> = report
+        .lines()
+        .filter(|l| l.split(" | ").next().is_some_and(|k| k.starts_with("| ") && k.contains('/')))
+        .filter(|l| !doc.lines().any(|d| d == *l))
+        .collect();
+    assert!(
+        stale.is_empty(),
+        "docs/conformance.md's rows differ from this run's (regenerate with CONFORMANCE_FULL=1 \
+         PENUMBRA_BLESS=1 cargo test --release --test conformance_matrix):\n{}",
+        stale.join("\n")
+    );
+}
+
 #[test]
 fn every_cell_has_its_scene_and_references() {
     let samples = reference_samples();
@@ -469,7 +721,7 @@ fn every_cell_has_its_scene_and_references() {
 fn known_failures_name_runs_and_cells_that_exist() {
     let cells = cells();
     for k in KNOWN {
-        assert!(RUNS.iter().any(|r| r.name == k.run), "KNOWN names run {:?}, which RUNS does not have", k.run);
+        assert!(RUNS.iter().any(|r| glob(k.run, r.name)), "KNOWN names run {:?}, which RUNS does not have", k.run);
         for p in k.cells {
             assert!(cells.iter().any(|c| glob(p, &c.key())), "KNOWN pattern {p:?} ({}) matches no cell", k.what);
         }

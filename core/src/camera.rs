@@ -33,6 +33,12 @@ pub struct Camera {
     pub lens_radius: f32,
     pub focal_distance: f32,
     pub shutter: (f32, f32),
+    /// The sample count the ray differentials are scaled for (`None`: the render's own).
+    /// pbrt-v3 scales them by 1/√spp, so its texture filtering depends on the sample count and
+    /// the resolution; a render compared with a reference made at another count or resolution
+    /// sets this so that both filter textures over the same footprint (`tests/matrix`: a
+    /// reference at 2× the resolution and N spp filters as 1× at 4N).
+    pub footprint_spp: Option<u32>,
 }
 
 fn concentric_disk(u: Vec2) -> Vec2 {
@@ -129,6 +135,7 @@ impl Camera {
             lens_radius,
             focal_distance,
             shutter,
+            footprint_spp: None,
         })
     }
 
@@ -181,10 +188,10 @@ impl Camera {
 
     /// The camera ray as the render driver hands it to estimators: with its offset rays scaled
     /// by `1/√spp` (pbrt-v3's `ScaleDifferentials`), so they span the spacing of a pixel's
-    /// `spp` samples.
+    /// `spp` samples ([`Camera::footprint_spp`] in place of `spp` when set).
     pub fn sample_ray(&self, s: &CameraSample, spp: u32) -> RayDifferential {
         let mut ray = self.generate_ray_differential(s);
-        ray.scale_offsets(1.0 / (spp.max(1) as f32).sqrt());
+        ray.scale_offsets(1.0 / (self.footprint_spp.unwrap_or(spp).max(1) as f32).sqrt());
         ray
     }
 
@@ -213,7 +220,12 @@ impl Camera {
                     let lens = self.lens_radius * concentric_disk(p_lens);
                     // The plane of focus is z = focal_distance in camera space.
                     let focus = o + d * (self.focal_distance / d.z);
-                    o = Vec3::new(o.x + lens.x, o.y + lens.y, 0.0);
+                    // pbrt-v3 starts the ray at the lens point itself, for the orthographic
+                    // camera too (not at the film point moved by it): its orthographic depth
+                    // of field converges every ray through the lens disk at the camera's
+                    // origin, whatever its screen window. penumbra renders what pbrt-v3
+                    // renders (the conformance cell camera-orthographic-dof was −16 %).
+                    o = Vec3::new(lens.x, lens.y, 0.0);
                     d = focus - o;
                 }
                 (o, d)
@@ -327,6 +339,10 @@ mod tests {
             // Without scaling: one whole pixel.
             let full = plane_hit(&c.generate_ray_differential(&centre));
             assert!(close(full.dpdx.length(), span / res as f32), "{kind}: {full:?}");
+            // `footprint_spp` replaces the render's count: 2048 at 64 spp spans 1/√2048 pixel.
+            let c2048 = Camera { footprint_spp: Some(2048), ..c.clone() };
+            let f = plane_hit(&c2048.sample_ray(&centre, 64));
+            assert!(close(f.dpdx.length(), span / res as f32 / 2048f32.sqrt()), "{kind}: {f:?}");
         }
         // The environment camera's offsets are a 0.05-pixel finite difference of its directions:
         // at the equator, one pixel in x turns the direction by 2π/width.

@@ -284,6 +284,7 @@ pub fn render_pixels<E: PixelEstimator + ?Sized>(
         proto: proto.as_ref(),
         spp,
         camera: CameraDims { uses_time: scene.camera.uses_time(), uses_lens: scene.camera.uses_lens() },
+        cancel: ctx.cancel,
     };
     let results: Vec<Option<TileResult>> = with_threads(ctx.threads, || {
         tile_list
@@ -292,7 +293,7 @@ pub fn render_pixels<E: PixelEstimator + ?Sized>(
                 if ctx.cancel.load(Ordering::Relaxed) {
                     return None;
                 }
-                let r = pass.render_tile(*tb);
+                let r = pass.render_tile(*tb)?;
                 let d = done.fetch_add(1, Ordering::Relaxed) + 1;
                 if let Some(pr) = ctx.progress {
                     pr(d, total);
@@ -384,6 +385,8 @@ struct TilePass<'a, E: ?Sized> {
     proto: &'a dyn Sampler,
     spp: u32,
     camera: CameraDims,
+    /// Checked before every pixel, so that a slow pixel estimator stops within a pixel.
+    cancel: &'a AtomicBool,
 }
 
 /// Per-tile scratch: the sampler, the extra channels of one sample, and a pixel's camera
@@ -396,7 +399,8 @@ struct TileScratch {
 }
 
 impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
-    fn render_tile(&self, tb: Bounds2i) -> TileResult {
+    /// `None` when the render was cancelled before the tile was done.
+    fn render_tile(&self, tb: Bounds2i) -> Option<TileResult> {
         let mut out = TileResult { tile: self.film.make_tile(tb), stats: ThreadStats::default(), camera_samples: 0 };
         let mut scratch = TileScratch {
             sampler: self.proto.clone_box(),
@@ -409,9 +413,12 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
             if pixel_bounds.is_some_and(|b| !b.contains(p)) {
                 continue;
             }
+            if self.cancel.load(Ordering::Relaxed) {
+                return None;
+            }
             self.render_pixel(p, &mut scratch, &mut out);
         }
-        out
+        Some(out)
     }
 
     /// The shared pass (when the estimator shares pixel work), then every sample of pixel `p`.

@@ -12,7 +12,7 @@
 //! A 64-byte header — the 8 bytes `SCATFUN\x01`; `u32 flags` (1: a BSDF, no harmonic
 //! extrapolation); `i32 nMu, nCoeffs, mMax, nChannels, nBases, nMetadataBytes, nParameters,
 //! nParameterValues`; `f32 eta` (relative index below/above), `f32 alpha[2]`, `f32 unused[2]`
-//! — then `f32 mu[nMu]` (strictly increasing), `f32 cdf[nMu²]`, `i32 (offset, length)[nMu²]`
+//! — then `f32 mu[nMu]` (non-decreasing: pbrt-v3's files repeat 0), `f32 cdf[nMu²]`, `i32 (offset, length)[nMu²]`
 //! (row `µ_o`, column `µ_i`), `f32 coeffs[nCoeffs]` (each pair's `length` coefficients per
 //! channel, channel-major); metadata may follow and is ignored. pbrt-v3 reads only files with
 //! `flags = 1`, `nBases = 1` and 1 or 3 channels, as here.
@@ -162,8 +162,11 @@ impl FourierTable {
         let series_at = cdf_at + 4 * n2;
         let coeffs_at = series_at + 8 * n2;
         let mu = r.floats(mu_at, n_mu, "mu")?;
-        if let Some(i) = (1..n_mu).find(|&i| !(mu[i] > mu[i - 1])) {
-            return Err(r.err(mu_at + 4 * i, format!("expected mu[{i}] > mu[{}] (increasing nodes)", i - 1)));
+        // Non-decreasing, not increasing: pbrt-v3's own files repeat the node 0 (the two
+        // hemispheres' grids meet there; `roughgold_alpha_0.2.bsdf` has mu[28] = mu[29] = 0), and
+        // an empty interval is never the one a lookup or a sample lands in.
+        if let Some(i) = (1..n_mu).find(|&i| !(mu[i] >= mu[i - 1])) {
+            return Err(r.err(mu_at + 4 * i, format!("expected mu[{i}] >= mu[{}] (non-decreasing nodes)", i - 1)));
         }
         let cdf = r.floats(cdf_at, n2, "cdf")?;
         let coeffs = r.floats(coeffs_at, n_coeffs, "coefficient")?;

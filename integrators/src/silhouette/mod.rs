@@ -16,10 +16,10 @@
 //!   `"integer shorder"`, 3): `∫_{V·H} max(0, n_s·ω) Y_i(ω) dω` over the same visible
 //!   intervals (Gauss–Legendre in θ along each), `n_s` the face-forwarded shading normal, and
 //!   `albedo.*`; `penumbra relight` of them under the scene's sky reproduces `shade`.
-//! - `ao` (default without an infinite light): pbrt-v3's `ambientocclusion` value, the
+//! - `ao` (default only for a scene without lights, with a warning): pbrt-v3's `ambientocclusion` value, the
 //!   integral of `V·cos θ` over the hemisphere of the face-forwarded geometric normal
 //!   (π for an open hemisphere), from the analytic moment `∫ ω dω` of the visible intervals.
-//! - `shade` (default with an infinite light): Lambertian materials under infinite lights by
+//! - `shade` (default when the scene has a light): Lambertian materials under infinite lights by
 //!   the vector irradiance `v = ∫ L V H ω dω` (the band-1 formulation: 3 tables per colour),
 //!   radiance `ρ/π · n_s·v`; the visible set is the hemisphere of the face-forwarded
 //!   geometric normal (pbrt-v3's reflection test), the cosine that of the shading normal
@@ -111,7 +111,7 @@ pub enum Mode {
 const CULL_TOL: f64 = 1e-6;
 
 pub struct Silhouette {
-    /// `None`: `shade` when the scene has an infinite light, else `ao`.
+    /// `None`: `shade` when the scene has a light, else `ao` ([`default_mode`]).
     pub mode: Option<Mode>,
     /// `"integer resolution"` (√k): meridians, and table cells per meridian.
     pub resolution: usize,
@@ -133,7 +133,7 @@ pub const PARAMS: &[ParamSpec] = &[
         &["ao", "shade", "prt"],
         "ambient occlusion, shading under the scene's lights, or AO plus SH transfer channels for penumbra relight",
     )
-    .unset("ao without an infinite light, shade with one")
+    .unset("shade when the scene has lights, else ao")
     .strict(),
     ParamSpec::int("resolution", 128, "meridians of the (φ, cos θ) parameterisation").range(4, 4096),
     SH_ORDER,
@@ -159,6 +159,22 @@ impl Silhouette {
         let max_depth = max_depth_param(&p)?;
         let pixel_shading = parse_shading(&p)?;
         Ok(Box::new(Silhouette { mode, resolution, max_depth, sh_order, glossy_order, pixel_shading }))
+    }
+}
+
+/// The mode when `"string mode"` is not given: `shade` (the scene's own lighting) whenever the
+/// scene has a light, `ao` only for a scene without lights (which pbrt-v3 renders black), with a
+/// warning saying so. Never ambient occlusion in place of the scene's lights.
+fn default_mode(scene: &Scene, warnings: &DiagSink) -> Mode {
+    if scene.light_list().is_empty() {
+        warnings.warn(
+            None,
+            "silhouette: the scene has no lights: rendering ambient occlusion (\"mode\" \"ao\"), not the black image \
+             of its lighting",
+        );
+        Mode::Ao
+    } else {
+        Mode::Shade
     }
 }
 
@@ -717,7 +733,19 @@ impl Integrator for Silhouette {
             }
         };
         let infinite: Vec<&Light> = scene.light_list().iter().filter(|l| l.is_infinite()).collect();
-        let mode = self.mode.unwrap_or(if infinite.is_empty() { Mode::Ao } else { Mode::Shade });
+        let mode = self.mode.unwrap_or_else(|| default_mode(scene, ctx.warnings));
+        if mode == Mode::Shade && infinite.len() < scene.light_list().len() {
+            ctx.warnings.warn(
+                None,
+                if infinite.is_empty() {
+                    "silhouette: the scene has no \"infinite\" light, the only kind silhouette integrates: its lights \
+                     (area, point, spot, distant…) are all shaded with directlighting's estimator"
+                } else {
+                    "silhouette: lights other than \"infinite\" (area, point, spot, distant…) are shaded with \
+                     directlighting's estimator"
+                },
+            );
+        }
         let meridians = Meridians::new(self.resolution);
         let table_spacing = table_spacing(&infinite);
         let table = (mode == Mode::Shade && !infinite.is_empty()).then(|| {

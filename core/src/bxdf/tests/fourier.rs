@@ -203,7 +203,7 @@ fn malformed_files_give_located_errors() {
         (with_i32(28, 4), 28, "nBases 1"),
         (with_f32(44, -1.0), 44, "eta"),
         (with_f32(44, f32::NAN), 44, "eta"),
-        (with_f32(64 + 4 * 3, -0.9), 64 + 4 * 3, "mu[3] > mu[2]"),
+        (with_f32(64 + 4 * 3, -0.9), 64 + 4 * 3, "mu[3] >= mu[2]"),
         (with_f32(64 + 4, f32::INFINITY), 64 + 4, "finite mu[1]"),
         (with_f32(cdf_at + 8, f32::NAN), (cdf_at + 8) as u64, "finite cdf[2]"),
         (with_i32(series_at + 8 * 5, -3), (series_at + 8 * 5) as u64, "offset"),
