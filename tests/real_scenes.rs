@@ -187,3 +187,41 @@ fn scaled_quadric_lights_as_pbrt_v3_and_physically() {
     assert!(z.abs() < 4.0, "physical scaled sphere {mp} vs unscaled {mu} (z = {z:.1})");
     assert!(mb > 2.0 * mu, "pbrt-v3's scaled sphere is several times brighter: {mb} vs {mu}");
 }
+
+/// Alpha cut-outs as pbrt-v3's `Triangle::Intersect`/`IntersectP` apply them, in closest-hit
+/// and shadow queries alike: an image mask with (u, v) given, `shadowalpha` only, a procedural
+/// mask on the default per-triangle (u, v) under a mirroring transform, a card cut out
+/// entirely (it would shade most of the floor), fractional alpha (opaque) and a sphere
+/// (pbrt-v3 reads no alpha there). `path` with one bounce sees the same expected image; `ltc`
+/// cannot represent a cut-out in its analytic visibility, so it lights the scene with
+/// directlighting's estimator (same expected image) and says so; `silhouette` and `shexp`
+/// refuse the scene, naming the shape and its location, and write nothing.
+#[test]
+fn alpha_cutouts_in_closest_hit_and_shadow_queries() {
+    let r = check("cutout-cards");
+    assert!(r.warnings.iter().all(|w| w.contains("\"float alpha\" unused by shape \"sphere\"")), "{:?}", r.warnings);
+    check_with("cutout-cards", "path", &["maxdepth=1"]);
+    let ltc = check_with("cutout-cards", "ltc", &[]);
+    assert!(
+        ltc.warnings.iter().any(|w| w.contains("ltc: shape \"trianglemesh\" has an alpha cut-out")
+            && w.contains("directlighting's estimator")),
+        "{:?}",
+        ltc.warnings
+    );
+    let dir = cli_dir("real-cutouts");
+    let path = scene("real/cutout-cards.pbrt");
+    for integrator in ["silhouette", "shexp"] {
+        let out = dir.join(format!("{integrator}.exr"));
+        let o = penumbra(
+            &dir,
+            &["render", "-q", "--spp", "1", "-i", integrator, path.to_str().unwrap(), "-o", out.to_str().unwrap()],
+        );
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{integrator}: {err}");
+        assert!(
+            err.contains("cutout-cards.pbrt:21:1") && err.contains("cut-out") && err.contains("bool occluder"),
+            "{integrator}: {err}"
+        );
+        assert!(!out.exists(), "{integrator}");
+    }
+}
