@@ -81,7 +81,7 @@ fn check(desc: &SceneDescription, args: &InfoArgs, params: &[Param], warnings: &
     let _ = writeln!(
         o,
         "{} builds: {} ({} spp)",
-        integrator.name(),
+        pipeline::integrator_name(desc, args.integrator.as_deref()),
         if builds.is_empty() { "geometry only".to_string() } else { builds.join(", ") },
         scene.sampler.samples_per_pixel()
     );

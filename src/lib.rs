@@ -6,6 +6,7 @@ pub mod cli_params;
 pub mod output;
 pub mod pipeline;
 pub mod relight;
+pub mod scene_identity;
 pub mod shard;
 
 /// Exit statuses shared by every subcommand (`diff` adds idiff's 1–4 for its verdicts).

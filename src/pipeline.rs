@@ -153,21 +153,22 @@ pub fn render_film(
 ) -> Result<(Film, RenderStats), PipelineError> {
     let mut film = Film::new(spec, scene.filter.radius(), integrator.extra_channels());
     let ctx = RenderContext { threads: opts.threads, cancel: opts.cancel, progress: opts.progress, warnings };
-    penumbra_core::phase::take();
+    penumbra_core::profiling::take();
     let mut stats = integrator.render(scene, &ctx, &mut film)?;
-    stats.phases = penumbra_core::phase::take();
+    stats.phases = penumbra_core::profiling::take();
     Ok((film, stats))
 }
 
 /// Chooses the integrator, builds what it needs and renders.
 pub fn render(desc: &SceneDescription, opts: &RenderOptions, warnings: &DiagSink) -> Result<Rendered, PipelineError> {
     let integrator = choose_integrator(desc, opts.integrator, opts.params, warnings)?;
-    render_with(integrator.as_ref(), desc, opts, warnings)
+    render_with(integrator_name(desc, opts.integrator), integrator.as_ref(), desc, opts, warnings)
 }
 
-/// Builds what `integrator` needs and renders (`opts.integrator` and `opts.params` are not read:
-/// the integrator is already made).
+/// Builds what `integrator` (registered as `name`) needs and renders (`opts.integrator` and
+/// `opts.params` are not read: the integrator is already made).
 pub fn render_with(
+    name: &str,
     integrator: &dyn Integrator,
     desc: &SceneDescription,
     opts: &RenderOptions,
@@ -176,7 +177,7 @@ pub fn render_with(
     let scene = build_scene(integrator, desc, &opts.build, warnings)?;
     let (film, stats) = render_film(integrator, &scene, scene.film.clone(), opts, warnings)?;
     Ok(Rendered {
-        integrator: integrator.name().to_string(),
+        integrator: name.to_string(),
         image: film.to_image(opts.with_variance),
         film: scene.film.clone(),
         stats,

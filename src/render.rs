@@ -6,7 +6,7 @@ use penumbra::pipeline::{self, RenderOptions};
 use penumbra::shard::{self, ShardRequest};
 use penumbra_core::image::Image;
 use penumbra_core::scene::{BuildOptions, Crop};
-use penumbra_core::shard::TileLayout;
+use penumbra_core::shard_rects::TileLayout;
 use penumbra_parser::{DiagSink, Param, SceneDescription};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -262,7 +262,7 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
         cancel: &cancel,
         progress: Some(&progress),
     };
-    penumbra_core::phase::set_enabled(args.phases);
+    penumbra_core::profiling::set_enabled(args.phases);
     if let Some(req) = inputs.shard {
         let scene_name = scene_label(&args);
         let result = shard::render_shard(&parsed.scene, &scene_name, &opts, req, &warnings);

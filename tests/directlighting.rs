@@ -248,6 +248,8 @@ fn public_scenes_render() {
         "animated transform",
         "reading this file as a world-block fragment",
         "is not implemented by penumbra",
+        // A BSSRDF (subsurface) seen by an integrator other than path: docs/materials.md.
+        "is rendered by \"path\" only",
     ];
     for f in &files {
         let parsed = match penumbra_parser::parse_file(f) {

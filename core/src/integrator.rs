@@ -74,13 +74,14 @@ pub struct RenderStats {
     pub threads: usize,
     /// Integrator-specific figures.
     pub counters: BTreeMap<String, f64>,
-    /// Calls and estimated thread-seconds per phase ([`crate::phase`]), filled in by whoever
-    /// runs the integrator (`penumbra render`), from [`crate::phase::take`].
-    pub phases: crate::phase::Phases,
+    /// Calls and estimated thread-seconds per phase ([`crate::profiling`]), filled in by whoever
+    /// runs the integrator (`penumbra render`), from [`crate::profiling::take`].
+    pub phases: crate::profiling::Phases,
 }
 
+/// An integrator: what it needs built, and its render. Its name, parameters and natural
+/// reference are the registry's (`penumbra_integrators::REGISTRY`), not the integrator's.
 pub trait Integrator: Send + Sync {
-    fn name(&self) -> &str;
     /// What the scene build must provide.
     fn requirements(&self) -> Requirements;
     /// Builds what this integrator's own method needs over the built scene (a structure no
@@ -176,18 +177,11 @@ pub trait PixelEstimator: Send + Sync {
     type Shared: Send;
     /// Request sample arrays before rendering (pbrt-v3's `Request*Array`), on the prototype sampler.
     fn request_samples(&self, _sampler: &mut dyn Sampler) {}
-    /// Radiance along a camera ray; `aov` holds the integrator's extra channels for this sample.
-    /// The driver has counted the camera ray (see [`ThreadStats`]). The ray carries its offset
-    /// rays, scaled by `1/√spp` as pbrt-v3 scales them ([`Scene::first_point`] turns them
-    /// into the surface's differentials, for texture filtering and bump mapping).
-    fn li(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-    ) -> Rgb;
+    /// Radiance along a camera ray. The driver has counted the camera ray (see [`ThreadStats`]).
+    /// The ray carries its offset rays, scaled by `1/√spp` as pbrt-v3 scales them
+    /// ([`Scene::first_point`] turns them into the surface's differentials, for texture
+    /// filtering and bump mapping).
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb;
     /// Work shared by all samples of one pixel (e.g. `ltc` shading each surface seen in the
     /// pixel once): called with the pixel's camera samples and their rays, in sample order,
     /// before any of its samples is estimated. `Some` makes the driver call [`li_shared`](Self::li_shared)
@@ -213,19 +207,20 @@ pub trait PixelEstimator: Send + Sync {
     }
     /// `li` for sample `index` (`< rays.len()` of `begin_pixel`) of a pixel whose shared work
     /// is `shared`.
-    #[allow(clippy::too_many_arguments)]
-    fn li_shared(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-        _shared: &Self::Shared,
-        _index: usize,
-    ) -> Rgb {
-        self.li(ray, scene, sampler, stats, aov)
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, _shared: &Self::Shared, _index: usize) -> Rgb {
+        self.li(ray, cx)
     }
+}
+
+/// What a [`PixelEstimator`]'s per-sample call works with besides the ray.
+pub struct SampleContext<'a> {
+    pub scene: &'a Scene,
+    /// The pixel's sampler, at this sample (the camera sample's dimensions drawn).
+    pub sampler: &'a mut dyn Sampler,
+    /// This thread's counters.
+    pub stats: &'a mut ThreadStats,
+    /// The integrator's extra channels for this sample (zero on entry).
+    pub aov: &'a mut [f32],
 }
 
 /// The tiles covering `bounds`, on the fixed grid, in raster order.
@@ -255,17 +250,17 @@ pub fn draw_camera_sample(sampler: &mut dyn Sampler, p: IVec2, uses_time: bool, 
     CameraDims { uses_time, uses_lens }.sample(sampler, p, true)
 }
 
-/// Runs `f` on a pool of `threads` workers (0: all cores); each worker's [`crate::phase`]
+/// Runs `f` on a pool of `threads` workers (0: all cores); each worker's [`crate::profiling`]
 /// counters are flushed to the process-wide totals before the pool ends.
 pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> Result<R, RenderError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| RenderError::Failed(format!("cannot start worker threads: {e}")))?;
-    let on = crate::phase::enabled();
-    pool.broadcast(|_| crate::phase::enable_here(on));
+    let on = crate::profiling::enabled();
+    pool.broadcast(|_| crate::profiling::enable_here(on));
     let r = pool.install(f);
-    pool.broadcast(|_| crate::phase::flush());
+    pool.broadcast(|_| crate::profiling::flush());
     Ok(r)
 }
 
@@ -440,12 +435,13 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
             };
             aov.iter_mut().for_each(|v| *v = 0.0);
             let (est, scene, stats) = (self.est, self.scene, &mut out.stats);
-            crate::phase::camera_ray_given(true);
+            crate::profiling::camera_ray_given(true);
+            let cx = SampleContext { scene, sampler: sampler.as_mut(), stats: &mut *stats, aov: aov.as_mut_slice() };
             let l = match &shared {
-                Some(sh) => est.li_shared(&ray, scene, sampler.as_mut(), stats, aov, sh, i),
-                None => est.li(&ray, scene, sampler.as_mut(), stats, aov),
+                Some(sh) => est.li_shared(&ray, cx, sh, i),
+                None => est.li(&ray, cx),
             };
-            crate::phase::camera_ray_given(false);
+            crate::profiling::camera_ray_given(false);
             out.camera_samples += 1;
             let l = guard_radiance(l, self.film.spec.max_sample_luminance, stats);
             out.tile.add_sample(scene.filter.as_ref(), cs.p_film, l, aov);
@@ -463,16 +459,16 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
             scratch.rays.push(self.generate_ray(&cs));
             scratch.cams.push(cs);
         }
-        crate::phase::camera_ray_given(true);
+        crate::profiling::camera_ray_given(true);
         let shared = self.est.begin_pixel(&scratch.rays, &scratch.cams, self.scene, stats);
-        crate::phase::camera_ray_given(false);
+        crate::profiling::camera_ray_given(false);
         shared
     }
 
     /// The camera ray with its offset rays scaled to the sample spacing (pbrt-v3's
     /// `ScaleDifferentials(1 / √spp)`).
     fn generate_ray(&self, cs: &CameraSample) -> RayDifferential {
-        crate::phase::timed(crate::phase::Phase::CameraRay, || self.scene.camera.sample_ray(cs, self.spp))
+        crate::profiling::timed(crate::profiling::Phase::CameraRay, || self.scene.camera.sample_ray(cs, self.spp))
     }
 }
 

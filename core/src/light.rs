@@ -27,7 +27,7 @@ use crate::geometry::{face_forward, gamma, interpolate, Bounds3, Ray};
 use crate::image::Image;
 use crate::interaction::SceneObject;
 use crate::mesh::TriangleMesh;
-use crate::phase::Phase;
+use crate::profiling::Phase;
 use crate::sampling::{spherical_phi, spherical_theta, uniform_sample_triangle, Distribution1D, Distribution2D};
 use crate::spectrum::luminance;
 use crate::Rgb;
@@ -553,7 +553,7 @@ impl Light {
     /// (`_meshes`: area lights keep what they sample of their triangles; the argument stays so
     /// that callers need not change.)
     pub fn sample_li(&self, ctx: &LightContext, u: Vec2, _meshes: &[TriangleMesh]) -> Option<LightLiSample> {
-        crate::phase::timed(Phase::LightSampling, || match self {
+        crate::profiling::timed(Phase::LightSampling, || match self {
             Light::Point(l) => point_sample(ctx, l.p, l.i, |_| Rgb::ONE),
             Light::Spot(l) => point_sample(ctx, l.p, l.i, |w| Rgb::splat(l.falloff(w))),
             Light::Goniometric(l) => point_sample(ctx, l.p, l.i, |w| l.scale(w)),
@@ -610,7 +610,7 @@ impl Light {
     /// already chose (it does not depend on `ctx`): the same sample, for lights that
     /// [`DiffuseAreaLight::samples_by_area`]. `None` for other lights.
     pub fn sample_li_from(&self, ctx: &LightContext, point: &AreaLightPoint) -> Option<LightLiSample> {
-        crate::phase::timed(Phase::LightSampling, || match self {
+        crate::profiling::timed(Phase::LightSampling, || match self {
             Light::Area(a) => a.sample_li_from(ctx, point),
             _ => None,
         })
@@ -618,7 +618,7 @@ impl Light {
 
     /// Solid-angle pdf of sampling `wi` from `ctx`; for area lights the caller passes the point it found on the light (`light_hit`: point and geometric normal), since the caller already traced the ray.
     pub fn pdf_li(&self, ctx: &LightContext, wi: Vec3, light_hit: Option<(Vec3, Vec3)>) -> f32 {
-        crate::phase::timed(Phase::LightSampling, || match self {
+        crate::profiling::timed(Phase::LightSampling, || match self {
             Light::Infinite(l) => l.angles(wi).map_or(0.0, |a| l.pdf_at(a)),
             Light::Area(a) if a.quadric.is_some() => a.quadric.as_ref().map_or(0.0, |q| q.pdf(ctx, light_hit)),
             Light::Area(a) => {
@@ -647,7 +647,7 @@ impl Light {
 
     /// Radiance of infinite lights along an escaping ray (zero for other lights).
     pub fn le(&self, ray: &Ray) -> Rgb {
-        crate::phase::timed(Phase::LightSampling, || match self {
+        crate::profiling::timed(Phase::LightSampling, || match self {
             Light::Infinite(l) => l.lookup_dir(ray.d),
             _ => Rgb::ZERO,
         })
@@ -657,7 +657,7 @@ impl Light {
     /// lights with radiance there, infinite lights, does not depend on the receiving point):
     /// the same values, with the direction's angles found once.
     pub fn le_and_pdf(&self, ray: &Ray) -> (Rgb, f32) {
-        crate::phase::timed(Phase::LightSampling, || match self {
+        crate::profiling::timed(Phase::LightSampling, || match self {
             Light::Infinite(l) => match l.angles(ray.d) {
                 Some(a) => (l.lookup_at(a), l.pdf_at(a)),
                 None => (Rgb::ZERO, 0.0),
@@ -1211,8 +1211,8 @@ mod tests {
         }
     }
     use crate::geometry::Frame;
+    use crate::goodness_of_fit::chi2_test;
     use crate::rng::Rng;
-    use crate::stats::chi2_test;
     use penumbra_parser::{AnimatedTransform, CameraDesc, Entity, LightDesc, Param, ParamValue, SpectrumValue};
     use std::f64::consts::PI as PI64;
     use std::path::PathBuf;

@@ -8,8 +8,11 @@
 //!   a mixed substrate is approximate.
 //! - Bump mapping ignores ∂n/∂u, ∂n/∂v of the shading normal (pbrt-v3 adds
 //!   `displacement · ∂n/∂u`; penumbra's interactions do not carry normal derivatives).
-//! - Unsupported materials (hair, disney, fourier, subsurface, kdsubsurface) and
-//!   unknown types render as `matte` with their `Kd` (default 0.5), with one warning per type.
+//! - Unknown material types render as `matte` with their `Kd` (default 0.5), with one warning
+//!   per type.
+//!
+//! `disney`, `fourier`, `hair`, `subsurface` and `kdsubsurface` live in their own modules
+//! ([`disney`], [`fourier`], [`hair`], [`subsurface`]); see `docs/materials.md`.
 
 use crate::bxdf::{Bsdf, Bxdf, Fresnel, TransportMode};
 use crate::geometry::face_forward;
@@ -20,6 +23,11 @@ use crate::texture::{FloatParam, SpectrumParam, TextureEvalContext, Textures};
 use glam::{Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, SceneDescription};
 use std::collections::HashSet;
+
+pub mod disney;
+pub mod fourier;
+pub mod hair;
+pub mod subsurface;
 
 /// A material as pbrt-v3 defines it; texture-valued parameters refer to [`Textures`].
 #[derive(Clone, Debug, PartialEq)]
@@ -95,6 +103,14 @@ pub enum Material {
         remap: bool,
         bump: Option<FloatParam>,
     },
+    /// pbrt-v3's Disney BSDF ([`disney`]).
+    Disney(Box<disney::Disney>),
+    /// A tabulated BSDF read from a `.bsdf` file ([`fourier`]).
+    Fourier(fourier::Fourier),
+    /// Chiang et al.'s hair fibre ([`hair`]).
+    Hair(Box<hair::Hair>),
+    /// `subsurface` and `kdsubsurface` ([`subsurface`]).
+    Subsurface(Box<subsurface::Subsurface>),
 }
 
 /// The shading-geometry derivatives pbrt-v3 bump-maps with (`si.shading.{n, dpdu, dpdv,
@@ -175,8 +191,6 @@ fn clamp0(c: Rgb) -> Rgb {
 fn is_black(c: Rgb) -> bool {
     c == Rgb::ZERO
 }
-
-const UNSUPPORTED: [&str; 5] = ["hair", "disney", "fourier", "subsurface", "kdsubsurface"];
 
 enum BuildState {
     Unbuilt,
@@ -295,6 +309,16 @@ impl Builder<'_> {
                 bump: bump(tx)?,
                 remap: remap(),
             },
+            "disney" => Material::Disney(Box::new(disney::Disney::create(tx, p, w)?)),
+            "fourier" => Material::Fourier(fourier::Fourier::create(tx, p, w, &e.loc, &self.desc.base_dir)?),
+            "hair" => Material::Hair(Box::new(hair::Hair::create(tx, p, w, &e.loc)?)),
+            "subsurface" | "kdsubsurface" => Material::Subsurface(Box::new(subsurface::Subsurface::create(
+                tx,
+                p,
+                w,
+                &e.loc,
+                e.kind == "kdsubsurface",
+            )?)),
             "mix" => {
                 let amount = tx.get_spectrum_param(p, "amount", one(0.5), w)?;
                 let mut refs = [0usize; 2];
@@ -313,13 +337,8 @@ impl Builder<'_> {
                 Material::Mix { amount, m1: refs[0], m2: refs[1] }
             }
             other => {
-                let known = UNSUPPORTED.contains(&other);
                 if self.warned_types.insert(other.to_string()) {
-                    let msg = if known {
-                        format!("material \"{other}\" is not supported: rendering it as \"matte\" with its Kd")
-                    } else {
-                        format!("material \"{other}\" unknown: rendering it as \"matte\" with its Kd")
-                    };
+                    let msg = format!("material \"{other}\" unknown: rendering it as \"matte\" with its Kd");
                     w.warn(Some(e.loc.clone()), msg);
                 }
                 let kd = tx.get_spectrum_param(p, "Kd", one(0.5), w).unwrap_or(SpectrumParam::Const(one(0.5)));
@@ -545,29 +564,6 @@ fn trowbridge(urough: f32, vrough: f32, remap: bool) -> MicrofacetDistribution {
     }
 }
 
-/// Scales a lobe's colours by `s` (see the module notes on `FresnelBlend`).
-fn scale_bxdf(b: Bxdf, s: Rgb) -> Bxdf {
-    match b {
-        Bxdf::LambertianReflection { r } => Bxdf::LambertianReflection { r: r * s },
-        Bxdf::LambertianTransmission { t } => Bxdf::LambertianTransmission { t: t * s },
-        Bxdf::OrenNayar { r, a, b } => Bxdf::OrenNayar { r: r * s, a, b },
-        Bxdf::SpecularReflection { r, fresnel } => Bxdf::SpecularReflection { r: r * s, fresnel },
-        Bxdf::SpecularTransmission { t, eta_a, eta_b, mode } => {
-            Bxdf::SpecularTransmission { t: t * s, eta_a, eta_b, mode }
-        }
-        Bxdf::FresnelSpecular { r, t, eta_a, eta_b, mode } => {
-            Bxdf::FresnelSpecular { r: r * s, t: t * s, eta_a, eta_b, mode }
-        }
-        Bxdf::MicrofacetReflection { r, distribution, fresnel } => {
-            Bxdf::MicrofacetReflection { r: r * s, distribution, fresnel }
-        }
-        Bxdf::MicrofacetTransmission { t, distribution, eta_a, eta_b, mode } => {
-            Bxdf::MicrofacetTransmission { t: t * s, distribution, eta_a, eta_b, mode }
-        }
-        Bxdf::FresnelBlend { rd, rs, distribution } => Bxdf::FresnelBlend { rd: rd * s, rs: rs * s, distribution },
-    }
-}
-
 impl Material {
     fn bump_map(&self) -> Option<FloatParam> {
         match self {
@@ -579,7 +575,10 @@ impl Material {
             | Material::Substrate { bump, .. }
             | Material::Uber { bump, .. }
             | Material::Translucent { bump, .. } => *bump,
-            Material::Mix { .. } => None,
+            Material::Disney(d) => d.bump,
+            Material::Fourier(f) => f.bump,
+            Material::Subsurface(s) => s.bump,
+            Material::Mix { .. } | Material::Hair(_) => None,
         }
     }
 
@@ -691,6 +690,10 @@ impl Material {
                 translucent(&l, [kd, ks], [reflect, transmit], roughness, remap)
             }
             Material::Mix { amount, m1, m2 } => self.mix(inp, &l, amount, [m1, m2], depth),
+            Material::Disney(ref d) => d.scatter(&l),
+            Material::Fourier(ref f) => f.scatter(&l),
+            Material::Hair(ref h) => h.scatter(&l, inp.si),
+            Material::Subsurface(ref s) => s.scatter(&l),
         }
     }
 
@@ -751,21 +754,25 @@ impl Material {
         let b2 = sub(m[1]);
         let mut b = Bsdf::new(b1.shading_normal(), b1.local_to_world(Vec3::X), b1.geometric_normal(), b1.eta);
         for l in b1.bxdfs() {
-            let _ = b.add(scale_bxdf(*l, s1));
+            let _ = b.add(l.scaled(s1));
         }
         for l in b2.bxdfs() {
-            let _ = b.add(scale_bxdf(*l, s2));
+            let _ = b.add(l.scaled(s2));
         }
         b
     }
 
     /// Whether a BSDF of this material may have a perfectly specular lobe: `false` is a
-    /// guarantee (matte, plastic, metal, substrate, translucent; uber with constant black `Kr`
-    /// and `Kt` and constant opacity 1), `true` a maybe (mirror, glass, mix, other uber). For
+    /// guarantee (matte, plastic, metal, substrate, translucent, fourier, hair; uber with
+    /// constant black `Kr` and `Kt` and constant opacity 1; disney without a scatter distance),
+    /// `true` a maybe (mirror, glass, mix, subsurface, other uber and disney). For
     /// an integrator that builds the BSDF only to follow specular lobes.
     pub fn may_be_specular(&self) -> bool {
         match *self {
             Material::Mirror { .. } | Material::Glass { .. } | Material::Mix { .. } => true,
+            // A smooth interface; `disney`'s only over a BSSRDF.
+            Material::Subsurface(_) => true,
+            Material::Disney(_) => self.may_have_bssrdf(),
             Material::Uber { kr, kt, opacity, .. } => {
                 kr != SpectrumParam::Const(Rgb::ZERO)
                     || kt != SpectrumParam::Const(Rgb::ZERO)
@@ -775,10 +782,67 @@ impl Material {
         }
     }
 
+    /// The material's type as a scene names it (`"matte"`, `"disney"`…; both subsurface kinds
+    /// are `"subsurface"`), for warnings.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Material::Matte { .. } => "matte",
+            Material::Plastic { .. } => "plastic",
+            Material::Metal { .. } => "metal",
+            Material::Mirror { .. } => "mirror",
+            Material::Glass { .. } => "glass",
+            Material::Substrate { .. } => "substrate",
+            Material::Uber { .. } => "uber",
+            Material::Mix { .. } => "mix",
+            Material::Translucent { .. } => "translucent",
+            Material::Disney(_) => "disney",
+            Material::Fourier(_) => "fourier",
+            Material::Hair(_) => "hair",
+            Material::Subsurface(s) => match s.medium {
+                subsurface::Medium::Coefficients { .. } => "subsurface",
+                subsurface::Medium::Albedo { .. } => "kdsubsurface",
+            },
+        }
+    }
+
+    /// Whether the material may have a BSSRDF (`subsurface`, `kdsubsurface`, `disney` with a
+    /// `scatterdistance` that is not constant black and not `thin`).
+    pub fn may_have_bssrdf(&self) -> bool {
+        match self {
+            Material::Subsurface(_) => true,
+            Material::Disney(d) => !d.thin && d.scatter_distance != SpectrumParam::Const(Rgb::ZERO),
+            _ => false,
+        }
+    }
+
+    /// The BSSRDF under the surface at `si` whose BSDF (built with `opts`) is `bsdf`, for the
+    /// material at index `index` of `SceneDescription::materials`; `None` for materials without one.
+    #[allow(clippy::too_many_arguments)]
+    pub fn bssrdf<'a>(
+        &'a self,
+        si: &SurfaceInteraction,
+        ctx: &TextureEvalContext,
+        bsdf: &Bsdf,
+        opts: BsdfOptions,
+        textures: &'a Textures,
+        index: usize,
+    ) -> Option<crate::bssrdf::SeparableBssrdf<'a>> {
+        let l =
+            Lobes { tx: textures, ctx, opts, ns: bsdf.shading_normal(), ss: bsdf.local_to_world(Vec3::X), ng: si.n };
+        match self {
+            Material::Subsurface(s) => s.bssrdf(&l, bsdf, si.p, index),
+            Material::Disney(d) => d.bssrdf(&l, bsdf, si.p, index),
+            _ => None,
+        }
+    }
+
     /// The material as a diffuse albedo plus an optional isotropic GGX lobe, for
     /// analytic (LTC) integrators; `None` when it is not of that form (Oren–Nayar
-    /// matte, anisotropic roughness, mirror, glass, mix, translucent). For `uber`
-    /// only its diffuse and glossy parts are described.
+    /// matte, anisotropic roughness, mirror, glass, mix, translucent, fourier, hair,
+    /// subsurface, and disney at every setting: Burley's diffuse is not Lambertian and its
+    /// retro-reflection lobe is always present, its specular masking term is separable, not
+    /// the height-correlated one the LTC tables were fitted to, and its Fresnel is its own).
+    /// For `uber` only its diffuse and glossy parts are described.
     pub fn ltc_lobes(&self, si: &SurfaceInteraction, textures: &Textures) -> Option<LtcDescription> {
         let ctx = TextureEvalContext::from_si(si);
         let geom = ShadingGeometry::of(si);

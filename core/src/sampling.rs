@@ -41,12 +41,6 @@ pub fn uniform_sample_cone(u: Vec2, cos_theta_max: f32) -> Vec3 {
     Vec3::new(phi.cos() * sin_theta, phi.sin() * sin_theta, cos_theta)
 }
 
-/// [`uniform_sample_cone`] around the frame (`x`, `y`, `z`).
-pub fn uniform_sample_cone_in_frame(u: Vec2, cos_theta_max: f32, x: Vec3, y: Vec3, z: Vec3) -> Vec3 {
-    let l = uniform_sample_cone(u, cos_theta_max);
-    x * l.x + y * l.y + z * l.z
-}
-
 /// 1 / (solid angle of the cone); infinite for a degenerate cone (`cos_theta_max` = 1).
 pub fn uniform_cone_pdf(cos_theta_max: f32) -> f32 {
     1.0 / (2.0 * PI * (1.0 - cos_theta_max))
@@ -443,7 +437,7 @@ mod tests {
         }
         assert!(checked > 20_000);
     }
-    use crate::stats::chi2_test;
+    use crate::goodness_of_fit::chi2_test;
 
     const N: usize = 200_000;
     const ALPHA: f64 = 1e-4;

@@ -16,7 +16,7 @@
 //!   `geomParams`) are not supported: only the material's own parameters are used.
 
 use crate::interaction::SurfaceInteraction;
-use crate::spectrum::Rgb;
+use crate::spectrum::{srgb_decode, Rgb};
 use glam::{Mat4, Vec2, Vec3};
 use penumbra_parser::{
     DiagSink, Diagnostic, FileLoc, ParamSet, SceneDescription, SpectrumValue, TextureDesc, TextureKind, Transform,
@@ -781,26 +781,12 @@ pub struct Textures {
     mips: HashMap<MipKey, CachedMip>,
 }
 
-/// pbrt-v3's sRGB decoding (`InverseGammaCorrect`).
-pub fn srgb_to_linear(v: f32) -> f32 {
-    if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
-}
-
 fn luminance(c: Rgb) -> f32 {
     crate::spectrum::luminance(c)
 }
 
 fn spectrum_value_to_rgb(v: &SpectrumValue) -> Result<Rgb, String> {
     crate::spectrum::spectrum_to_rgb(v).map_err(|e| e.to_string())
-}
-
-/// Converts a spectrum-typed parameter value to RGB as pbrt-v3 does.
-pub fn spectrum_param_to_rgb(v: &SpectrumValue) -> Result<Rgb, String> {
-    spectrum_value_to_rgb(v)
 }
 
 fn read_image(path: &Path) -> Result<crate::image::Image, String> {
@@ -1002,7 +988,7 @@ impl Textures {
                 .map(|c| {
                     let y = luminance(c);
                     if gamma {
-                        srgb_to_linear(y)
+                        srgb_decode(y)
                     } else {
                         y
                     }
@@ -1012,7 +998,7 @@ impl Textures {
         } else {
             let data = rows(&|c| {
                 if gamma {
-                    Vec3::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z))
+                    Vec3::new(srgb_decode(c.x), srgb_decode(c.y), srgb_decode(c.z))
                 } else {
                     c
                 }

@@ -12,7 +12,7 @@
 
 mod args;
 mod measure;
-mod output;
+mod report;
 mod variants;
 
 use crate::diff::{EXIT_FAIL, EXIT_FILE, EXIT_OK, EXIT_WARN};
@@ -21,11 +21,11 @@ use crate::sweep::print_new_warnings;
 pub use args::StabilityArgs;
 use args::{setup, Setup, Tolerances};
 use measure::{measure, Bound, Channels, Measures};
-use output::{ContactCell, Row};
 use penumbra::pipeline::{self, RenderOptions};
 use penumbra_core::integrator::{Integrator, RadianceBound};
 use penumbra_core::scene::BuildOptions;
 use penumbra_parser::{DiagSink, SceneDescription};
+use report::{ContactCell, Row};
 use std::collections::BTreeSet;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -143,7 +143,7 @@ fn run_inner(args: &StabilityArgs) -> Result<u8, Failure> {
         }
     }
     let code = exit_code(&rows);
-    let out = output::Report { args, setup: &s, geo: &geo, rows: &rows, notes: &notes, exit_code: code };
+    let out = report::Report { args, setup: &s, geo: &geo, rows: &rows, notes: &notes, exit_code: code };
     out.write(&cells).map_err(fail)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out.json()).unwrap_or_default());
@@ -197,7 +197,7 @@ impl Study<'_> {
         let label = variant.map_or("base", |v| v.name.as_str());
         let warnings = DiagSink::new();
         let t0 = Instant::now();
-        let result = pipeline::render_with(integrator, desc, &self.opts(), &warnings);
+        let result = pipeline::render_with(name, integrator, desc, &self.opts(), &warnings);
         let seconds = t0.elapsed().as_secs_f64();
         print_new_warnings(&warnings, seen);
         let rendered = result.map_err(|e| self.failed(name, label, e))?;
@@ -213,8 +213,9 @@ impl Study<'_> {
             None => None,
             Some(RadianceBound::Constant(c)) => Some(Bound::Constant(c)),
             Some(RadianceBound::Image(b)) => {
-                let r = pipeline::render_with(b.as_ref(), desc, &self.opts(), &warnings)
-                    .map_err(|e| self.failed(name, &format!("{label} (its bound)"), e))?;
+                let r =
+                    pipeline::render_with(&format!("{name} (its bound)"), b.as_ref(), desc, &self.opts(), &warnings)
+                        .map_err(|e| self.failed(name, &format!("{label} (its bound)"), e))?;
                 print_new_warnings(&warnings, seen);
                 Some(Bound::Image(Channels::of(&r.image).map_err(fail)?.rgb))
             }

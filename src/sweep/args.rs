@@ -6,6 +6,7 @@ use super::{fail, print_new_warnings, Failure};
 use crate::render::{check_crop, full_resolution, parse_crop, parse_resolution};
 use penumbra::cli_params;
 use penumbra::pipeline;
+use penumbra::scene_identity::scene_identity;
 use penumbra_core::metrics;
 use penumbra_core::scene::Crop;
 use penumbra_integrators::common::params::Kind;
@@ -13,26 +14,13 @@ use penumbra_parser::{DiagSink, Param, SceneDescription};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 
-/// The integrator that renders `--reference-spp` references unless `--reference-integrator` names one.
-pub const REFERENCE_INTEGRATOR: &str = "directlighting";
-
-/// The estimator `integrator` converges to, rendered as the `--reference-spp` reference by
-/// default: AO images are not direct lighting, and `path`/`whitted` see more than it does.
-pub fn natural_reference(integrator: &str) -> &str {
-    match integrator {
-        "ambientocclusion" | "sheared-ao" => "ambientocclusion",
-        "path" => "path",
-        "whitted" => "whitted",
-        _ => REFERENCE_INTEGRATOR,
-    }
-}
-
 impl SweepArgs {
-    /// `--reference-integrator`, else the first `-i`'s [`natural_reference`].
+    /// `--reference-integrator`, else the first `-i`'s natural reference (the registry's
+    /// [`Entry::reference`](penumbra_integrators::Entry::reference)).
     pub fn reference_integrator(&self) -> &str {
         match &self.reference_integrator {
             Some(n) => n.trim(),
-            None => natural_reference(self.integrators.first().map(|n| n.trim()).unwrap_or(REFERENCE_INTEGRATOR)),
+            None => penumbra_integrators::natural_reference(self.integrators.first().map_or("", |n| n.trim())),
         }
     }
 }
@@ -127,7 +115,8 @@ pub struct SweepArgs {
 /// The validated command line and the parsed scene.
 pub struct Setup {
     pub desc: SceneDescription,
-    pub scene_bytes: Vec<u8>,
+    /// [`scene_identity`]: what the reference cache is keyed by.
+    pub scene_identity: String,
     pub params: Vec<Param>,
     pub crop: Option<Crop>,
     pub resolution: Option<(u32, u32)>,
@@ -182,9 +171,8 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
     }
     let crop = args.crop.as_deref().map(parse_crop).transpose().map_err(fail)?;
     let resolution = args.resolution.as_deref().map(parse_resolution).transpose().map_err(fail)?;
-    let scene_bytes =
-        std::fs::read(&args.scene).map_err(|e| fail(format!("cannot read scene {}: {e}", args.scene.display())))?;
     let parsed = pipeline::load_scene(Some(&args.scene)).map_err(|d| Failure { code: 1, message: d.to_string() })?;
+    let scene_identity = scene_identity(&parsed.scene).map_err(fail)?;
     if let Some(c) = crop {
         check_crop(c, full_resolution(&parsed.scene, resolution)).map_err(fail)?;
     }
@@ -210,7 +198,7 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
     }
     let mut seen = BTreeSet::new();
     print_new_warnings(&warnings, &mut seen);
-    Ok(Setup { desc: parsed.scene, scene_bytes, params, crop, resolution, integrators, seen })
+    Ok(Setup { desc: parsed.scene, scene_identity, params, crop, resolution, integrators, seen })
 }
 
 /// The `--budget-param NAME` parameter set to `budget`.

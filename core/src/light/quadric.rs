@@ -260,8 +260,8 @@ fn coordinate_system(v: Vec3) -> (Vec3, Vec3) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::goodness_of_fit::chi2_test;
     use crate::rng::Rng;
-    use crate::stats::chi2_test;
 
     fn quadric(shape: QuadricShape, t: Transform) -> Quadric {
         Quadric { shape, world_from_object: t, deviation: 0.0 }

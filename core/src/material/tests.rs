@@ -311,24 +311,29 @@ fn mix_weights_first_material_by_amount_and_builds_only_what_is_used() {
 }
 
 #[test]
-fn unsupported_materials_become_matte_with_one_warning_per_type() {
+fn unknown_materials_become_matte_with_one_warning_per_type() {
+    // pbrt-v4's names, unknown to pbrt-v3.
     let desc = scene(
         vec![],
         vec![
-            mat("hair", params(vec![("Kd", rgb(0.3, 0.3, 0.3)), ("eumelanin", ParamValue::Float(vec![1.0]))]), None),
-            mat("hair", ParamSet::new(), None),
-            mat("disney", ParamSet::new(), None),
+            mat(
+                "coateddiffuse",
+                params(vec![("Kd", rgb(0.3, 0.3, 0.3)), ("thickness", ParamValue::Float(vec![1.0]))]),
+                None,
+            ),
+            mat("coateddiffuse", ParamSet::new(), None),
+            mat("diffusetransmission", ParamSet::new(), None),
             mat("matte", params(vec![("Kdd", rgb(0.3, 0.3, 0.3))]), None),
         ],
         PathBuf::new(),
     );
     let b = build(&desc, &[true; 4]);
     let ws = b.warnings.snapshot();
-    let hair: Vec<_> = ws.iter().filter(|w| w.message.contains("\"hair\"")).collect();
-    let disney: Vec<_> = ws.iter().filter(|w| w.message.contains("\"disney\"")).collect();
-    assert_eq!(hair.len(), 1, "{ws:?}");
-    assert_eq!(disney.len(), 1, "{ws:?}");
-    // The misspelled parameter of the real matte is reported; the unsupported ones' parameters are not.
+    let coated: Vec<_> = ws.iter().filter(|w| w.message.contains("\"coateddiffuse\" unknown")).collect();
+    let transmission: Vec<_> = ws.iter().filter(|w| w.message.contains("\"diffusetransmission\" unknown")).collect();
+    assert_eq!(coated.len(), 1, "{ws:?}");
+    assert_eq!(transmission.len(), 1, "{ws:?}");
+    // The misspelled parameter of the real matte is reported; the unknown ones' parameters are not.
     assert!(ws.iter().any(|w| w.message.contains("Kdd")));
     assert_eq!(ws.len(), 3, "{ws:?}");
     let one = |c: f32| Material::Matte {
@@ -504,3 +509,5 @@ fn scene_builds_only_used_materials_and_gives_bsdfs() {
     assert!(sc.bsdf(&sc.interaction(&ray, &hit)).is_none());
     assert!(sc.report.stages.iter().any(|s| s.0 == "materials"));
 }
+
+mod pbrt_v3_more;

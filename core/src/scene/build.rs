@@ -69,8 +69,15 @@ impl Scene {
                 format!("{} textures", textures.built_count()),
             ));
         }
-        let materials =
-            if req.materials { Some(materials(desc, &objects, &mut textures, warnings, &mut report)?) } else { None };
+        let materials = if req.materials {
+            let m = materials(desc, &objects, &mut textures, warnings, &mut report)?;
+            if !req.subsurface {
+                warn_interface_only(desc, &m, warnings);
+            }
+            Some(m)
+        } else {
+            None
+        };
         let textures = (req.materials || cutouts).then(|| Arc::new(textures));
         let accel = if req.accel {
             let mut a = Accel::build_with(&meshes, accel_kind(desc, warnings));
@@ -323,6 +330,24 @@ fn materials(
         ),
     ));
     Ok(materials)
+}
+
+/// One warning per material type with a BSSRDF, for an integrator that renders none.
+fn warn_interface_only(desc: &SceneDescription, materials: &Materials, warnings: &DiagSink) {
+    let mut warned = std::collections::HashSet::new();
+    for (i, md) in desc.materials.iter().enumerate() {
+        let Some(m) = materials.get(i).filter(|m| m.may_have_bssrdf()) else { continue };
+        if warned.insert(m.type_name()) {
+            warnings.warn(
+                Some(md.entity.loc.clone()),
+                format!(
+                    "material \"{}\": its subsurface scattering (BSSRDF) is rendered by \"path\" only; this \
+                     integrator renders its surface (BSDF) alone, as pbrt-v3's directlighting and whitted do",
+                    m.type_name()
+                ),
+            );
+        }
+    }
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@ use crate::interaction::{Differentials, SceneObject, SurfaceInteraction};
 use crate::light::{Light, Lights};
 use crate::material::{BsdfOptions, Material, Materials, ShadingGeometry};
 use crate::mesh::{EdgeAdjacency, NormalRule, TriangleMesh};
-use crate::phase::Phase;
+use crate::profiling::Phase;
 use crate::sampler::Sampler;
 use crate::texture::{TextureEvalContext, Textures};
 use glam::{Vec2, Vec3};
@@ -38,6 +38,9 @@ pub struct Requirements {
     /// At least this many camera samples per pixel, and the integrator's reason (said in the
     /// warning when the scene's or the command line's count is raised).
     pub min_pixel_samples: Option<(u32, &'static str)>,
+    /// The integrator renders BSSRDFs ([`Scene::bssrdf`]; `path`). Otherwise the build warns
+    /// once per material type that has one: only its interface is rendered.
+    pub subsurface: bool,
 }
 
 /// A crop given on the command line: fractions (pbrt-v3's `cropwindow`) or pixel bounds.
@@ -149,7 +152,7 @@ impl Scene {
 
     /// Closest hit (requires `Requirements::accel`).
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        crate::phase::closest_hit(|| self.accel.as_ref().and_then(|a| a.intersect(ray)))
+        crate::profiling::closest_hit(|| self.accel.as_ref().and_then(|a| a.intersect(ray)))
     }
 
     /// The scene's lights (empty when they were not built).
@@ -197,7 +200,7 @@ impl Scene {
         let mut ray = ray_differential.ray;
         for queries in 1..=65u64 {
             let hit = match (candidates, &self.accel) {
-                (Some(c), Some(a)) if queries == 1 => crate::phase::closest_hit(|| a.intersect_among(&ray, c)),
+                (Some(c), Some(a)) if queries == 1 => crate::profiling::closest_hit(|| a.intersect_among(&ray, c)),
                 _ => self.intersect(&ray),
             };
             let Some(hit) = hit else {
@@ -223,7 +226,7 @@ impl Scene {
 
     /// Whether anything blocks `ray` before `ray.t_max`.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        crate::phase::timed(Phase::Shadow, || self.accel.as_ref().is_some_and(|a| a.occluded(ray)))
+        crate::profiling::timed(Phase::Shadow, || self.accel.as_ref().is_some_and(|a| a.occluded(ray)))
     }
 
     /// The BSDF at `si` (requires `Requirements::materials`); `None` when the object
@@ -235,7 +238,7 @@ impl Scene {
     /// [`bsdf`](Self::bsdf) with explicit options (`path` asks for pbrt-v3's multiple-lobe glass).
     pub fn bsdf_with(&self, si: &SurfaceInteraction, opts: BsdfOptions) -> Option<Bsdf> {
         let (mat, materials, textures) = self.material_of(si)?;
-        Some(crate::phase::timed(Phase::Shading, || {
+        Some(crate::profiling::timed(Phase::Shading, || {
             mat.compute_bsdf_ext(
                 si,
                 &TextureEvalContext::from_si(si),
@@ -257,6 +260,29 @@ impl Scene {
             .zip(&self.objects)
             .find(|(m, o)| o.occluder && (m.alpha.is_some() || m.shadow_alpha.is_some()))
             .map(|(_, o)| o)
+    }
+
+    /// The BSSRDF under `si`, whose BSDF (built with `opts`) is `bsdf`; `None` when its material
+    /// has none (see [`Material::bssrdf`]).
+    pub fn bssrdf(
+        &self,
+        si: &SurfaceInteraction,
+        bsdf: &Bsdf,
+        opts: BsdfOptions,
+    ) -> Option<crate::bssrdf::SeparableBssrdf<'_>> {
+        let mut index = self.objects.get(si.mesh as usize)?.material?;
+        let (mut mat, materials, textures) = self.material_of(si)?;
+        // pbrt-v3's `mix` keeps its first material's BSSRDF, whose probes then look for the
+        // surfaces of that material (not the mix's: a mixed BSSRDF finds no exit and ends the path).
+        for _ in 0..16 {
+            let Material::Mix { m1, .. } = mat else { break };
+            index = *m1;
+            mat = materials.get(index)?;
+        }
+        if !mat.may_have_bssrdf() {
+            return None;
+        }
+        mat.bssrdf(si, &TextureEvalContext::from_si(si), bsdf, opts, textures, index)
     }
 
     /// The material at `si`, with the material and texture tables (`None` as for [`bsdf`](Self::bsdf)).

@@ -23,8 +23,8 @@
 //! So the tessellation deviates from the analytic surface by about `ε · R` at most.
 
 mod heightfield;
-mod nurbs;
 pub mod loopsubdiv;
+mod nurbs;
 pub mod ply;
 mod quadrics;
 mod trianglemesh;

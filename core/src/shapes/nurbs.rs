@@ -82,7 +82,11 @@ fn basis(desc: &ShapeDesc, d: &str) -> Result<(usize, usize, Vec<f64>, f64, f64)
         return Err(error(desc, &n_name, format!("\"{n_name}\" (control points in {d}) must be at least 2, got {n}")));
     }
     if order < 2 || order > n {
-        return Err(error(desc, &order_name, format!("\"{order_name}\" must be in 2..={n} (\"{n_name}\"), got {order}")));
+        return Err(error(
+            desc,
+            &order_name,
+            format!("\"{order_name}\" must be in 2..={n} (\"{n_name}\"), got {order}"),
+        ));
     }
     let (n, order) = (n as usize, order as usize);
     let Some(knots) = ps.get_floats(&knots_name) else {
@@ -92,7 +96,11 @@ fn basis(desc: &ShapeDesc, d: &str) -> Result<(usize, usize, Vec<f64>, f64, f64)
         return Err(error(
             desc,
             &knots_name,
-            format!("{} knots in \"{knots_name}\", {n} control points + order {order} = {} expected", knots.len(), n + order),
+            format!(
+                "{} knots in \"{knots_name}\", {n} control points + order {order} = {} expected",
+                knots.len(),
+                n + order
+            ),
         ));
     }
     if knots.windows(2).any(|w| !(w[1] >= w[0])) || knots.iter().any(|k| !k.is_finite()) {

@@ -19,7 +19,7 @@ use crate::common::{SH_ORDER, SH_TRANSFER};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, Frame, Ray, RayDifferential};
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, SampleContext,
 };
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::{cosine_sample_hemisphere, uniform_sample_hemisphere};
@@ -92,14 +92,8 @@ impl PixelEstimator for Estimator<'_> {
         sampler.request_2d_array(self.n);
     }
 
-    fn li(
-        &self,
-        camera_ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, camera_ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         let mut ray = camera_ray.ray;
         // Pass through surfaces without a material, as pbrt-v3 does (bounded, in case of a degenerate loop).
         for pass in 0..64 {
@@ -158,13 +152,6 @@ impl PixelEstimator for Estimator<'_> {
 }
 
 impl Integrator for AmbientOcclusion {
-    fn name(&self) -> &str {
-        if self.fixed_epsilon.is_some() {
-            FIXED_EPSILON_NAME
-        } else {
-            "ambientocclusion"
-        }
-    }
     fn merges_sample_ranges(&self) -> bool {
         true
     }

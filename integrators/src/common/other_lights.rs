@@ -13,33 +13,46 @@ use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Scene, SurfaceHit};
 use penumbra_core::{Rgb, Vec2};
 use penumbra_parser::DiagSink;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::collections::HashSet;
+use std::sync::Mutex;
 
-/// The one warning an integrator gives when a material without an LTC form falls back to
-/// directlighting's estimator.
+/// The warnings an integrator gives when a material's lobes fall back to directlighting's
+/// estimator: one per material type (`"disney"`, `"translucent"`…), naming it.
 pub struct FallbackWarning<'a> {
     pub integrator: &'static str,
-    pub warned: AtomicBool,
+    warned: Mutex<HashSet<&'static str>>,
     pub warnings: &'a DiagSink,
+    /// No per-material warning: the integrator has already said every light falls back.
+    pub silent: bool,
 }
 
 impl<'a> FallbackWarning<'a> {
     pub fn new(integrator: &'static str, warnings: &'a DiagSink) -> FallbackWarning<'a> {
-        FallbackWarning { integrator, warned: AtomicBool::new(false), warnings }
+        FallbackWarning { integrator, warned: Mutex::new(HashSet::new()), warnings, silent: false }
     }
 
-    fn no_ltc_form(&self) {
-        if !self.warned.swap(true, Ordering::Relaxed) {
+    /// Warns, once per material type, that `material`'s lobes described by `lobes` are lit by
+    /// directlighting's estimator `under` the lights it names.
+    pub fn material(&self, material: &'static str, lobes: &str, under: &str) {
+        if self.silent {
+            return;
+        }
+        let first = self.warned.lock().map(|mut w| w.insert(material)).unwrap_or(false);
+        if first {
             self.warnings.warn(
                 None,
                 format!(
-                    "{}: a material that does not reduce to a Lambertian plus a GGX lobe (translucent, mix, \
-                     Oren–Nayar, anisotropic, rough glass…) is lit by directlighting's estimator (its perfectly \
-                     specular lobes, as mirror's and smooth glass's, are followed up to maxdepth)",
+                    "{}: material \"{material}\" ({lobes}) is lit by directlighting's estimator under {under} \
+                     (its perfectly specular lobes are followed up to maxdepth)",
                     self.integrator
                 ),
             );
         }
+    }
+
+    fn no_ltc_form(&self, scene: &Scene, hit: &SurfaceHit) {
+        let name = scene.material_of(&hit.si).map_or("none", |(m, _, _)| m.type_name());
+        self.material(name, "no Lambertian-plus-GGX form", "area lights");
     }
 }
 
@@ -65,8 +78,8 @@ pub fn add_other_lights(
         match light {
             Light::Area(_) if ltc_form => {} // shaded analytically
             Light::Infinite(_) | Light::Area(_) => {
-                if !ltc_form {
-                    warning.no_ltc_form();
+                if !ltc_form && matches!(light, Light::Area(_)) {
+                    warning.no_ltc_form(scene, hit);
                 }
                 let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
                 *l += estimate_direct(si, bsdf, u_scatter, k, light, u_light, scene, stats);

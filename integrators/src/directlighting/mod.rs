@@ -18,7 +18,7 @@ use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, RayDifferential};
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::sampler::Sampler;
@@ -163,14 +163,8 @@ impl PixelEstimator for Estimator<'_> {
             }
         }
     }
-    fn li(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         self.li(ray, scene, sampler, stats, 0)
     }
     fn pixel_bounds(&self) -> Option<Bounds2i> {
@@ -179,9 +173,6 @@ impl PixelEstimator for Estimator<'_> {
 }
 
 impl Integrator for DirectLighting {
-    fn name(&self) -> &str {
-        "directlighting"
-    }
     fn merges_sample_ranges(&self) -> bool {
         true
     }

@@ -50,7 +50,8 @@ use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::RayDifferential;
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, SampleContext,
+    ThreadStats,
 };
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
@@ -197,14 +198,8 @@ impl Estimator<'_> {
 impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<AreaLighting>;
 
-    fn li(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         let (first, queries) = scene.first_point(ray);
         stats.add_continued(queries);
         match first {
@@ -227,16 +222,8 @@ impl PixelEstimator for Estimator<'_> {
         Some(self.shader.trace_pixel(rays, samples, scene, self.ltc.shadows, stats))
     }
 
-    fn li_shared(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         match shared.sample(index) {
             (Ok(h), area) => self.shade(ray, h, area, scene, sampler, stats, 0),
             (Err(escaped), _) => *escaped,
@@ -245,9 +232,6 @@ impl PixelEstimator for Estimator<'_> {
 }
 
 impl Integrator for LtcIntegrator {
-    fn name(&self) -> &str {
-        "ltc"
-    }
     fn requirements(&self) -> Requirements {
         Requirements {
             accel: true,
@@ -257,6 +241,7 @@ impl Integrator for LtcIntegrator {
             adjacency: self.mode != Mode::PerTriangle || (self.shadows && self.merge_occluders),
             min_pixel_samples: (self.pixel_shading && self.coverage_samples > 1)
                 .then_some((self.coverage_samples, COVERAGE_REASON)),
+            ..Default::default()
         }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
@@ -275,7 +260,7 @@ impl Integrator for LtcIntegrator {
         }
         let mut fallback = FallbackWarning::new("ltc", ctx.warnings);
         // With every light on the estimator, the per-material fallback warning would say less.
-        fallback.warned = std::sync::atomic::AtomicBool::new(cutout.is_some());
+        fallback.silent = cutout.is_some();
         let est = Estimator {
             ltc: self,
             shader: LtcShader::new(self.shader_settings(), scene),

@@ -13,7 +13,7 @@ use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::camera::CameraSample;
 use penumbra_core::geometry::{gamma, Frame, Ray, RayDifferential};
-use penumbra_core::integrator::{PixelEstimator, ThreadStats};
+use penumbra_core::integrator::{PixelEstimator, SampleContext, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{emitting_normal, DiffuseAreaLight, Light, LightContext};
 use penumbra_core::material::{LtcDescription, LtcSpecular};
@@ -488,14 +488,8 @@ impl PixelEstimator for Estimator<'_> {
         }
     }
 
-    fn li(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         let (first, queries) = scene.first_surface(ray);
         stats.add_continued(queries);
         match first {
@@ -524,16 +518,8 @@ impl PixelEstimator for Estimator<'_> {
         Some(self.shader.trace_pixel(rays, samples, scene, false, stats))
     }
 
-    fn li_shared(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         match shared.sample(index) {
             (Ok(pt), area) => match pt.with_bsdf(scene) {
                 Some(h) => {

@@ -30,7 +30,7 @@
 //! image is `rest + U · D(S_N) / D(U_N)` per channel, where `rest` is everything else
 //! (emission seen directly, delta lights with one shadow ray, infinite lights and
 //! materials without LTC form through `directlighting`'s estimator, as in `ltc`) and `D`
-//! is [`filter::cross_bilateral`] with the same weights for both. The kernel radius per pixel
+//! is [`denoise::cross_bilateral`] with the same weights for both. The kernel radius per pixel
 //! comes from the delta-method standard deviation `σ_r` of the pixel's ratio estimate:
 //! the smallest `R ≤ maxradius` with `σ_r / (2R + 1) ≤ noisetarget`, dilated by one pixel.
 //!
@@ -54,14 +54,14 @@
 //! fully lit the term is the analytic `chain.U` exactly. The variance written for a pixel does
 //! not include the chains' term.
 //!
-//! Files: `estimator.rs` (the per-pixel estimator writing [`RatioSample`]s), `filter.rs` (the
+//! Files: `estimator.rs` (the per-pixel estimator writing [`RatioSample`]s), `denoise.rs` (the
 //! denoiser: a plain function over [`ImageBuffer`]s), this file (parameters, channels and the
 //! whole-image pass).
 
+pub mod denoise;
 mod estimator;
-pub mod filter;
 
-pub use filter::{cross_bilateral, guarded_ratio, noise_radius, FilterParams, Guide};
+pub use denoise::{cross_bilateral, guarded_ratio, noise_radius, FilterParams, Guide};
 
 use crate::common::image_pass::ImageBuffer;
 use crate::common::ltc_shading::{FresnelMode, LtcShader, Mode, ShaderSettings};
@@ -275,9 +275,6 @@ struct FilmPixel {
 }
 
 impl Integrator for RatioIntegrator {
-    fn name(&self) -> &str {
-        "ratio"
-    }
     fn requirements(&self) -> Requirements {
         Requirements { accel: true, lights: true, materials: true, ..Default::default() }
     }

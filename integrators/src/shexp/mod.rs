@@ -52,6 +52,7 @@ pub mod sphereset;
 pub mod visibility;
 
 use crate::common::direct::{estimate_direct, specular};
+use crate::common::other_lights::FallbackWarning;
 use crate::common::params::{ParamSpec, Params, Range};
 use crate::common::pixel_shading::{parse_shading, rgb_differs, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
@@ -63,7 +64,7 @@ use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, Ray, RayDifferential};
 use penumbra_core::integrator::{
     render_pixels, with_threads, Integrator, PixelEstimator, Preparation, RenderContext, RenderError, RenderStats,
-    ThreadStats,
+    SampleContext, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
@@ -233,8 +234,8 @@ struct Estimator<'a> {
     bright: Vec<bright::BrightLight>,
     reflect: Option<reflect::Reflectors>,
     ground: Option<reflect::ground::GroundBounce>,
-    warn_lobes: AtomicBool,
-    warnings: &'a DiagSink,
+    /// Names the materials whose non-Lambertian lobes take the environment through the estimator.
+    fallback: FallbackWarning<'a>,
     /// Evaluations of the smooth environment term ([`Estimator::lambertian_irradiance`]).
     receivers: AtomicU64,
 }
@@ -489,13 +490,8 @@ impl Estimator<'_> {
         }
         if let Some(rest) = &rest {
             if rest.num_components(BxdfFlags::NON_SPECULAR) > 0 && !self.infinite.is_empty() {
-                if !self.warn_lobes.swap(true, Ordering::Relaxed) {
-                    self.warnings.warn(
-                        None,
-                        "shexp: non-Lambertian lobes (glossy, Oren–Nayar, transmission) under the environment are \
-                         shaded with directlighting's estimator",
-                    );
-                }
+                let name = scene.material_of(si).map_or("none", |(m, _, _)| m.type_name());
+                self.fallback.material(name, "non-Lambertian lobes", "the environment");
                 for &i in &self.infinite {
                     let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
                     l += estimate_direct(si, rest, u_scatter, i, &lights[i], u_light, scene, stats);
@@ -539,14 +535,8 @@ impl Estimator<'_> {
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<Rgb>;
-    fn li(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         self.li(ray, scene, sampler, stats, 0)
     }
 
@@ -571,16 +561,8 @@ impl PixelEstimator for Estimator<'_> {
         Some(SharedPixel::trace(rays, samples, scene, stats, |_| f64::INFINITY, Some(differs), shade))
     }
 
-    fn li_shared(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         shared.shade_sample(index, scene, |hit, e| self.shade_hit(ray, hit, e, scene, sampler, stats, 0))
     }
     fn pixel_bounds(&self) -> Option<Bounds2i> {
@@ -599,9 +581,6 @@ impl Shexp {
 }
 
 impl Integrator for Shexp {
-    fn name(&self) -> &str {
-        "shexp"
-    }
     /// Sample shading (pixel shading shares the environment's term between a pixel's samples;
     /// without an environment it shares nothing, but that is known only at render time).
     fn merges_sample_ranges(&self) -> bool {
@@ -690,8 +669,7 @@ impl Integrator for Shexp {
             bright: bright_lights,
             reflect: None,
             ground: None,
-            warn_lobes: AtomicBool::new(false),
-            warnings: ctx.warnings,
+            fallback: FallbackWarning::new("shexp", ctx.warnings),
             receivers: AtomicU64::new(0),
         };
         let mut pass = (0, 0);

@@ -57,6 +57,7 @@
 //! parameters and the estimator.
 
 use crate::common::direct::{estimate_direct, specular};
+use crate::common::other_lights::FallbackWarning;
 use crate::common::params::{ParamSpec, Params};
 use crate::common::pixel_shading::{parse_shading, rgb_differs, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, SH_ORDER};
@@ -68,7 +69,7 @@ use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray, RayDifferential};
 use penumbra_core::integrator::Preparation;
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
@@ -226,6 +227,8 @@ struct Estimator<'a> {
     sh_table: OnceLock<ShTable>,
     counters: Counters,
     pixel_shading: bool,
+    /// Names the materials whose lobes take the infinite lights through the estimator.
+    fallback: FallbackWarning<'a>,
 }
 
 impl Estimator<'_> {
@@ -435,7 +438,14 @@ impl Estimator<'_> {
             .filter(|d| d.specular.is_none());
         match lambertian {
             Some(d) => Some(EnvKind::Lambertian { albedo: d.diffuse, n: d.n }),
-            None => glossy::Split::of(&hit.bsdf, self.glossy_order).map(EnvKind::Split),
+            None => {
+                let split = glossy::Split::of(&hit.bsdf, self.glossy_order).map(EnvKind::Split);
+                if split.is_none() && hit.bsdf.num_components(BxdfFlags::NON_SPECULAR) > 0 {
+                    let name = scene.material_of(&hit.si).map_or("none", |(m, _, _)| m.type_name());
+                    self.fallback.material(name, "non-specular transmission", "the infinite lights");
+                }
+                split
+            }
         }
     }
 
@@ -605,14 +615,8 @@ impl Estimator<'_> {
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<ClusterValue>;
-    fn li(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         match self.mode {
             Mode::Ao | Mode::Prt => self.ao(ray, scene, stats, aov),
             Mode::Shade => self.shade(ray, scene, sampler, stats, 0),
@@ -650,16 +654,8 @@ impl PixelEstimator for Estimator<'_> {
         ))
     }
 
-    fn li_shared(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         if self.mode == Mode::Shade {
             return shared
                 .shade_sample(index, scene, |hit, env| self.shade_hit(ray, hit, env, scene, sampler, stats, 0));
@@ -679,9 +675,6 @@ fn dual_edges(scene: &Scene) -> DualEdges {
 }
 
 impl Integrator for Silhouette {
-    fn name(&self) -> &str {
-        "silhouette"
-    }
     /// Sample shading, or `prt` (whose samples never share).
     fn merges_sample_ranges(&self) -> bool {
         !self.pixel_shading || self.mode == Some(Mode::Prt)
@@ -753,6 +746,7 @@ impl Integrator for Silhouette {
             sh_table: OnceLock::new(),
             counters: Counters::default(),
             pixel_shading: self.pixel_shading,
+            fallback: FallbackWarning::new("silhouette", ctx.warnings),
         };
         let mut stats = render_pixels(&est, scene, ctx, film)?;
         let c = &est.counters;

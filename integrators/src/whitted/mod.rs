@@ -17,7 +17,7 @@ use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{Bounds2i, RayDifferential};
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext, ThreadStats,
 };
 use penumbra_core::light::LightContext;
 use penumbra_core::sampler::Sampler;
@@ -86,14 +86,8 @@ impl Whitted {
 
 impl PixelEstimator for Whitted {
     type Shared = ();
-    fn li(
-        &self,
-        ray: &RayDifferential,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         Whitted::li(self, ray, scene, sampler, stats, 0)
     }
 
@@ -103,9 +97,6 @@ impl PixelEstimator for Whitted {
 }
 
 impl Integrator for Whitted {
-    fn name(&self) -> &str {
-        "whitted"
-    }
     fn merges_sample_ranges(&self) -> bool {
         true
     }

@@ -211,7 +211,7 @@ fn sample_and_pdf_agree_by_chi_square() {
             }
         }
         assert!((total - 1.0).abs() < 5e-3, "pdf integrates to {total}");
-        let (chi2, dof, p) = penumbra_core::stats::chi2_test(&obs, &exp, 5.0);
+        let (chi2, dof, p) = penumbra_core::goodness_of_fit::chi2_test(&obs, &exp, 5.0);
         assert!(p > 1e-3, "cos {cos} alpha {alpha}: chi2 {chi2} dof {dof} p {p}");
     }
 }

@@ -142,20 +142,6 @@ pub fn chi2_test(observed: &[f64], expected: &[f64], min_expected: f64) -> (f64,
     (chi2, dof, chi2_p_value(chi2, dof))
 }
 
-/// Bins 2D points of `[0, 1)²` into a `res_x × res_y` histogram (row-major, y outer); non-finite points are skipped.
-pub fn histogram_unit(points: impl IntoIterator<Item = (f64, f64)>, res_x: usize, res_y: usize) -> Vec<f64> {
-    let mut h = vec![0.0; res_x * res_y];
-    for (x, y) in points {
-        if !(x.is_finite() && y.is_finite()) {
-            continue;
-        }
-        let ix = ((x * res_x as f64) as isize).clamp(0, res_x as isize - 1) as usize;
-        let iy = ((y * res_y as f64) as isize).clamp(0, res_y as isize - 1) as usize;
-        h[iy * res_x + ix] += 1.0;
-    }
-    h
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
