@@ -243,3 +243,26 @@ fn camera_motion_blur_as_pbrt_v3() {
     eprintln!("camera-motion RMSE vs pbrt-v3: moving {e_moving:.2e}, start keyframe only {e_still:.2e}");
     assert!(e_still > 4.0 * e_moving, "moving {e_moving} vs still {e_still}");
 }
+
+/// `nurbs` tessellated as pbrt-v3's `CreateNURBS` (30 × 30 evaluations over [u0, u1] ×
+/// [v0, v1], normals from ∂p/∂u × ∂p/∂v, (u, v) the parameters): a bicubic patch with uneven
+/// knots under a checkerboard in (u, v), a rational quarter cylinder ("Pw") cut by "u1", and an
+/// emitting bilinear patch whose emitting side is that of ∂p/∂u × ∂p/∂v. A skipped NURBS
+/// would leave the image black. Malformed knot vectors are errors at the parameter.
+#[test]
+fn nurbs_tessellated_as_pbrt_v3() {
+    let r = check("nurbs");
+    assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+    let dir = cli_dir("real-nurbs");
+    let bad = dir.join("bad.pbrt");
+    let text = std::fs::read_to_string(scene("real/nurbs.pbrt")).unwrap();
+    let line = text.lines().position(|l| l.contains("[0 0 0 0 2 2 2 2]")).unwrap() + 1;
+    std::fs::write(&bad, text.replace("[0 0 0 0 2 2 2 2]", "[0 0 0 2 2 2 2]")).unwrap();
+    let o = penumbra(&dir, &["info", bad.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains(&format!("bad.pbrt:{line}:")) && err.contains("7 knots in \"uknots\", 4 control points + order 4"),
+        "{err}"
+    );
+}
