@@ -266,3 +266,46 @@ fn nurbs_tessellated_as_pbrt_v3() {
         "{err}"
     );
 }
+
+/// `curve` ribbons (Bézier and b-spline bases of degree 2 and 3, normals slerped, widths
+/// lerped) rendered as the strips pbrt-v3's intersection approximates, with a warning: pbrt-v3
+/// narrows a ribbon where the ray runs along it, which a mesh cannot do. Measured against
+/// pbrt-v3 on `curve-ribbons` (narrow ribbons): mean +0.43 %, but 8×8 regions in a ribbon's
+/// shadow differ beyond the noise (|z| 13.9) — the strict comparison is
+/// [`ribbon_curves_match_pbrt_v3`], a known failure of issue 34. Here: the warning, the
+/// located errors, `flat`/`cylinder` skipped with a warning naming the type.
+#[test]
+fn ribbon_curves_as_strips_with_a_warning() {
+    let r = render_path(&scene("real/curve-ribbons.pbrt"), &Opts { resolution: None, ..Default::default() });
+    assert_eq!(r.warnings.len(), 3, "{:?}", r.warnings);
+    assert!(
+        r.warnings.iter().all(|w| w.contains("curve type \"ribbon\"") && w.contains("narrows")),
+        "{:?}",
+        r.warnings
+    );
+    // The strips are there: without them the image is the floor's alone (pbrt-v3's mean is 0.1450).
+    assert!((mean(&r.image) / mean(&reference("curve-ribbons")) - 1.0).abs() < 0.01);
+    let dir = cli_dir("real-curves");
+    let text = std::fs::read_to_string(scene("real/curve-ribbons.pbrt")).unwrap();
+    let line = text.lines().position(|l| l.contains("-1.3 0 0.05")).unwrap() + 1;
+    let bad = dir.join("bad.pbrt");
+    std::fs::write(&bad, text.replace("-1.3 0 0.05  ", "")).unwrap();
+    let o = penumbra(&dir, &["info", bad.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains(&format!("bad.pbrt:{line}:")) && err.contains("6 control points"), "{err}");
+    let flat = dir.join("flat.pbrt");
+    std::fs::write(&flat, text.replacen("\"string type\" \"ribbon\"", "\"string type\" \"cylinder\"", 1)).unwrap();
+    let o = penumbra(&dir, &["info", flat.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
+    assert!(o.status.success() && err.contains("curve type \"cylinder\"") && err.contains("skipped"), "{err}");
+}
+
+/// Known failure (issue 34): ribbons as pbrt-v3 intersects them need a curve primitive whose
+/// width depends on the ray; the tessellated strip differs in the shadows of ribbons lit along
+/// their length.
+#[test]
+#[ignore = "known failure, issue 34: pbrt-v3's ribbons narrow along the ray; ours are meshes"]
+fn ribbon_curves_match_pbrt_v3() {
+    check("curve-ribbons");
+}

@@ -22,6 +22,7 @@
 //!
 //! So the tessellation deviates from the analytic surface by about `ε · R` at most.
 
+mod curve;
 mod heightfield;
 pub mod loopsubdiv;
 mod nurbs;
@@ -92,11 +93,7 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
         "loopsubdiv" => loopsubdiv::build(desc, ctx)?,
         "heightfield" => heightfield::build(desc, ctx)?,
         "nurbs" => nurbs::build(desc, ctx)?,
-        "curve" => {
-            desc.entity.params.mark_all_used();
-            ctx.warnings.warn(Some(desc.entity.loc.clone()), format!("shape \"{kind}\" not supported; skipped"));
-            return Ok(None);
-        }
+        "curve" => curve::build(desc, ctx)?,
         _ => {
             desc.entity.params.mark_all_used();
             ctx.warnings.warn(Some(desc.entity.loc.clone()), format!("shape \"{kind}\" unknown; skipped"));
@@ -297,7 +294,7 @@ mod tests {
         }
         let w = sink.take();
         assert_eq!(w.len(), 2);
-        assert!(w[0].message.contains("\"curve\" not supported"));
+        assert!(w[0].message.contains("curve type \"flat\"") && w[0].message.contains("skipped"));
         assert!(w[1].message.contains("\"blob\""));
     }
 
