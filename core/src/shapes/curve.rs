@@ -99,7 +99,7 @@ fn params(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Params>, Diagno
         return Err(error(desc, "P", "control points and widths must be finite (widths non-negative)".into()));
     }
     let bspline = basis == "bspline";
-    if !bspline && (cp.len() < degree + 1 || (cp.len() - 1 - degree) % degree != 0) {
+    if !bspline && (cp.len() < degree + 1 || !(cp.len() - 1 - degree).is_multiple_of(degree)) {
         return Err(error(
             desc,
             "P",
