@@ -187,3 +187,125 @@ fn scaled_quadric_lights_as_pbrt_v3_and_physically() {
     assert!(z.abs() < 4.0, "physical scaled sphere {mp} vs unscaled {mu} (z = {z:.1})");
     assert!(mb > 2.0 * mu, "pbrt-v3's scaled sphere is several times brighter: {mb} vs {mu}");
 }
+
+/// Alpha cut-outs as pbrt-v3's `Triangle::Intersect`/`IntersectP` apply them, in closest-hit
+/// and shadow queries alike: an image mask with (u, v) given, `shadowalpha` only, a procedural
+/// mask on the default per-triangle (u, v) under a mirroring transform, a card cut out
+/// entirely (it would shade most of the floor), fractional alpha (opaque) and a sphere
+/// (pbrt-v3 reads no alpha there). `path` with one bounce sees the same expected image; `ltc`
+/// cannot represent a cut-out in its analytic visibility, so it lights the scene with
+/// directlighting's estimator (same expected image) and says so; `silhouette` and `shexp`
+/// refuse the scene, naming the shape and its location, and write nothing.
+#[test]
+fn alpha_cutouts_in_closest_hit_and_shadow_queries() {
+    let r = check("cutout-cards");
+    assert!(r.warnings.iter().all(|w| w.contains("\"float alpha\" unused by shape \"sphere\"")), "{:?}", r.warnings);
+    check_with("cutout-cards", "path", &["maxdepth=1"]);
+    let ltc = check_with("cutout-cards", "ltc", &[]);
+    assert!(
+        ltc.warnings.iter().any(|w| w.contains("ltc: shape \"trianglemesh\" has an alpha cut-out")
+            && w.contains("directlighting's estimator")),
+        "{:?}",
+        ltc.warnings
+    );
+    let dir = cli_dir("real-cutouts");
+    let path = scene("real/cutout-cards.pbrt");
+    for integrator in ["silhouette", "shexp"] {
+        let out = dir.join(format!("{integrator}.exr"));
+        let o = penumbra(
+            &dir,
+            &["render", "-q", "--spp", "1", "-i", integrator, path.to_str().unwrap(), "-o", out.to_str().unwrap()],
+        );
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{integrator}: {err}");
+        assert!(
+            err.contains("cutout-cards.pbrt:21:1") && err.contains("cut-out") && err.contains("bool occluder"),
+            "{integrator}: {err}"
+        );
+        assert!(!out.exists(), "{integrator}");
+    }
+}
+
+/// Camera motion blur (pbrt-v3's `AnimatedTransform` for `CameraToWorld`, the shutter over
+/// `TransformTimes`): rotation and translation interpolated per camera ray. Without the motion
+/// (the start keyframe only) the image is far from pbrt-v3's: several times the RMSE.
+#[test]
+fn camera_motion_blur_as_pbrt_v3() {
+    let moving = check("camera-motion");
+    assert!(moving.warnings.is_empty(), "{:?}", moving.warnings);
+    let text = std::fs::read_to_string(scene("real/camera-motion.pbrt")).unwrap();
+    let fixed = text.replace("ActiveTransform EndTime\nLookAt 1.2 -3.6 2.2  0.3 0 0.3  0.2 0 1\n", "");
+    assert_ne!(fixed, text);
+    let desc = penumbra_parser::parse_str(&fixed, "camera-fixed", Some(&scene("real"))).unwrap().scene;
+    let still = render_desc(&desc, &Opts { resolution: None, ..Default::default() });
+    let reference = reference("camera-motion");
+    let (e_moving, e_still) = (rmse(&moving.image, &reference), rmse(&still.image, &reference));
+    eprintln!("camera-motion RMSE vs pbrt-v3: moving {e_moving:.2e}, start keyframe only {e_still:.2e}");
+    assert!(e_still > 4.0 * e_moving, "moving {e_moving} vs still {e_still}");
+}
+
+/// `nurbs` tessellated as pbrt-v3's `CreateNURBS` (30 × 30 evaluations over [u0, u1] ×
+/// [v0, v1], normals from ∂p/∂u × ∂p/∂v, (u, v) the parameters): a bicubic patch with uneven
+/// knots under a checkerboard in (u, v), a rational quarter cylinder ("Pw") cut by "u1", and an
+/// emitting bilinear patch whose emitting side is that of ∂p/∂u × ∂p/∂v. A skipped NURBS
+/// would leave the image black. Malformed knot vectors are errors at the parameter.
+#[test]
+fn nurbs_tessellated_as_pbrt_v3() {
+    let r = check("nurbs");
+    assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+    let dir = cli_dir("real-nurbs");
+    let bad = dir.join("bad.pbrt");
+    let text = std::fs::read_to_string(scene("real/nurbs.pbrt")).unwrap();
+    let line = text.lines().position(|l| l.contains("[0 0 0 0 2 2 2 2]")).unwrap() + 1;
+    std::fs::write(&bad, text.replace("[0 0 0 0 2 2 2 2]", "[0 0 0 2 2 2 2]")).unwrap();
+    let o = penumbra(&dir, &["info", bad.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains(&format!("bad.pbrt:{line}:")) && err.contains("7 knots in \"uknots\", 4 control points + order 4"),
+        "{err}"
+    );
+}
+
+/// `curve` ribbons (Bézier and b-spline bases of degree 2 and 3, normals slerped, widths
+/// lerped) rendered as the strips pbrt-v3's intersection approximates, with a warning: pbrt-v3
+/// narrows a ribbon where the ray runs along it, which a mesh cannot do. Measured against
+/// pbrt-v3 on `curve-ribbons` (narrow ribbons): mean +0.43 %, but 8×8 regions in a ribbon's
+/// shadow differ beyond the noise (|z| 13.9) — the strict comparison is
+/// [`ribbon_curves_match_pbrt_v3`], a known failure of issue 34. Here: the warning, the
+/// located errors, `flat`/`cylinder` skipped with a warning naming the type.
+#[test]
+fn ribbon_curves_as_strips_with_a_warning() {
+    let r = render_path(&scene("real/curve-ribbons.pbrt"), &Opts { resolution: None, ..Default::default() });
+    assert_eq!(r.warnings.len(), 3, "{:?}", r.warnings);
+    assert!(
+        r.warnings.iter().all(|w| w.contains("curve type \"ribbon\"") && w.contains("narrows")),
+        "{:?}",
+        r.warnings
+    );
+    // The strips are there: without them the image is the floor's alone (pbrt-v3's mean is 0.1450).
+    assert!((mean(&r.image) / mean(&reference("curve-ribbons")) - 1.0).abs() < 0.01);
+    let dir = cli_dir("real-curves");
+    let text = std::fs::read_to_string(scene("real/curve-ribbons.pbrt")).unwrap();
+    let line = text.lines().position(|l| l.contains("-1.3 0 0.05")).unwrap() + 1;
+    let bad = dir.join("bad.pbrt");
+    std::fs::write(&bad, text.replace("-1.3 0 0.05  ", "")).unwrap();
+    let o = penumbra(&dir, &["info", bad.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains(&format!("bad.pbrt:{line}:")) && err.contains("6 control points"), "{err}");
+    let flat = dir.join("flat.pbrt");
+    std::fs::write(&flat, text.replacen("\"string type\" \"ribbon\"", "\"string type\" \"cylinder\"", 1)).unwrap();
+    let o = penumbra(&dir, &["info", flat.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
+    assert!(o.status.success() && err.contains("curve type \"cylinder\"") && err.contains("skipped"), "{err}");
+}
+
+/// Known failure (issue 34): ribbons as pbrt-v3 intersects them need a curve primitive whose
+/// width depends on the ray; the tessellated strip differs in the shadows of ribbons lit along
+/// their length.
+#[test]
+#[ignore = "known failure, issue 34: pbrt-v3's ribbons narrow along the ray; ours are meshes"]
+fn ribbon_curves_match_pbrt_v3() {
+    check("curve-ribbons");
+}

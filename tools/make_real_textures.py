@@ -8,7 +8,7 @@ Every layout pbrt-v3's ReadImage reads, so that renders of scenes/real/image-for
 real pbrt-v3 check penumbra's readers: PNG at 1, 2, 8 and 16 bits (grey, grey + alpha, RGB,
 palette with tRNS), TGA (run-length encoded with a bottom-left origin, colour-mapped with a
 top-right origin, grey RLE), EXR with a luminance channel only, PFM with a scale of 2; plus the
-bump map and checkerboard the differential scenes use.
+bump map and checkerboard the differential scenes use and the cut-out mask of cutout-cards.
 """
 import math, os, struct, subprocess, sys, zlib
 
@@ -84,6 +84,14 @@ def main():
     # Checkerboard: 8-texel checks of two colours, RGB 8-bit.
     rows = [bytes(v for x in range(64) for v in ((230, 200, 40) if ((x // 8) + (y // 8)) % 2 else (20, 40, 160))) for y in range(64)]
     png(t("checks.png"), 64, 64, 2, 8, rows)
+    # Cut-out mask (alpha): round holes of value 0 on a 16-texel grid, the rest opaque with a
+    # fractional band (pbrt-v3 cuts only where alpha is exactly 0), 8-bit grey, 32x32.
+    def leaf(x, y):
+        if (x % 16 - 7.5) ** 2 + (y % 16 - 7.5) ** 2 < 30:
+            return 0
+        return 60 if x % 16 < 3 else 255
+    rows = [bytes(leaf(x, y) for x in range(32)) for y in range(32)]
+    png(t("leaves.png"), 32, 32, 0, 8, rows)
     # RGB 16-bit: low bytes set (pbrt-v3 keeps the high byte).
     rows = [b"".join(struct.pack(">HHH", (x * 4096 + 255) & 0xFFFF, (y * 4096 + 128) & 0xFFFF, ((x + y) * 2048 + 200) & 0xFFFF) for x in range(16)) for y in range(16)]
     png(t("rgb16.png"), 16, 16, 2, 16, rows)

@@ -2,7 +2,8 @@
 //! +z, `fov` spanning the shorter image axis, the screen window, thin lenses.
 
 use crate::geometry::{Ray, RayDifferential, RayOffsets};
-use glam::{DVec3, Vec2, Vec3};
+use crate::motion::Motion;
+use glam::{DMat4, DVec3, Vec2, Vec3};
 use penumbra_parser::{CameraDesc, DiagSink, Diagnostic, Transform};
 
 /// A point on the film (absolute raster coordinates of the full image), the lens and time.
@@ -26,7 +27,11 @@ pub enum Projection {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
     pub projection: Projection,
+    /// The camera's transform at shutter open (`ActiveTransform StartTime`).
     pub world_from_camera: Transform,
+    /// The camera's motion when its transform is animated (pbrt-v3's `CameraToWorld`
+    /// `AnimatedTransform`): each ray takes the transform at its time.
+    pub motion: Option<Motion>,
     pub resolution: (u32, u32),
     /// `[x0, x1, y0, y1]` in screen space.
     pub screen_window: [f32; 4],
@@ -60,10 +65,12 @@ impl Camera {
     pub fn from_desc(desc: &CameraDesc, resolution: (u32, u32), warnings: &DiagSink) -> Result<Camera, Diagnostic> {
         let p = &desc.entity.params;
         let loc = Some(desc.entity.loc.clone());
-        if desc.world_from_camera.is_animated() {
+        let motion = Motion::new(&desc.world_from_camera);
+        if desc.world_from_camera.is_animated() && motion.is_none() {
             warnings.warn(
                 loc.clone(),
-                "animated camera transform: motion blur is not supported; using the transform at shutter open",
+                "animated camera transform with a singular keyframe or TransformTimes end <= start: no motion \
+                 blur, using the transform at shutter open",
             );
         }
         let mut shutter = (p.get_one_float("shutteropen", 0.0), p.get_one_float("shutterclose", 1.0));
@@ -130,6 +137,7 @@ impl Camera {
         Ok(Camera {
             projection,
             world_from_camera: desc.world_from_camera.start,
+            motion,
             resolution: (resolution.0.max(1), resolution.1.max(1)),
             screen_window: screen,
             lens_radius,
@@ -144,16 +152,24 @@ impl Camera {
         self.lens_radius > 0.0
     }
 
-    /// Whether [`Camera::generate_ray`] reads `CameraSample::time` (it does not: camera
-    /// transforms are static).
+    /// Whether [`Camera::generate_ray`] reads `CameraSample::time` (when the camera moves).
     pub fn uses_time(&self) -> bool {
-        false
+        self.motion.is_some()
+    }
+
+    /// The world-from-camera matrix of a sample's time (`CameraSample::time` in [0, 1) maps
+    /// onto the shutter interval as pbrt-v3's `Lerp(sample.time, shutterOpen, shutterClose)`).
+    fn world_from_camera_at(&self, time: f32) -> CameraToWorld<'_> {
+        match &self.motion {
+            Some(m) => CameraToWorld::Moving(m.at(self.shutter.0 + time * (self.shutter.1 - self.shutter.0))),
+            None => CameraToWorld::Fixed(&self.world_from_camera),
+        }
     }
 
     /// The camera ray for a film sample, in world space, with a unit direction.
     pub fn generate_ray(&self, s: &CameraSample) -> Ray {
         let (o, d) = self.camera_space_ray(s.p_film, s.p_lens);
-        self.to_world(o, d)
+        self.to_world(&self.world_from_camera_at(s.time), o, d)
     }
 
     /// The camera ray with its offset rays one pixel step away in x and y (pbrt-v3's
@@ -164,12 +180,13 @@ impl Camera {
     /// over 0.05 pixel.
     pub fn generate_ray_differential(&self, s: &CameraSample) -> RayDifferential {
         let (o, d) = self.camera_space_ray(s.p_film, s.p_lens);
-        let ray = self.to_world(o, d);
+        let m = self.world_from_camera_at(s.time);
+        let ray = self.to_world(&m, o, d);
         let shifted = |dx: f32, dy: f32| self.camera_space_ray(s.p_film + Vec2::new(dx, dy), s.p_lens);
         let offsets = match self.projection {
             Projection::Perspective { .. } | Projection::Orthographic => {
                 let ((rx_o, rx_d), (ry_o, ry_d)) = (shifted(1.0, 0.0), shifted(0.0, 1.0));
-                Some(self.offsets_to_world(rx_o, rx_d, ry_o, ry_d))
+                Some(self.offsets_to_world(&m, rx_o, rx_d, ry_o, ry_d))
             }
             Projection::Environment => {
                 const EPS: f32 = 0.05;
@@ -233,23 +250,34 @@ impl Camera {
         }
     }
 
-    fn to_world(&self, o: Vec3, d: Vec3) -> Ray {
-        let (ow, dw) = self.point_and_direction_to_world(o, d);
+    fn to_world(&self, m: &CameraToWorld, o: Vec3, d: Vec3) -> Ray {
+        let (ow, dw) = point_and_direction_to_world(m, o, d);
         Ray::new(ow, dw, f32::INFINITY)
     }
 
-    fn point_and_direction_to_world(&self, o: Vec3, d: Vec3) -> (Vec3, Vec3) {
-        let t = &self.world_from_camera;
-        let ow = t.apply_point([o.x as f64, o.y as f64, o.z as f64]);
-        let dw = t.apply_vector([d.x as f64, d.y as f64, d.z as f64]);
-        (DVec3::from(ow).as_vec3(), DVec3::from(dw).normalize_or_zero().as_vec3())
-    }
-
-    fn offsets_to_world(&self, rx_o: Vec3, rx_d: Vec3, ry_o: Vec3, ry_d: Vec3) -> RayOffsets {
-        let (rx_o, rx_d) = self.point_and_direction_to_world(rx_o, rx_d);
-        let (ry_o, ry_d) = self.point_and_direction_to_world(ry_o, ry_d);
+    fn offsets_to_world(&self, m: &CameraToWorld, rx_o: Vec3, rx_d: Vec3, ry_o: Vec3, ry_d: Vec3) -> RayOffsets {
+        let (rx_o, rx_d) = point_and_direction_to_world(m, rx_o, rx_d);
+        let (ry_o, ry_d) = point_and_direction_to_world(m, ry_o, ry_d);
         RayOffsets { rx_o, rx_d, ry_o, ry_d }
     }
+}
+
+/// The camera's transform at one time.
+enum CameraToWorld<'a> {
+    Fixed(&'a Transform),
+    Moving(DMat4),
+}
+
+/// A camera-space point and direction in world space by `m` (the direction normalised).
+fn point_and_direction_to_world(m: &CameraToWorld, o: Vec3, d: Vec3) -> (Vec3, Vec3) {
+    let (ow, dw) = match m {
+        CameraToWorld::Fixed(t) => (
+            DVec3::from(t.apply_point([o.x as f64, o.y as f64, o.z as f64])),
+            DVec3::from(t.apply_vector([d.x as f64, d.y as f64, d.z as f64])),
+        ),
+        CameraToWorld::Moving(m) => (m.project_point3(o.as_dvec3()), m.transform_vector3(d.as_dvec3())),
+    };
+    (ow.as_vec3(), dw.normalize_or_zero().as_vec3())
 }
 
 #[cfg(test)]

@@ -23,6 +23,7 @@ pub mod interpolation;
 pub mod light;
 pub mod material;
 pub mod mesh;
+pub mod motion;
 #[rustfmt::skip]
 #[allow(clippy::excessive_precision)]
 pub mod metal_data;

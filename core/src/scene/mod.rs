@@ -20,6 +20,7 @@ use std::any::Any;
 use std::sync::Arc;
 
 mod build;
+pub mod cutout;
 pub use build::film_spec;
 
 /// What the scene build must provide for an integrator. Everything is off by
@@ -121,8 +122,9 @@ pub struct Scene {
     pub lights: Option<Lights>,
     /// Built when `Requirements::materials`: only materials some object uses.
     pub materials: Option<Materials>,
-    /// Built when `Requirements::materials`: only textures a built material references.
-    pub textures: Option<Textures>,
+    /// Built when `Requirements::materials` or a mesh has an alpha cut-out: only the textures a
+    /// built material or a cut-out references.
+    pub textures: Option<Arc<Textures>>,
     pub bounds: Bounds3,
     /// The scene's own `Integrator` directive.
     pub integrator: Entity,
@@ -248,6 +250,18 @@ impl Scene {
         }))
     }
 
+    /// The first object with an `alpha` or `shadowalpha` cut-out that occludes (its
+    /// `"bool occluder"` is not false): every ray query honours the cut-out, but visibility
+    /// built from the meshes' outlines (`ltc`'s polygons, `silhouette`'s edges, `shexp`'s
+    /// spheres) cannot represent one.
+    pub fn cutout_occluder(&self) -> Option<&SceneObject> {
+        self.meshes
+            .iter()
+            .zip(&self.objects)
+            .find(|(m, o)| o.occluder && (m.alpha.is_some() || m.shadow_alpha.is_some()))
+            .map(|(_, o)| o)
+    }
+
     /// The BSSRDF under `si`, whose BSDF (built with `opts`) is `bsdf`; `None` when its material
     /// has none (see [`Material::bssrdf`]).
     pub fn bssrdf(
@@ -273,7 +287,7 @@ impl Scene {
 
     /// The material at `si`, with the material and texture tables (`None` as for [`bsdf`](Self::bsdf)).
     pub fn material_of(&self, si: &SurfaceInteraction) -> Option<(&Material, &Materials, &Textures)> {
-        let (materials, textures) = (self.materials.as_ref()?, self.textures.as_ref()?);
+        let (materials, textures) = (self.materials.as_ref()?, self.textures.as_deref()?);
         Some((materials.get(self.objects.get(si.mesh as usize)?.material?)?, materials, textures))
     }
 

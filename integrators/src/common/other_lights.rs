@@ -22,16 +22,21 @@ pub struct FallbackWarning<'a> {
     pub integrator: &'static str,
     warned: Mutex<HashSet<&'static str>>,
     pub warnings: &'a DiagSink,
+    /// No per-material warning: the integrator has already said every light falls back.
+    pub silent: bool,
 }
 
 impl<'a> FallbackWarning<'a> {
     pub fn new(integrator: &'static str, warnings: &'a DiagSink) -> FallbackWarning<'a> {
-        FallbackWarning { integrator, warned: Mutex::new(HashSet::new()), warnings }
+        FallbackWarning { integrator, warned: Mutex::new(HashSet::new()), warnings, silent: false }
     }
 
     /// Warns, once per material type, that `material`'s lobes described by `lobes` are lit by
     /// directlighting's estimator `under` the lights it names.
     pub fn material(&self, material: &'static str, lobes: &str, under: &str) {
+        if self.silent {
+            return;
+        }
         let first = self.warned.lock().map(|mut w| w.insert(material)).unwrap_or(false);
         if first {
             self.warnings.warn(

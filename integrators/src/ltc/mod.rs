@@ -124,6 +124,9 @@ struct Estimator<'a> {
     fallback: FallbackWarning<'a>,
     /// The scene has lights other than area lights.
     other_lights: bool,
+    /// Shadows are asked for and an occluder has an alpha cut-out: every light goes through
+    /// directlighting's estimator (whose shadow rays honour the cut-out).
+    cutouts: bool,
 }
 
 impl LtcIntegrator {
@@ -158,6 +161,8 @@ impl Estimator<'_> {
         // With the pixel's lighting integrated already, only the sample's albedo is needed (and
         // whether the material transmits, which the shared value does not say).
         let (lit, coverage) = match area {
+            // An alpha cut-out in the scene: every light through directlighting's estimator.
+            _ if self.cutouts => (None, Coverage::None),
             Some((diffuse, specular)) => {
                 let lit = LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular);
                 let transmits = lit.is_some()
@@ -225,7 +230,7 @@ impl PixelEstimator for Estimator<'_> {
     }
 
     fn shares_pixel_work(&self) -> bool {
-        self.ltc.pixel_shading
+        self.ltc.pixel_shading && !self.cutouts
     }
 
     fn begin_pixel(
@@ -262,11 +267,27 @@ impl Integrator for LtcIntegrator {
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ltc", scene, ctx.warnings);
+        let cutout = scene.cutout_occluder().filter(|_| self.shadows);
+        if let Some(o) = cutout {
+            ctx.warnings.warn(
+                Some(o.loc.clone()),
+                format!(
+                    "ltc: shape \"{}\" has an alpha cut-out, which analytic visibility cannot represent: every light \
+                     is rendered with directlighting's estimator (\"bool occluder\" false on the shape keeps ltc's \
+                     analytic shadows, without the shape's)",
+                    o.kind
+                ),
+            );
+        }
+        let mut fallback = FallbackWarning::new("ltc", ctx.warnings);
+        // With every light on the estimator, the per-material fallback warning would say less.
+        fallback.silent = cutout.is_some();
         let est = Estimator {
             ltc: self,
             shader: LtcShader::new(self.shader_settings(), scene, "ltc"),
-            fallback: FallbackWarning::new("ltc", ctx.warnings),
+            fallback,
             other_lights: scene.light_list().iter().any(|l| !matches!(l, Light::Area(_))),
+            cutouts: cutout.is_some(),
         };
         let mut stats = render_pixels(&est, scene, ctx, film)?;
         est.shader.finish(&mut stats, ctx.warnings);

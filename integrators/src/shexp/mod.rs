@@ -600,6 +600,7 @@ impl Integrator for Shexp {
         })
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+        crate::common::refuse_cutouts("shexp", "visibility (sphere sets fitted to the meshes)", scene)?;
         // Prepared with the scene (`build_scene`), or built here for a scene built without it.
         let built;
         let sets = match scene.prepared::<SphereSets>().filter(|s| s.spheres == self.spheres) {

@@ -723,6 +723,7 @@ impl Integrator for Silhouette {
         }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+        crate::common::refuse_cutouts("silhouette", "visibility silhouettes (the meshes' dual edges)", scene)?;
         // Prepared with the scene (`build_scene`), or built here for a scene built without it.
         let built;
         let dual = match scene.prepared::<DualEdges>() {
