@@ -133,3 +133,33 @@ fn malformed_resolution_crop_and_tile_are_usage_errors_everywhere() {
     assert!(!d.join("x.shard").exists(), "nothing written");
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// Item 6: `convert` decodes a PNG input from sRGB (so PNG -> EXR -> PNG is exact; the PNGs
+/// penumbra writes are sRGB-encoded), says so in its help, and `--linear` takes the code values
+/// as linear instead (then the EXR holds code/255).
+#[test]
+fn convert_decodes_png_from_srgb_and_linear_overrides_it() {
+    let d = dir("convert-srgb");
+    let o = penumbra(&d, &["render", "-q", "--resolution", "8x8", "--spp", "1", "-o", "a.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for args in [&["convert", "a.png", "b.exr"][..], &["convert", "b.exr", "c.png"]] {
+        let o = penumbra(&d, args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    }
+    let (a, c) = (std::fs::read(d.join("a.png")).unwrap(), std::fs::read(d.join("c.png")).unwrap());
+    assert_eq!(a, c, "PNG -> EXR -> PNG must be byte-identical with the default (sRGB)");
+    // --linear: the EXR holds code/255, so converting it back (sRGB-encoding) brightens it.
+    let o = penumbra(&d, &["convert", "--linear", "a.png", "lin.exr"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = penumbra(&d, &["convert", "--srgb", "a.png", "s.exr"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = penumbra(&d, &["diff", "s.exr", "b.exr"]);
+    assert_eq!(o.status.code(), Some(0), "--srgb is the default: {}", stderr(&o));
+    let o = penumbra(&d, &["diff", "lin.exr", "b.exr"]);
+    assert_ne!(o.status.code(), Some(0), "--linear must change the values");
+    let o = penumbra(&d, &["convert", "--linear", "--srgb", "a.png", "x.exr"]);
+    assert_eq!(o.status.code(), Some(64), "{}", stderr(&o));
+    let help = String::from_utf8_lossy(&penumbra(&d, &["convert", "--help"]).stdout).into_owned();
+    assert!(help.contains("decoded from sRGB") && help.contains("--linear"), "{help}");
+    std::fs::remove_dir_all(&d).ok();
+}
