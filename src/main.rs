@@ -29,7 +29,8 @@ mod sweep;
         sizes or channel sets, 4 unreadable file or bad option value; \
         `check` uses diff's 0 pass, 2 failure, 3 different sizes, 4 unusable file or option; \
         `stability` uses the same scheme: 0 stable, 1 a tolerance exceeded, 2 non-finite values, 4 an \
-        unusable scene or option."
+        unusable scene or option value. A value that cannot be parsed at all (e.g. `--resolution 128`, \
+        `--crop 1,2,3`, `--tile 7/7`) is a usage error, 64, in every subcommand (`diff --crop` keeps idiff's 4)."
 )]
 struct Cli {
     #[command(subcommand)]

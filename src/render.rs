@@ -1,8 +1,7 @@
 //! `penumbra render`.
 
 use crate::cli::{
-    cancel_on_interrupt, check_crop, full_resolution, has_extension, parse_crop, parse_resolution, spp_parser,
-    write_outputs, RenderFlags,
+    cancel_on_interrupt, check_crop, full_resolution, has_extension, spp_parser, write_outputs, RenderFlags,
 };
 use penumbra::cli_params;
 use penumbra::output::{self, MissingDir};
@@ -33,8 +32,8 @@ pub struct RenderArgs {
     pub output: Option<PathBuf>,
     /// Crop `x0,x1,y0,y1`: pixel bounds (integers, half-open) or, if any value has a
     /// decimal point, fractions of the image as pbrt-v3's `cropwindow`.
-    #[arg(long, allow_hyphen_values = true)]
-    pub crop: Option<String>,
+    #[arg(long, value_name = "x0,x1,y0,y1", allow_hyphen_values = true, value_parser = crate::cli::parse_crop)]
+    pub crop: Option<Crop>,
     /// PNG output: multiply by 2^S before the sRGB encoding (stops; EXR and PFM keep the
     /// rendered values).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
@@ -47,10 +46,10 @@ pub struct RenderArgs {
     pub quiet: bool,
     /// Render shard I of N of the image's pixels (whole 16-pixel tiles, balanced by pixel
     /// count) into a shard file (`-o NAME.shard`) for `penumbra merge`.
-    #[arg(long, value_name = "I/N")]
-    pub tile: Option<String>,
+    #[arg(long, value_name = "I/N", value_parser = parse_tile)]
+    pub tile: Option<(u32, u32)>,
     /// How `--tile` deals out the tiles: `rows` (runs in raster order) or `grid` (blocks).
-    #[arg(long, value_name = "rows|grid", default_value = "rows")]
+    #[arg(long, value_name = "rows|grid", default_value = "rows", value_parser = ["rows", "grid"])]
     pub tile_layout: String,
     /// Render samples K … K+spp−1 of each pixel's sample sequence into a shard file, to be
     /// merged with other ranges into one image at the summed spp (halton, sobol or random
@@ -75,22 +74,22 @@ impl RenderArgs {
     }
 }
 
-/// `--tile I/N` and `--tile-layout`, checked.
-pub fn parse_tile(tile: Option<&str>, layout: &str, spp_offset: Option<u32>) -> Result<ShardRequest, String> {
+/// `--tile I/N` with 0 <= I < N (a clap value parser: a malformed value is a usage error).
+pub fn parse_tile(t: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("--tile expects I/N with 0 <= I < N (e.g. 2/7), got \"{t}\"");
+    let (i, n) = t.split_once('/').ok_or_else(bad)?;
+    let (i, n): (u32, u32) = (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+/// The shard `--tile`, `--tile-layout` and `--spp-offset` ask for.
+pub fn shard_request(tile: Option<(u32, u32)>, layout: &str, spp_offset: Option<u32>) -> Result<ShardRequest, String> {
     let layout = TileLayout::parse(layout)
         .ok_or_else(|| format!("--tile-layout must be \"rows\" or \"grid\", got \"{layout}\""))?;
-    let (index, count) = match tile {
-        None => (0, 1),
-        Some(t) => {
-            let bad = || format!("--tile expects I/N with 0 <= I < N (e.g. 2/7), got \"{t}\"");
-            let (i, n) = t.split_once('/').ok_or_else(bad)?;
-            let (i, n): (u32, u32) = (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
-            if n == 0 || i >= n {
-                return Err(bad());
-            }
-            (i, n)
-        }
-    };
+    let (index, count) = tile.unwrap_or((0, 1));
     Ok(ShardRequest { index, count, layout, spp_offset })
 }
 
@@ -284,14 +283,13 @@ struct Inputs {
 
 impl Inputs {
     fn of(args: &RenderArgs, scene: &SceneDescription, params: Vec<Param>) -> Result<Inputs, String> {
-        let crop = args.crop.as_deref().map(parse_crop).transpose()?;
-        let resolution = args.flags.resolution.as_deref().map(parse_resolution).transpose()?;
+        let (crop, resolution) = (args.crop, args.flags.resolution);
         if let Some(c) = crop {
             check_crop(c, full_resolution(scene, resolution))?;
         }
         let film_name = PathBuf::from(scene.film.params.get_one_string("filename", "pbrt.exr"));
         if args.shard_mode() {
-            let req = parse_tile(args.tile.as_deref(), &args.tile_layout, args.spp_offset)?;
+            let req = shard_request(args.tile, &args.tile_layout, args.spp_offset)?;
             let output = args.output.clone().unwrap_or_else(|| {
                 let stem = film_name.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
                 let range = args.spp_offset.map(|k| format!("-spp{k}")).unwrap_or_default();

@@ -93,3 +93,73 @@ fn info_without_a_scene_describes_the_embedded_one_as_render_renders_it() {
     assert!(out.contains("builds:"), "{out}");
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// Item 1: a value that cannot be parsed is a usage error (64, as `penumbra --help` documents),
+/// in every subcommand that takes the flag, with a message naming the flag and its form.
+#[test]
+fn malformed_resolution_crop_and_tile_are_usage_errors_everywhere() {
+    let d = dir("malformed");
+    std::fs::write(d.join("s.pbrt"), scene("", "WorldEnd\n")).unwrap();
+    let cases: &[(&[&str], &str, &str)] = &[
+        (&["--resolution", "128"], "--resolution", "WxH"),
+        (&["--resolution", "128x"], "--resolution", "WxH"),
+        (&["--resolution", "0x8"], "--resolution", "WxH"),
+        (&["--crop", "1,2,3"], "--crop", "x0,x1,y0,y1"),
+        (&["--crop", "a,b,c,d"], "--crop", "x0,x1,y0,y1"),
+    ];
+    let shard: &[(&[&str], &str, &str)] = &[
+        (&["--tile", "7/7", "-o", "x.shard"], "--tile", "I/N"),
+        (&["--tile", "0/0", "-o", "x.shard"], "--tile", "I/N"),
+        (&["--tile", "1", "-o", "x.shard"], "--tile", "I/N"),
+        (&["--tile", "0/2", "--tile-layout", "cols", "-o", "x.shard"], "--tile-layout", "rows"),
+    ];
+    let mut runs: Vec<(Vec<&str>, &str, &str)> = Vec::new();
+    for &(flag, name, form) in cases.iter().chain(shard) {
+        runs.push(([&["render", "s.pbrt", "-q"][..], flag].concat(), name, form));
+    }
+    for &(flag, name, form) in cases {
+        runs.push(([&["sweep", "s.pbrt", "-i", "path", "--budgets", "1"][..], flag].concat(), name, form));
+        if name != "--crop" {
+            // (`stability` has no --crop.)
+            runs.push(([&["stability", "s.pbrt", "-i", "path"][..], flag].concat(), name, form));
+        }
+    }
+    for (args, name, form) in runs {
+        let o = penumbra(&d, &args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(64), "{args:?}: {e}");
+        assert!(e.contains(name) && e.contains(form), "{args:?} must name {name} and {form}: {e}");
+    }
+    assert!(!d.join("x.shard").exists(), "nothing written");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Item 6: `convert` decodes a PNG input from sRGB (so PNG -> EXR -> PNG is exact; the PNGs
+/// penumbra writes are sRGB-encoded), says so in its help, and `--linear` takes the code values
+/// as linear instead (then the EXR holds code/255).
+#[test]
+fn convert_decodes_png_from_srgb_and_linear_overrides_it() {
+    let d = dir("convert-srgb");
+    let o = penumbra(&d, &["render", "-q", "--resolution", "8x8", "--spp", "1", "-o", "a.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for args in [&["convert", "a.png", "b.exr"][..], &["convert", "b.exr", "c.png"]] {
+        let o = penumbra(&d, args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    }
+    let (a, c) = (std::fs::read(d.join("a.png")).unwrap(), std::fs::read(d.join("c.png")).unwrap());
+    assert_eq!(a, c, "PNG -> EXR -> PNG must be byte-identical with the default (sRGB)");
+    // --linear: the EXR holds code/255, so converting it back (sRGB-encoding) brightens it.
+    let o = penumbra(&d, &["convert", "--linear", "a.png", "lin.exr"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = penumbra(&d, &["convert", "--srgb", "a.png", "s.exr"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = penumbra(&d, &["diff", "s.exr", "b.exr"]);
+    assert_eq!(o.status.code(), Some(0), "--srgb is the default: {}", stderr(&o));
+    let o = penumbra(&d, &["diff", "lin.exr", "b.exr"]);
+    assert_ne!(o.status.code(), Some(0), "--linear must change the values");
+    let o = penumbra(&d, &["convert", "--linear", "--srgb", "a.png", "x.exr"]);
+    assert_eq!(o.status.code(), Some(64), "{}", stderr(&o));
+    let help = String::from_utf8_lossy(&penumbra(&d, &["convert", "--help"]).stdout).into_owned();
+    assert!(help.contains("decoded from sRGB") && help.contains("--linear"), "{help}");
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -30,8 +30,8 @@ pub struct RenderFlags {
     pub seed: u64,
     /// Film resolution `WxH` (default: the scene's; `stability`: the scene's aspect with its
     /// longer side 48 pixels).
-    #[arg(long)]
-    pub resolution: Option<String>,
+    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
+    pub resolution: Option<(u32, u32)>,
 }
 
 /// The range of every samples-per-pixel flag (`--spp`, `--reference-spp`): 1..=2^24, as the
@@ -41,21 +41,30 @@ pub fn spp_parser() -> clap::builder::RangedI64ValueParser<u32> {
 }
 
 /// `--crop x0,x1,y0,y1`: pixel bounds (integers, half-open) or, if any value has a decimal
-/// point, fractions of the image as pbrt-v3's `cropwindow`.
+/// point, fractions of the image as pbrt-v3's `cropwindow` (a clap value parser: a malformed
+/// value is a usage error).
 pub fn parse_crop(s: &str) -> Result<Crop, String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     if parts.len() != 4 {
-        return Err(format!("--crop needs 4 comma-separated values x0,x1,y0,y1, got \"{s}\""));
+        return Err(format!("--crop expects 4 comma-separated values x0,x1,y0,y1, got \"{s}\""));
     }
     if parts.iter().any(|p| p.contains('.')) {
         let v: Result<Vec<f32>, _> = parts.iter().map(|p| p.parse::<f32>()).collect();
-        let v = v.map_err(|_| format!("--crop: \"{s}\" is not four numbers"))?;
+        let v = v.map_err(|_| format!("--crop expects x0,x1,y0,y1: \"{s}\" is not four numbers"))?;
         Ok(Crop::Fraction([v[0], v[1], v[2], v[3]]))
     } else {
         let v: Result<Vec<i32>, _> = parts.iter().map(|p| p.parse::<i32>()).collect();
-        let v = v.map_err(|_| format!("--crop: \"{s}\" is not four integers"))?;
+        let v = v.map_err(|_| format!("--crop expects x0,x1,y0,y1: \"{s}\" is not four integers"))?;
         Ok(Crop::Pixels([v[0], v[1], v[2], v[3]]))
     }
+}
+
+/// `--crop` as it is recorded in reports: `x0,x1,y0,y1` (fractions keep their decimal point).
+pub fn crop_text(c: Option<Crop>) -> Option<String> {
+    c.map(|c| match c {
+        Crop::Pixels([a, b, c, d]) => format!("{a},{b},{c},{d}"),
+        Crop::Fraction([a, b, c, d]) => format!("{a:?},{b:?},{c:?},{d:?}"),
+    })
 }
 
 /// The film's full resolution: `--resolution`, else the scene's (pbrt-v3's default 1280×720).
@@ -89,15 +98,22 @@ pub fn check_crop(crop: Crop, (w, h): (i32, i32)) -> Result<(), String> {
     })
 }
 
-/// `--resolution WxH`, each side in 1..=65536.
+/// `--resolution WxH`, each side in 1..=65536 (a clap value parser: a malformed value is a
+/// usage error).
 pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("--resolution expects WxH, got \"{s}\""))?;
-    let w: u32 = w.trim().parse().map_err(|_| format!("--resolution: bad width in \"{s}\""))?;
-    let h: u32 = h.trim().parse().map_err(|_| format!("--resolution: bad height in \"{s}\""))?;
+    let bad = || format!("--resolution expects WxH with W and H in 1..=65536 (e.g. 64x48), got \"{s}\"");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    let w: u32 = w.trim().parse().map_err(|_| bad())?;
+    let h: u32 = h.trim().parse().map_err(|_| bad())?;
     if w == 0 || h == 0 || w > 1 << 16 || h > 1 << 16 {
-        return Err(format!("--resolution {w}x{h} is out of range"));
+        return Err(bad());
     }
     Ok((w, h))
+}
+
+/// `--resolution` as it is recorded in reports: `WxH`.
+pub fn resolution_text(r: Option<(u32, u32)>) -> Option<String> {
+    r.map(|(w, h)| format!("{w}x{h}"))
 }
 
 pub fn has_extension(path: &Path, ext: &str) -> bool {

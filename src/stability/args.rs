@@ -4,7 +4,7 @@
 use super::variants::{self, Variant};
 use super::{fail, Failure};
 use crate::cli::print_new_warnings;
-use crate::cli::{parse_resolution, spp_parser, RenderFlags};
+use crate::cli::{spp_parser, RenderFlags};
 use penumbra::cli_params;
 use penumbra::pipeline;
 use penumbra_core::integrator::Integrator;
@@ -152,10 +152,7 @@ pub fn setup(args: &StabilityArgs) -> Result<Setup, Failure> {
     };
     let params = cli_params::parse_all(&args.flags.params).map_err(|e| fail(e.message))?;
     let parsed = pipeline::load_scene(Some(&args.scene)).map_err(|d| fail(d.to_string()))?;
-    let resolution = match &args.flags.resolution {
-        Some(r) => parse_resolution(r).map_err(fail)?,
-        None => default_resolution(&parsed.scene),
-    };
+    let resolution = args.flags.resolution.unwrap_or_else(|| default_resolution(&parsed.scene));
     let warnings = DiagSink::new();
     warnings.extend(parsed.warnings);
     let mut integrators = Vec::new();

@@ -4,7 +4,7 @@
 use super::row::Metric;
 use super::{fail, Failure};
 use crate::cli::print_new_warnings;
-use crate::cli::{check_crop, full_resolution, parse_crop, parse_resolution, spp_parser, RenderFlags};
+use crate::cli::{check_crop, full_resolution, spp_parser, RenderFlags};
 use penumbra::cli_params;
 use penumbra::pipeline;
 use penumbra::scene_identity::scene_identity;
@@ -70,8 +70,8 @@ pub struct SweepArgs {
     #[command(flatten)]
     pub flags: RenderFlags,
     /// Crop `x0,x1,y0,y1` (as `penumbra render --crop`).
-    #[arg(long, allow_hyphen_values = true)]
-    pub crop: Option<String>,
+    #[arg(long, value_name = "x0,x1,y0,y1", allow_hyphen_values = true, value_parser = crate::cli::parse_crop)]
+    pub crop: Option<Crop>,
     /// Output directory.
     #[arg(short = 'o', long = "output", default_value = "sweep-out")]
     pub output: PathBuf,
@@ -159,8 +159,7 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
             cli_params::conform(entry, &params).map_err(usage)?;
         }
     }
-    let crop = args.crop.as_deref().map(parse_crop).transpose().map_err(fail)?;
-    let resolution = args.flags.resolution.as_deref().map(parse_resolution).transpose().map_err(fail)?;
+    let (crop, resolution) = (args.crop, args.flags.resolution);
     let parsed = pipeline::load_scene(Some(&args.scene)).map_err(|d| Failure { code: 1, message: d.to_string() })?;
     let scene_identity = scene_identity(&parsed.scene).map_err(fail)?;
     if let Some(c) = crop {

@@ -113,8 +113,8 @@ impl<'a> Outputs<'a> {
                 "spp": args.spp,
                 "params": args.flags.params,
                 "seed": args.flags.seed,
-                "resolution": args.flags.resolution,
-                "crop": args.crop,
+                "resolution": crate::cli::resolution_text(args.flags.resolution),
+                "crop": crate::cli::crop_text(args.crop),
             }),
             items: None,
         }
