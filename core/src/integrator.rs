@@ -166,8 +166,9 @@ pub enum RadianceBound {
     /// Every value is at most this (e.g. ambient occlusion's hemisphere integral).
     Constant(f32),
     /// Every pixel is at most the same pixel rendered by this integrator with the same scene
-    /// and samples (e.g. `ltc` without shadows: the unshadowed value).
-    Image(Box<dyn Integrator>),
+    /// and samples (e.g. `ltc` without shadows: the unshadowed value), up to the relative
+    /// tolerance given (the two renders' numerical precision).
+    Image(Box<dyn Integrator>, f32),
 }
 
 /// A per-pixel-sample estimator; [`render_pixels`] gives it a whole `render`.

@@ -212,12 +212,12 @@ impl Study<'_> {
         let bound = match integrator.radiance_bound().filter(|_| self.check_bounds) {
             None => None,
             Some(RadianceBound::Constant(c)) => Some(Bound::Constant(c)),
-            Some(RadianceBound::Image(b)) => {
+            Some(RadianceBound::Image(b, tolerance)) => {
                 let r =
                     pipeline::render_with(&format!("{name} (its bound)"), b.as_ref(), desc, &self.opts(), &warnings)
                         .map_err(|e| self.failed(name, &format!("{label} (its bound)"), e))?;
                 print_new_warnings(&warnings, seen);
-                Some(Bound::Image(Channels::of(&r.image).map_err(fail)?.rgb))
+                Some(Bound::Image(Channels::of(&r.image).map_err(fail)?.rgb, tolerance))
             }
         };
         (self.say)(format!("{name:>16} {label:>14}: {seconds:.3} s"));

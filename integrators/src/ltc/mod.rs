@@ -297,7 +297,10 @@ impl Integrator for LtcIntegrator {
     /// (form factor, LTC), and the pixel clusters do not depend on shadows: the unshadowed
     /// render bounds every pixel.
     fn radiance_bound(&self) -> Option<RadianceBound> {
-        self.shadows.then(|| RadianceBound::Image(Box::new(LtcIntegrator { shadows: false, ..*self })))
+        // The glossy lobes' residual quadrature is exact to a relative 1e-3 of each piece, and the
+        // shadowed and unshadowed pieces are integrated separately (measured up to 3.1e-4 apart
+        // on stiff/grazing-light's floor; tests/ltc.rs allows the same).
+        self.shadows.then(|| RadianceBound::Image(Box::new(LtcIntegrator { shadows: false, ..*self }), 1e-3))
     }
 }
 
