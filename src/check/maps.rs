@@ -19,7 +19,8 @@ const VIRIDIS: [[u8; 3]; 9] = [
 ];
 const MAGENTA: [u8; 3] = [255, 0, 255];
 
-fn viridis(t: f64) -> [u8; 3] {
+/// The viridis colour of `t` in [0, 1] (NaN: the low end); the reports' one colour map.
+pub fn viridis(t: f64) -> [u8; 3] {
     let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) } * (VIRIDIS.len() - 1) as f64;
     let i = (t.floor() as usize).min(VIRIDIS.len() - 2);
     let f = t - i as f64;

@@ -1,19 +1,9 @@
 //! Number formats and the colour map of the reports (`diff`, `sweep`, `stability`).
 
-use serde_json::{json, Value};
-
-/// A JSON number, or "inf" / "-inf" / "nan" strings for non-finite values.
-pub fn num(v: f64) -> Value {
-    if v.is_finite() {
-        json!(v)
-    } else if v.is_nan() {
-        json!("nan")
-    } else if v > 0.0 {
-        json!("inf")
-    } else {
-        json!("-inf")
-    }
-}
+// One JSON number format and one colour map for every report, `check`'s included (which lives
+// in the library crate, so it owns them).
+pub use penumbra::check::maps::viridis;
+pub use penumbra::check::report::num;
 
 /// Formats like C's `%.{prec}g` (and C++ streams' default): `prec` significant
 /// digits, scientific notation when the exponent is < -4 or >= prec, trailing
@@ -46,29 +36,6 @@ pub fn fmt_g(v: f64, prec: usize) -> String {
         let decimals = (prec as i32 - 1 - exp).max(0) as usize;
         strip(&format!("{:.*}", decimals, v))
     }
-}
-
-/// Viridis, sampled at 9 evenly spaced stops (matplotlib's values) and
-/// interpolated linearly in between.
-const VIRIDIS: [[u8; 3]; 9] = [
-    [68, 1, 84],
-    [71, 45, 123],
-    [59, 82, 139],
-    [44, 114, 142],
-    [33, 145, 140],
-    [40, 174, 128],
-    [94, 201, 98],
-    [173, 220, 48],
-    [253, 231, 37],
-];
-
-/// The viridis colour of `t` in [0, 1] (NaN: the low end).
-pub fn viridis(t: f64) -> [u8; 3] {
-    let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) } * (VIRIDIS.len() - 1) as f64;
-    let i = (t.floor() as usize).min(VIRIDIS.len() - 2);
-    let f = t - i as f64;
-    let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
-    std::array::from_fn(|k| (a[k] as f64 + (b[k] as f64 - a[k] as f64) * f).round() as u8)
 }
 
 #[cfg(test)]
