@@ -2,6 +2,7 @@
 //! domains with their densities, MIS heuristics, stratification helpers, and
 //! piecewise-constant 1D/2D distributions.
 
+use crate::interpolation::find_interval;
 use crate::rng::{Rng, ONE_MINUS_EPSILON_F32};
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
@@ -204,23 +205,6 @@ pub fn latin_hypercube_2d(samples: &mut [Vec2], rng: &mut Rng) {
     for (p, c) in samples.iter_mut().zip(flat.chunks_exact(2)) {
         *p = Vec2::new(c[0], c[1]);
     }
-}
-
-/// The largest index `i` in `[0, size - 2]` with `pred(i)` true (pred must be monotone: true then false);
-/// 0 if none.
-fn find_interval(size: usize, pred: impl Fn(usize) -> bool) -> usize {
-    let (mut first, mut len) = (0usize, size);
-    while len > 0 {
-        let half = len >> 1;
-        let middle = first + half;
-        if pred(middle) {
-            first = middle + 1;
-            len -= half + 1;
-        } else {
-            len = half;
-        }
-    }
-    first.saturating_sub(1).min(size.saturating_sub(2))
 }
 
 fn sanitize(v: f32) -> f32 {
