@@ -34,6 +34,10 @@ Exit codes (as idiff): 0 pass, 1 warning, 2 failure, 3 different sizes or channe
 4 unreadable file or bad option value; 64 command-line usage error (unknown option, missing or
 malformed argument). Unlike idiff, which pads the smaller image with black,
 images of different sizes (or with different channel names) are refused with code 3.
+A cropped EXR (render --crop) keeps its place in the full frame as pbrt-v3 writes it: the crop is
+the data window inside the full display window. Images of the same frame are compared on the pixels
+both hold (a crop against the whole image compares the crop's pixels); --crop and reported
+locations are in the frame's pixels.
 PNGs are compared on their raw code values v/255 (not linearised; colour premultiplied by alpha),
 as idiff reads them.")]
 pub struct DiffArgs {
@@ -66,7 +70,7 @@ pub struct DiffArgs {
     /// .exr or .pfm the error values themselves (float, in R, G and B).
     #[arg(long, value_name = "OUT")]
     pub heatmap: Option<PathBuf>,
-    /// Compare only pixels x0 <= x < x1, y0 <= y < y1.
+    /// Compare only pixels x0 <= x < x1, y0 <= y < y1 (of the full frame, for a cropped EXR).
     #[arg(long, value_name = "x0,x1,y0,y1")]
     pub crop: Option<String>,
     /// Compare only these channels (comma-separated names, e.g. R,G,B).
@@ -118,7 +122,7 @@ fn metrics_failure(e: MetricsError) -> Failure {
     }
 }
 
-fn prepare(img: Image, which: &Path, args: &DiffArgs, crop: Option<[u32; 4]>) -> Result<Image, Failure> {
+fn select(img: Image, which: &Path, args: &DiffArgs) -> Result<Image, Failure> {
     let img = match &args.channels {
         Some(list) => {
             let names: Vec<&str> = list.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
@@ -129,12 +133,74 @@ fn prepare(img: Image, which: &Path, args: &DiffArgs, crop: Option<[u32; 4]>) ->
         }
         None => img,
     };
-    match crop {
-        Some([x0, x1, y0, y1]) => {
-            img.crop(x0, x1, y0, y1).map_err(|e| fail(EXIT_FILE, format!("{}: --crop: {e}", which.display())))
-        }
-        None => Ok(img),
+    Ok(img)
+}
+
+/// A data window `[x0, x1, y0, y1]` in its frame's pixels.
+type Window = [i64; 4];
+
+fn window(img: &Image) -> Window {
+    let f = img.frame_or_whole();
+    let (x, y) = (f.origin.0 as i64, f.origin.1 as i64);
+    [x, x + img.width as i64, y, y + img.height as i64]
+}
+
+/// The pixels both images hold, where they sit in their common frame: a cropped EXR keeps its
+/// place (its data window in the full display window, as pbrt-v3 writes a crop), so a crop is
+/// compared with the same pixels of a whole image or of another crop. `--crop` is in the frame's
+/// pixels. Returns the two parts and the compared window, or `None` where the images are whole
+/// and the same size (then nothing is cut).
+fn overlap(
+    a: Image,
+    b: Image,
+    args: &DiffArgs,
+    crop: Option<[u32; 4]>,
+) -> Result<(Image, Image, Option<Window>), Failure> {
+    let (fa, fb) = (a.frame_or_whole(), b.frame_or_whole());
+    if a.frame.is_none() && b.frame.is_none() && crop.is_none() {
+        return Ok((a, b, None)); // compare() refuses different sizes (exit 3)
     }
+    if fa.full != fb.full {
+        return Err(fail(
+            EXIT_DIFFERENT_SIZE,
+            format!(
+                "{} is (part of) a {}×{} image, {} of a {}×{} image",
+                args.a.display(),
+                fa.full.0,
+                fa.full.1,
+                args.b.display(),
+                fb.full.0,
+                fb.full.1
+            ),
+        ));
+    }
+    let (wa, wb) = (window(&a), window(&b));
+    let mut w = [wa[0].max(wb[0]), wa[1].min(wb[1]), wa[2].max(wb[2]), wa[3].min(wb[3])];
+    if let Some(c) = crop {
+        let (fw, fh) = (fa.full.0, fa.full.1);
+        if c[0] >= c[1] || c[2] >= c[3] || c[1] > fw || c[3] > fh {
+            return Err(fail(
+                EXIT_FILE,
+                format!("--crop [{},{})×[{},{}) is empty or outside the {fw}×{fh} image", c[0], c[1], c[2], c[3]),
+            ));
+        }
+        w = [w[0].max(c[0] as i64), w[1].min(c[1] as i64), w[2].max(c[2] as i64), w[3].min(c[3] as i64)];
+    }
+    if w[0] >= w[1] || w[2] >= w[3] {
+        return Err(fail(
+            EXIT_DIFFERENT_SIZE,
+            format!("{} and {} (within --crop) share no pixel of their frame", args.a.display(), args.b.display()),
+        ));
+    }
+    let part = |img: Image, at: Window, which: &Path| -> Result<Image, Failure> {
+        if at == w {
+            return Ok(img);
+        }
+        let c = |v: i64, o: i64| (v - o) as u32;
+        img.crop(c(w[0], at[0]), c(w[1], at[0]), c(w[2], at[2]), c(w[3], at[2]))
+            .map_err(|e| fail(EXIT_FILE, format!("{}: {e}", which.display())))
+    };
+    Ok((part(a, wa, &args.a)?, part(b, wb, &args.b)?, Some(w)))
 }
 
 fn run_inner(args: &DiffArgs) -> Result<u8, Failure> {
@@ -155,8 +221,9 @@ fn run_inner(args: &DiffArgs) -> Result<u8, Failure> {
     }
     let a = image::read(&args.a).map_err(|e| fail(EXIT_FILE, e.to_string()))?;
     let b = image::read(&args.b).map_err(|e| fail(EXIT_FILE, e.to_string()))?;
-    let a = prepare(a, &args.a, args, crop)?;
-    let b = prepare(b, &args.b, args, crop)?;
+    let a = select(a, &args.a, args)?;
+    let b = select(b, &args.b, args)?;
+    let (a, b, region) = overlap(a, b, args, crop)?;
     let t = Thresholds {
         warn: args.warn,
         fail: args.fail,
@@ -166,10 +233,11 @@ fn run_inner(args: &DiffArgs) -> Result<u8, Failure> {
         hardfail: args.hardfail,
     };
     let mut r = metrics::compare(&a, &b, t.warn, t.fail).map_err(metrics_failure)?;
-    let (ox, oy) = crop.map(|c| (c[0], c[2])).unwrap_or((0, 0));
+    let (ox, oy) = region.map(|w| (w[0], w[2])).unwrap_or((0, 0));
     let (max_ax, max_ay) = (r.max_x, r.max_y);
-    r.max_x += ox;
-    r.max_y += oy;
+    // Locations in the full frame's pixels.
+    r.max_x = (r.max_x as i64 + ox).max(0) as u32;
+    r.max_y = (r.max_y as i64 + oy).max(0) as u32;
     let status = r.status(&t);
     let flip = flip_value(&a, &b, args.no_flip);
     let code = match status {
@@ -193,12 +261,16 @@ fn run_inner(args: &DiffArgs) -> Result<u8, Failure> {
     };
 
     if args.json {
-        println!("{}", report_json(args, &r, &t, status, &flip, heatmap.as_ref()));
+        println!("{}", report_json(args, &r, &t, status, &flip, heatmap.as_ref(), region));
     } else {
         let values =
             |img: &Image| img.pixel(max_ax, max_ay).iter().map(|&v| fmt_g(v as f64, 6)).collect::<Vec<_>>().join(", ");
         let at_max = format!("{} vs {}", values(&a), values(&b));
         println!("Comparing \"{}\" and \"{}\"", args.a.display(), args.b.display());
+        if let Some(w) = region {
+            let f = a.frame_or_whole().full;
+            println!("  pixels [{},{})×[{},{}) of the {}×{} frame", w[0], w[1], w[2], w[3], f.0, f.1);
+        }
         print!("{}", report_text(&r, &t, &flip, &at_max));
         if let Some((out, lo, hi)) = &heatmap {
             println!("  heat map: {} (per-pixel max error, {} to {})", out.display(), fmt_g(*lo, 4), fmt_g(*hi, 4));
@@ -248,10 +320,12 @@ fn report_json(
     status: Status,
     flip: &FlipValue,
     heatmap: Option<&(PathBuf, f64, f64)>,
+    region: Option<Window>,
 ) -> Value {
     json!({
         "a": args.a,
         "b": args.b,
+        "region": region,
         "width": r.width,
         "height": r.height,
         "channels": r.channels,

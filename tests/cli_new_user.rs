@@ -163,3 +163,46 @@ fn convert_decodes_png_from_srgb_and_linear_overrides_it() {
     assert!(help.contains("decoded from sRGB") && help.contains("--linear"), "{help}");
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// Item 6: a cropped render keeps its place in the full frame, as pbrt-v3 writes a crop
+/// (src/core/imageio.cpp, WriteImageEXR: display window the full resolution, data window the
+/// crop); `merge` of cropped shards keeps it, and `diff` compares a crop with the same pixels of
+/// the whole image (it refused the sizes before, exit 3).
+#[test]
+fn a_cropped_exr_keeps_its_place_in_the_frame_and_diff_and_merge_honour_it() {
+    let d = dir("crop-frame");
+    std::fs::write(d.join("s.pbrt"), scene("", "WorldEnd\n")).unwrap();
+    let base = ["render", "s.pbrt", "-i", "directlighting", "--spp", "2", "--resolution", "16x12", "-q"];
+    let run = |extra: &[&str]| {
+        let args: Vec<&str> = base.iter().chain(extra).copied().collect();
+        let o = penumbra(&d, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    run(&["-o", "full.exr"]);
+    run(&["--crop", "4,12,2,9", "-o", "crop.exr"]);
+    for i in 0..2 {
+        run(&["--crop", "4,12,2,9", "--tile", &format!("{i}/2"), "-o", &format!("p{i}.shard")]);
+    }
+    let o = penumbra(&d, &["merge", "p0.shard", "p1.shard", "-o", "merged.exr"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let full = penumbra_core::image::read(d.join("full.exr")).unwrap();
+    assert_eq!(full.frame, None);
+    let want = Some(penumbra_core::image::Frame { full: (16, 12), origin: (4, 2) });
+    for name in ["crop.exr", "merged.exr"] {
+        let crop = penumbra_core::image::read(d.join(name)).unwrap();
+        assert_eq!((crop.width, crop.height, crop.frame), (8, 7, want), "{name}");
+        // The pixels are the whole render's at the same place.
+        assert_eq!(crop.data, full.crop(4, 12, 2, 9).unwrap().data, "{name}");
+    }
+    for (a, b) in [("crop.exr", "full.exr"), ("full.exr", "merged.exr")] {
+        let o = penumbra(&d, &["diff", a, b, "--no-flip"]);
+        let out = String::from_utf8_lossy(&o.stdout).to_string();
+        assert_eq!(o.status.code(), Some(0), "{a} {b}: {out}{}", stderr(&o));
+        assert!(out.contains("pixels [4,12)×[2,9) of the 16×12 frame"), "{out}");
+    }
+    // A crop that shares no pixel with the other image's data window is "different sizes" (3).
+    run(&["--crop", "0,4,0,2", "-o", "corner.exr"]);
+    let o = penumbra(&d, &["diff", "corner.exr", "crop.exr", "--no-flip"]);
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -320,7 +320,9 @@ impl Film {
                 }
             }
         }
-        Image { width: pb.width() as u32, height: pb.height() as u32, channels, data }
+        let image = Image { width: pb.width() as u32, height: pb.height() as u32, channels, data, frame: None };
+        // A crop keeps its place in the full frame (written as an EXR's data window, as pbrt-v3 does).
+        image.with_frame(self.spec.full_resolution, (pb.min.x, pb.min.y))
     }
 }
 

@@ -189,6 +189,17 @@ fn encode_err(path: &Path, format: &'static str, message: impl Into<String>) -> 
 /// Guards allocations driven by untrusted headers.
 pub const MAX_VALUES: usize = 1 << 31;
 
+/// Where a cropped image sits in its full frame: OpenEXR's display window (`full`, from
+/// `(0, 0)`) and the data window's top-left pixel (`origin`, in the display window's
+/// coordinates). pbrt-v3 writes a render with a crop window this way, so a crop keeps its place.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Frame {
+    /// The full image's width and height.
+    pub full: (u32, u32),
+    /// The image's top-left pixel in the full image (outside it for an overscan data window).
+    pub origin: (i32, i32),
+}
+
 /// A floating-point image with named channels, interleaved, row-major from the
 /// top row: value `(x, y, c)` is at `data[(y * width + x) * channels.len() + c]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -201,6 +212,9 @@ pub struct Image {
     pub channels: Vec<String>,
     /// `width * height * channels.len()` values.
     pub data: Vec<f32>,
+    /// `Some` for a part of a larger image (a crop), `None` for a whole image; see
+    /// [`Image::with_frame`].
+    pub frame: Option<Frame>,
 }
 
 impl Image {
@@ -208,7 +222,7 @@ impl Image {
     /// values or has no channels.
     pub fn new(width: u32, height: u32, channels: Vec<String>) -> Result<Image, ImageError> {
         let n = checked_len(width, height, channels.len())?;
-        Ok(Image { width, height, channels, data: vec![0.0; n] })
+        Ok(Image { width, height, channels, data: vec![0.0; n], frame: None })
     }
 
     /// Wraps existing data, checking that its length matches.
@@ -221,7 +235,21 @@ impl Image {
                 channels.len()
             )));
         }
-        Ok(Image { width, height, channels, data })
+        Ok(Image { width, height, channels, data, frame: None })
+    }
+
+    /// This image placed in a `full` frame at `origin` (its data window); a frame that is the
+    /// image itself (origin 0, the same size) is stored as `None`, so equal images compare equal.
+    pub fn with_frame(mut self, full: (u32, u32), origin: (i32, i32)) -> Image {
+        let whole = origin == (0, 0) && full == (self.width, self.height);
+        self.frame = (!whole).then_some(Frame { full, origin });
+        self
+    }
+
+    /// The full frame's size and this image's origin in it (`(width, height)` and `(0, 0)` for a
+    /// whole image).
+    pub fn frame_or_whole(&self) -> Frame {
+        self.frame.unwrap_or(Frame { full: (self.width, self.height), origin: (0, 0) })
     }
 
     /// An `R G B` image from row-major (top row first) pixels.
@@ -325,10 +353,13 @@ impl Image {
             .collect::<Result<Vec<_>, _>>()?;
         let n = self.channels.len();
         let data = self.data.chunks_exact(n.max(1)).flat_map(|p| idx.iter().map(move |&i| p[i])).collect();
-        Image::from_data(self.width, self.height, names.iter().map(|s| s.as_ref().to_string()).collect(), data)
+        let img =
+            Image::from_data(self.width, self.height, names.iter().map(|s| s.as_ref().to_string()).collect(), data)?;
+        Ok(Image { frame: self.frame, ..img })
     }
 
-    /// The pixels with `x0 <= x < x1`, `y0 <= y < y1` (half-open, pixel units).
+    /// The pixels with `x0 <= x < x1`, `y0 <= y < y1` (half-open, pixel units of this image),
+    /// framed where they sit in this image's frame.
     pub fn crop(&self, x0: u32, x1: u32, y0: u32, y1: u32) -> Result<Image, ImageError> {
         if x0 >= x1 || y0 >= y1 || x1 > self.width || y1 > self.height {
             return Err(ImageError::Invalid(format!(
@@ -342,7 +373,9 @@ impl Image {
             let a = self.offset(x0, y);
             data.extend_from_slice(&self.data[a..a + (x1 - x0) as usize * n]);
         }
-        Image::from_data(x1 - x0, y1 - y0, self.channels.clone(), data)
+        let f = self.frame_or_whole();
+        let origin = (f.origin.0 + x0 as i32, f.origin.1 + y0 as i32);
+        Ok(Image::from_data(x1 - x0, y1 - y0, self.channels.clone(), data)?.with_frame(f.full, origin))
     }
 
     /// Exact `k × k` box downsampling: each output pixel is the mean (in f64)
@@ -374,7 +407,12 @@ impl Image {
                 }
             }
         }
-        Ok(out)
+        // A crop stays framed where its frame scales by k exactly.
+        let (ki, f) = (k as i32, self.frame_or_whole());
+        Ok(match f.full.0 % k == 0 && f.full.1 % k == 0 && f.origin.0 % ki == 0 && f.origin.1 % ki == 0 {
+            true => out.with_frame((f.full.0 / k, f.full.1 / k), (f.origin.0 / ki, f.origin.1 / ki)),
+            false => out,
+        })
     }
 }
 
@@ -531,6 +569,7 @@ pub fn decode_exr(bytes: &[u8], path: &Path) -> Result<Image, ImageError> {
         Ok(Err(e)) => return Err(err(e.to_string())),
         Err(_) => return Err(err("decoder failed on malformed data".into())),
     };
+    let display = image.attributes.display_window;
     let layer = image.layer_data;
     let (w, h) = (layer.size.width(), layer.size.height());
     let (width, height) = (
@@ -577,7 +616,14 @@ pub fn decode_exr(bytes: &[u8], path: &Path) -> Result<Image, ImageError> {
         }
     }
     let names = order.iter().map(|&i| chans[i].0.clone()).collect();
-    Image::from_data(width, height, names, data).map_err(|e| err(e.to_string()))
+    let img = Image::from_data(width, height, names, data).map_err(|e| err(e.to_string()))?;
+    // The data window's place in the display window (a crop keeps it, as pbrt-v3 writes it).
+    let position = layer.attributes.layer_position;
+    let origin = (position.x().saturating_sub(display.position.x()), position.y().saturating_sub(display.position.y()));
+    match (u32::try_from(display.size.width()), u32::try_from(display.size.height())) {
+        (Ok(fw), Ok(fh)) if fw > 0 && fh > 0 => Ok(img.with_frame((fw, fh), origin)),
+        _ => Ok(img),
+    }
 }
 
 /// Decodes a PNG file held in memory into raw normalised values (no sRGB
@@ -745,7 +791,7 @@ pub fn encode_exr(image: &Image, path: &Path) -> Result<Vec<u8>, ImageError> {
 /// about 10× faster (deflate is most of the cost of writing a float image).
 pub fn encode_exr_with(image: &Image, path: &Path, zip: bool) -> Result<Vec<u8>, ImageError> {
     use exr::prelude::{
-        AnyChannel, AnyChannels, Encoding, FlatSamples, Layer, LayerAttributes, SmallVec, Text, WritableImage,
+        AnyChannel, AnyChannels, Encoding, FlatSamples, Layer, LayerAttributes, SmallVec, Text, Vec2, WritableImage,
     };
     let err = |m: String| encode_err(path, "EXR", m);
     if image.width == 0 || image.height == 0 {
@@ -767,8 +813,14 @@ pub fn encode_exr_with(image: &Image, path: &Path, zip: bool) -> Result<Vec<u8>,
     }
     let size = (image.width as usize, image.height as usize);
     let encoding = if zip { Encoding::SMALL_LOSSLESS } else { Encoding::UNCOMPRESSED };
-    let layer = Layer::new(size, LayerAttributes::default(), encoding, AnyChannels::sort(list));
-    let exr_image = exr::image::Image::from_layer(layer);
+    // A crop is written as pbrt-v3 writes one: the full frame as the display window, the crop
+    // as the data window placed in it.
+    let frame = image.frame_or_whole();
+    let attributes = LayerAttributes { layer_position: Vec2(frame.origin.0, frame.origin.1), ..Default::default() };
+    let layer = Layer::new(size, attributes, encoding, AnyChannels::sort(list));
+    let mut exr_image = exr::image::Image::from_layer(layer);
+    exr_image.attributes.display_window =
+        exr::meta::attribute::IntegerBounds::new(Vec2(0, 0), Vec2(frame.full.0 as usize, frame.full.1 as usize));
     let mut out = Cursor::new(Vec::new());
     // Chunks compress in parallel and are written sorted (line order increasing): the bytes are
     // those of a sequential write (test `parallel_exr_write_is_byte_identical`).
@@ -989,6 +1041,23 @@ mod tests {
         let n = names.len();
         let data = (0..w as usize * h as usize * n).map(|i| (i as f32 * 0.37).sin() * 3.0 + 0.25).collect();
         Image::from_data(w, h, channel_names(names), data).unwrap()
+    }
+
+    /// A crop's frame survives an EXR round trip (display and data windows), a whole image has
+    /// none, and box downsampling scales the frame where it divides.
+    #[test]
+    fn exr_keeps_a_crops_frame() {
+        let img = ramp(8, 6, &["R", "G", "B"]);
+        let c = img.crop(2, 6, 4, 6).unwrap();
+        assert_eq!(c.frame, Some(Frame { full: (8, 6), origin: (2, 4) }));
+        let back = decode_exr(&encode_exr(&c, Path::new("c.exr")).unwrap(), Path::new("c.exr")).unwrap();
+        assert_eq!(back, c);
+        let whole = decode_exr(&encode_exr(&img, Path::new("w.exr")).unwrap(), Path::new("w.exr")).unwrap();
+        assert_eq!(whole.frame, None);
+        assert_eq!(img.crop(0, 8, 0, 6).unwrap().frame, None);
+        assert_eq!(c.box_downsample(2).unwrap().frame, Some(Frame { full: (4, 3), origin: (1, 2) }));
+        assert_eq!(img.crop(1, 3, 0, 2).unwrap().box_downsample(2).unwrap().frame, None);
+        assert_eq!(c.select_channels(&["G"]).unwrap().frame, c.frame);
     }
 
     /// Parallel compression writes the bytes a sequential write does, and reads back the same
