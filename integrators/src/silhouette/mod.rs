@@ -15,7 +15,8 @@
 //! - `prt`: the `ao` image plus SH transfer channels (`core::sh`'s convention, order
 //!   `"integer shorder"`, 3): `∫_{V·H} max(0, n_s·ω) Y_i(ω) dω` over the same visible
 //!   intervals (Gauss–Legendre in θ along each), `n_s` the face-forwarded shading normal, and
-//!   `albedo.*`; `penumbra relight` of them under the scene's sky reproduces `shade`.
+//!   `albedo.*`; `penumbra relight` of them under the scene's sky reproduces `shade`. A scene's
+//!   other lights (area, point, …) cannot be relit from them: `prt` warns, naming their kinds.
 //! - `ao` (default only for a scene without lights, with a warning): pbrt-v3's `ambientocclusion` value, the
 //!   integral of `V·cos θ` over the hemisphere of the face-forwarded geometric normal
 //!   (π for an open hemisphere), from the analytic moment `∫ ω dω` of the visible intervals.
@@ -175,6 +176,38 @@ fn default_mode(scene: &Scene, warnings: &DiagSink) -> Mode {
         Mode::Ao
     } else {
         Mode::Shade
+    }
+}
+
+/// `prt` under lights its transfer channels cannot carry (only distant light relights them):
+/// its image is ambient occlusion, so the scene's own lights are not in it. Says so, naming
+/// the kinds of light (issue 37 item 4: never ambient occlusion in place of the scene's
+/// lighting without a word).
+fn warn_prt_lights(scene: &Scene, warnings: &DiagSink) {
+    let mut kinds: Vec<&str> = scene
+        .light_list()
+        .iter()
+        .filter_map(|l| match l {
+            Light::Infinite(_) => None,
+            Light::Point(_) => Some("point"),
+            Light::Spot(_) => Some("spot"),
+            Light::Distant(_) => Some("distant"),
+            Light::Area(_) => Some("area"),
+            Light::Goniometric(_) => Some("goniometric"),
+            Light::Projection(_) => Some("projection"),
+        })
+        .collect();
+    kinds.sort_unstable();
+    kinds.dedup();
+    if !kinds.is_empty() {
+        warnings.warn(
+            None,
+            format!(
+                "silhouette: \"mode\" \"prt\" renders ambient occlusion plus SH transfer channels for distant \
+                 lighting: the scene's {} light(s) are not in its image (\"mode\" \"shade\" shades them)",
+                kinds.join(", ")
+            ),
+        );
     }
 }
 
@@ -746,6 +779,9 @@ impl Integrator for Silhouette {
                      directlighting's estimator"
                 },
             );
+        }
+        if mode == Mode::Prt {
+            warn_prt_lights(scene, ctx.warnings);
         }
         let meridians = Meridians::new(self.resolution);
         let table_spacing = table_spacing(&infinite);
