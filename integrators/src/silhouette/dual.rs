@@ -326,11 +326,11 @@ impl DualEdges {
     }
 
     /// The contour edges of `p` (normalised coordinates) not wholly behind the plane through
-    /// `p` with normal `n` (within `tol`, see [`Cull`]), appended to `out` sorted by edge index.
-    /// Returns the number of edges the hierarchy did not reject (each tested exactly, or by a
-    /// certain f64 filter).
+    /// `p` with normal `n` (within `tol`, see [`Cull`]), appended to `out` in the hierarchy's
+    /// order (the traversal's result does not depend on the order; sorting them by edge cost a
+    /// third of a shading point's time on a 79k-triangle scene). Returns the number of edges
+    /// the hierarchy did not reject (each tested exactly, or by a certain f64 filter).
     pub fn contours(&self, p: DVec3, n: DVec3, tol: f64, out: &mut Vec<Contour>) -> usize {
-        let start = out.len();
         let mut examined = self.always.len();
         let cull = Cull { p, n, tol };
         for &id in &self.always {
@@ -380,7 +380,6 @@ impl DualEdges {
                 unreachable!("dual-edge hierarchy deeper than its traversal stack");
             }
         }
-        out[start..].sort_unstable_by_key(|c| c.edge);
         examined
     }
 

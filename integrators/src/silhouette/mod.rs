@@ -225,6 +225,7 @@ thread_local! {
 struct Counters {
     points: AtomicU64,
     contours: AtomicU64,
+    examined: AtomicU64,
     crossings: AtomicU64,
     occluded_points: AtomicU64,
     estimator_fallbacks: AtomicU64,
@@ -303,7 +304,8 @@ impl Estimator<'_> {
         let frame = PoleFrame::for_normal(nd);
         SCRATCH.with_borrow_mut(|s| {
             s.contours.clear();
-            dual.contours(p, nd, CULL_TOL, &mut s.contours);
+            let examined = dual.contours(p, nd, CULL_TOL, &mut s.contours);
+            self.counters.examined.fetch_add(examined as u64, Ordering::Relaxed);
             let vis = s.traversal.run(&s.contours, p, nd, &frame, &self.meridians);
             self.counters.points.fetch_add(1, Ordering::Relaxed);
             self.counters.contours.fetch_add(s.contours.len() as u64, Ordering::Relaxed);
@@ -820,6 +822,7 @@ impl Integrator for Silhouette {
         let points = get(&c.points).max(1.0);
         stats.counters.insert("silhouette.points".into(), get(&c.points));
         stats.counters.insert("silhouette.contours_per_point".into(), get(&c.contours) / points);
+        stats.counters.insert("silhouette.examined_per_point".into(), get(&c.examined) / points);
         stats.counters.insert("silhouette.crossings_per_point".into(), get(&c.crossings) / points);
         stats.counters.insert("silhouette.occluded_points".into(), get(&c.occluded_points));
         stats.counters.insert("silhouette.estimator_fallbacks".into(), get(&c.estimator_fallbacks));
