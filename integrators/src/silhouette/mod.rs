@@ -226,6 +226,7 @@ struct Counters {
     points: AtomicU64,
     contours: AtomicU64,
     examined: AtomicU64,
+    nodes: AtomicU64,
     crossings: AtomicU64,
     occluded_points: AtomicU64,
     estimator_fallbacks: AtomicU64,
@@ -304,8 +305,9 @@ impl Estimator<'_> {
         let frame = PoleFrame::for_normal(nd);
         SCRATCH.with_borrow_mut(|s| {
             s.contours.clear();
-            let examined = dual.contours(p, nd, CULL_TOL, &mut s.contours);
-            self.counters.examined.fetch_add(examined as u64, Ordering::Relaxed);
+            let cost = dual.contours(p, nd, CULL_TOL, &mut s.contours);
+            self.counters.examined.fetch_add(cost.edges as u64, Ordering::Relaxed);
+            self.counters.nodes.fetch_add(cost.nodes as u64, Ordering::Relaxed);
             let vis = s.traversal.run(&s.contours, p, nd, &frame, &self.meridians);
             self.counters.points.fetch_add(1, Ordering::Relaxed);
             self.counters.contours.fetch_add(s.contours.len() as u64, Ordering::Relaxed);
@@ -823,6 +825,7 @@ impl Integrator for Silhouette {
         stats.counters.insert("silhouette.points".into(), get(&c.points));
         stats.counters.insert("silhouette.contours_per_point".into(), get(&c.contours) / points);
         stats.counters.insert("silhouette.examined_per_point".into(), get(&c.examined) / points);
+        stats.counters.insert("silhouette.nodes_per_point".into(), get(&c.nodes) / points);
         stats.counters.insert("silhouette.crossings_per_point".into(), get(&c.crossings) / points);
         stats.counters.insert("silhouette.occluded_points".into(), get(&c.occluded_points));
         stats.counters.insert("silhouette.estimator_fallbacks".into(), get(&c.estimator_fallbacks));

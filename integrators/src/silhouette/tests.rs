@@ -163,7 +163,7 @@ fn hierarchy_prunes_most_edges() {
     let dual = DualEdges::build(std::slice::from_ref(&m), &[true]);
     let p = dual.normalise(Vec3::new(2.5, 0.7, 0.4));
     let mut out = Vec::new();
-    let examined = dual.contours(p, DVec3::new(-1.0, 0.0, 0.0), -10.0, &mut out);
+    let examined = dual.contours(p, DVec3::new(-1.0, 0.0, 0.0), -10.0, &mut out).edges;
     let mut slow = Vec::new();
     dual.contours_brute_force(p, DVec3::new(-1.0, 0.0, 0.0), -10.0, &mut slow);
     by_edge(&mut out);
