@@ -366,6 +366,14 @@ fn default_mode_shades_the_scenes_lights_and_says_how() {
         "no warning names the case: {:?}",
         ours.warnings
     );
+    // `prt` cannot carry the area light (its transfer channels relight distant light only):
+    // its image is ambient occlusion, so it says so, naming the mode and the lights.
+    let prt = render_text(&text, &o("silhouette", &["mode=prt"]));
+    assert!(
+        prt.warnings.iter().any(|w| w.contains("\"prt\"") && w.contains("area") && w.contains("ambient occlusion")),
+        "prt on an area-lit scene: no warning names the case: {:?}",
+        prt.warnings
+    );
     let pixel = render_text(&text, &o("silhouette", &[]));
     let rel = (mean(&pixel.image) / mean(&direct.image) - 1.0).abs();
     assert!(rel < 0.02, "pixel shading: mean {} vs directlighting {}", mean(&pixel.image), mean(&direct.image));

@@ -15,7 +15,8 @@
 //! - `prt`: the `ao` image plus SH transfer channels (`core::sh`'s convention, order
 //!   `"integer shorder"`, 3): `∫_{V·H} max(0, n_s·ω) Y_i(ω) dω` over the same visible
 //!   intervals (Gauss–Legendre in θ along each), `n_s` the face-forwarded shading normal, and
-//!   `albedo.*`; `penumbra relight` of them under the scene's sky reproduces `shade`.
+//!   `albedo.*`; `penumbra relight` of them under the scene's sky reproduces `shade`. A scene's
+//!   other lights (area, point, …) cannot be relit from them: `prt` warns, naming their kinds.
 //! - `ao` (default only for a scene without lights, with a warning): pbrt-v3's `ambientocclusion` value, the
 //!   integral of `V·cos θ` over the hemisphere of the face-forwarded geometric normal
 //!   (π for an open hemisphere), from the analytic moment `∫ ω dω` of the visible intervals.
@@ -178,6 +179,38 @@ fn default_mode(scene: &Scene, warnings: &DiagSink) -> Mode {
     }
 }
 
+/// `prt` under lights its transfer channels cannot carry (only distant light relights them):
+/// its image is ambient occlusion, so the scene's own lights are not in it. Says so, naming
+/// the kinds of light (issue 37 item 4: never ambient occlusion in place of the scene's
+/// lighting without a word).
+fn warn_prt_lights(scene: &Scene, warnings: &DiagSink) {
+    let mut kinds: Vec<&str> = scene
+        .light_list()
+        .iter()
+        .filter_map(|l| match l {
+            Light::Infinite(_) => None,
+            Light::Point(_) => Some("point"),
+            Light::Spot(_) => Some("spot"),
+            Light::Distant(_) => Some("distant"),
+            Light::Area(_) => Some("area"),
+            Light::Goniometric(_) => Some("goniometric"),
+            Light::Projection(_) => Some("projection"),
+        })
+        .collect();
+    kinds.sort_unstable();
+    kinds.dedup();
+    if !kinds.is_empty() {
+        warnings.warn(
+            None,
+            format!(
+                "silhouette: \"mode\" \"prt\" renders ambient occlusion plus SH transfer channels for distant \
+                 lighting: the scene's {} light(s) are not in its image (\"mode\" \"shade\" shades them)",
+                kinds.join(", ")
+            ),
+        );
+    }
+}
+
 #[derive(Default)]
 struct Scratch {
     contours: Vec<Contour>,
@@ -192,6 +225,8 @@ thread_local! {
 struct Counters {
     points: AtomicU64,
     contours: AtomicU64,
+    examined: AtomicU64,
+    nodes: AtomicU64,
     crossings: AtomicU64,
     occluded_points: AtomicU64,
     estimator_fallbacks: AtomicU64,
@@ -270,7 +305,9 @@ impl Estimator<'_> {
         let frame = PoleFrame::for_normal(nd);
         SCRATCH.with_borrow_mut(|s| {
             s.contours.clear();
-            dual.contours(p, nd, CULL_TOL, &mut s.contours);
+            let cost = dual.contours(p, nd, CULL_TOL, &mut s.contours);
+            self.counters.examined.fetch_add(cost.edges as u64, Ordering::Relaxed);
+            self.counters.nodes.fetch_add(cost.nodes as u64, Ordering::Relaxed);
             let vis = s.traversal.run(&s.contours, p, nd, &frame, &self.meridians);
             self.counters.points.fetch_add(1, Ordering::Relaxed);
             self.counters.contours.fetch_add(s.contours.len() as u64, Ordering::Relaxed);
@@ -747,6 +784,9 @@ impl Integrator for Silhouette {
                 },
             );
         }
+        if mode == Mode::Prt {
+            warn_prt_lights(scene, ctx.warnings);
+        }
         let meridians = Meridians::new(self.resolution);
         let table_spacing = table_spacing(&infinite);
         let table = (mode == Mode::Shade && !infinite.is_empty()).then(|| {
@@ -784,6 +824,8 @@ impl Integrator for Silhouette {
         let points = get(&c.points).max(1.0);
         stats.counters.insert("silhouette.points".into(), get(&c.points));
         stats.counters.insert("silhouette.contours_per_point".into(), get(&c.contours) / points);
+        stats.counters.insert("silhouette.examined_per_point".into(), get(&c.examined) / points);
+        stats.counters.insert("silhouette.nodes_per_point".into(), get(&c.nodes) / points);
         stats.counters.insert("silhouette.crossings_per_point".into(), get(&c.crossings) / points);
         stats.counters.insert("silhouette.occluded_points".into(), get(&c.occluded_points));
         stats.counters.insert("silhouette.estimator_fallbacks".into(), get(&c.estimator_fallbacks));

@@ -190,6 +190,34 @@ pub fn azimuth(d: DVec3) -> Option<f64> {
     Some(if a >= TAU { 0.0 } else { a })
 }
 
+/// A bound on the error of [`azimuth_approx`] (radians): Abramowitz & Stegun 4.4.49's
+/// polynomial has `|ε| ≤ 1e-5` on `[0, 1]` with its exact coefficients; with the published
+/// 7-digit ones and the octant reduction `azimuth_approx_error_is_bounded` measures 1.15e-5,
+/// and this bound leaves a factor 1.7 over that.
+pub const AZIMUTH_ERR: f64 = 2e-5;
+
+/// The azimuth of a local direction in `[0, 2π]` within [`AZIMUTH_ERR`] of [`azimuth`]'s
+/// (not on the pole axis): `atan2` by octant reduction and Abramowitz & Stegun 4.4.49's
+/// degree-9 polynomial, a tenth of libm's cost. The traversal takes its decisions from it
+/// only where they are certain to be `atan2`'s (`traverse::end_azimuths`).
+pub fn azimuth_approx(d: DVec3) -> f64 {
+    const A: [f64; 5] = [0.999_866_0, -0.330_299_5, 0.180_141_0, -0.085_133_0, 0.020_835_1];
+    let (ax, ay) = (d.x.abs(), d.y.abs());
+    let t = ax.min(ay) / ax.max(ay);
+    let s = t * t;
+    let mut r = t * (A[0] + s * (A[1] + s * (A[2] + s * (A[3] + s * A[4]))));
+    if ay > ax {
+        r = std::f64::consts::FRAC_PI_2 - r;
+    }
+    if d.x < 0.0 {
+        r = std::f64::consts::PI - r;
+    }
+    if d.y < 0.0 {
+        r = TAU - r;
+    }
+    r
+}
+
 /// `∫_{v_a}^{v_b} √(1−v²) dv` (the antiderivative `(v√(1−v²) + asin v)/2`).
 pub fn sine_integral(v_a: f64, v_b: f64) -> f64 {
     let g = |v: f64| {
@@ -210,6 +238,30 @@ pub fn moment(frame: &PoleFrame, m: &Meridians, i: usize, v_a: f64, v_b: f64) ->
 mod tests {
     use super::*;
     use std::f64::consts::PI;
+
+    /// `azimuth_approx` stays within `AZIMUTH_ERR` of `atan2`'s azimuth over every octant
+    /// (a dense sweep of directions, and random ones with tiny and huge components).
+    #[test]
+    fn azimuth_approx_error_is_bounded() {
+        let mut worst = 0.0f64;
+        let mut check = |d: DVec3| {
+            let exact = azimuth(d).expect("off the pole axis");
+            let mut e = (azimuth_approx(d) - exact).abs();
+            e = e.min(TAU - e);
+            worst = worst.max(e);
+        };
+        for i in 0..400_000 {
+            let phi = TAU * i as f64 / 400_000.0;
+            check(DVec3::new(phi.cos(), phi.sin(), 0.3));
+        }
+        let mut r = rng(11);
+        for _ in 0..100_000 {
+            let scale = 10f64.powf(r() * 40.0 - 20.0);
+            check(DVec3::new((r() - 0.5) * scale, (r() - 0.5) * scale, r()));
+        }
+        eprintln!("azimuth_approx: worst error {worst:e}");
+        assert!(worst <= AZIMUTH_ERR / 1.5, "worst error {worst:e}");
+    }
 
     fn rng(seed: u64) -> impl FnMut() -> f64 {
         let mut s = seed;

@@ -15,8 +15,9 @@
 //! duplicated edges), so no interval of zero length carries a spurious `W`.
 
 use super::dual::Contour;
-use super::param::{azimuth, Meridians, PoleFrame};
+use super::param::{azimuth, azimuth_approx, Meridians, PoleFrame, AZIMUTH_ERR};
 use glam::DVec3;
+use std::f64::consts::{PI, TAU};
 
 /// Crossings of one meridian closer than this in `v` are one event. `v = cos θ` is
 /// dimensionless (a crossing's `v` depends on directions from the point only), so this is a
@@ -63,6 +64,31 @@ pub struct Traversal {
     pub intervals: Vec<Interval>,
 }
 
+/// The azimuths of an arc's two ends (local directions), for the decisions the traversal
+/// takes from them: their meridian keys, which way round is shorter, whether the range wraps
+/// through 0. [`azimuth_approx`]'s when every one of those decisions is certain to be the one
+/// `atan2`'s azimuths give (each compared quantity farther than twice [`AZIMUTH_ERR`] from
+/// its threshold), else `atan2`'s: the traversal's result is the same, at a fraction of the
+/// cost (the two `atan2` per contour were a tenth of a shading point's time). `None` when an
+/// end is on the pole axis.
+fn end_azimuths(la: DVec3, lb: DVec3, m: &Meridians) -> Option<(f64, f64)> {
+    if (la.x == 0.0 && la.y == 0.0) || (lb.x == 0.0 && lb.y == 0.0) {
+        return None;
+    }
+    let (pa, pb) = (azimuth_approx(la), azimuth_approx(lb));
+    let e = 2.0 * AZIMUTH_ERR;
+    let clear = |phi: f64| {
+        let u = phi / m.dphi - 0.5;
+        (u - u.round()).abs() * m.dphi > e && phi > e && phi < TAU - e
+    };
+    let d = (pb - pa).abs();
+    if clear(pa) && clear(pb) && d > 2.0 * e && (d - PI).abs() > 2.0 * e {
+        Some((pa, pb))
+    } else {
+        Some((azimuth(la)?, azimuth(lb)?))
+    }
+}
+
 impl Traversal {
     /// Traverses the contours of `p` (normalised coordinates, as [`super::dual::DualEdges`] gives
     /// them) in the visible half-space of `n` (unit), about `frame`'s pole (`n·pole > 0`).
@@ -89,7 +115,7 @@ impl Traversal {
                 db += (da - db) * (hb / (hb - ha));
             }
             let (la, lb) = (frame.local(da), frame.local(db));
-            let (Some(pa), Some(pb)) = (azimuth(la), azimuth(lb)) else { continue };
+            let Some((pa, pb)) = end_azimuths(la, lb, m) else { continue };
             // An end on the horizon: walking the horizon (just above it) past that end crosses
             // the arc; the tangent there towards increasing azimuth is n × q.
             for (h, q, phi) in [(ha, da, pa), (hb, db, pb)] {
