@@ -54,12 +54,6 @@
 //! * `nsamples` 8 by measurement (README table, `tools/sheared_ao_table.py`): per ray within
 //!   10–20 % of the most efficient of 4/8/16/32 and the smallest bias of the four; the error
 //!   floor is the brute-forced cells' single rays, which more pass-1 rays do not cut;
-//! * above 4 spp, unset `nsamples` and `maxpoints` scale with the spp ([`ShearedAo::budget`]:
-//!   32 / spp rays, at least 2, and 512 / nsamples points), so that pass 1's rays per pixel and
-//!   the filter's neighbourhood (about 16 pixels) stay put as the spp grows; measured against
-//!   pbrt-v3 at 256² (`docs/integrators/sheared-ao.md`): the CPU time to `ambientocclusion`'s
-//!   error falls from 0.60 / 0.56 to 0.49 / 0.42 of its time on blinds at 8 / 16 spp and from
-//!   0.32 / 0.37 to 0.32 / 0.31 on spheres-on-plane; at 4 spp and below nothing changes;
 //! * `maxpoints` 64 by measurement (64², 4 spp, against `ambientocclusion` at 1024 rays on the
 //!   same camera samples; callgrind instructions of the render): RMSE² × instructions, lower is
 //!   better, spheres-on-plane / blinds: 256 points 7.3e-4 / 3.9e-3, 128 points 5.2e-4 / 1.8e-3,
@@ -124,14 +118,12 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 pub struct ShearedAo {
-    /// `"integer nsamples"` as given; `None`: [`ShearedAo::budget`] chooses it from the spp.
-    pub nsamples: Option<u32>,
+    pub nsamples: u32,
     /// Neighbour window radius in pixels; also pass 1's margin around the sampled pixels.
     pub screen_radius: u32,
     pub brute_samples: u32,
-    /// At most this many cache points (nearest pixels first) lend their rays to a receiver
-    /// (`None`: [`ShearedAo::budget`] chooses it from the spp).
-    pub max_points: Option<u32>,
+    /// At most this many cache points (nearest pixels first) lend their rays to a receiver.
+    pub max_points: u32,
     pub filter: FilterParams,
     /// The order of the SH transfer channels, when they are written (`"bool sh"`).
     pub sh: Option<ShOrder>,
@@ -141,12 +133,8 @@ pub struct ShearedAo {
 
 /// The parameters `sheared-ao` reads.
 pub const PARAMS: &[ParamSpec] = &[
-    ParamSpec::int(
-        "nsamples",
-        8,
-        "occlusion rays per camera sample, cached in image space (rounded by the sampler); unset: 8 up to 4 spp, then 32/spp (at least 2)",
-    )
-    .range(1, 1024),
+    ParamSpec::int("nsamples", 8, "occlusion rays per camera sample, cached in image space (rounded by the sampler)")
+        .range(1, 1024),
     ParamSpec::int("screenradius", 8, "receivers borrow the cached rays of points within this many pixels")
         .range(0, 64),
     ParamSpec::int("cells", 8, "cells × cells hemisphere cells of equal projected area").range(1, 32),
@@ -155,12 +143,8 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec::float("minweight", 2.0, "a cell whose filter weight stays below this takes fresh rays")
         .within(Range::Positive),
     ParamSpec::int("brutesamples", 1, "fresh rays per brute-forced cell, stratified in the cell").range(1, 64),
-    ParamSpec::int(
-        "maxpoints",
-        64,
-        "at most this many cache points (nearest pixels first) per receiver; unset: 512 / nsamples (64 up to 4 spp)",
-    )
-    .range(1, 1 << 20),
+    ParamSpec::int("maxpoints", 64, "at most this many cache points (nearest pixels first) per receiver")
+        .range(1, 1 << 20),
     ParamSpec::float("maxdistance", f32::INFINITY, "occluders farther than this are ignored (as ambientocclusion)")
         .within(Range::Positive),
     ParamSpec::choice(
@@ -189,11 +173,10 @@ impl ShearedAo {
         Ok(Box::new(ShearedAo {
             sh,
             pixel_shading: parse_shading(&p)?,
-            // Unset: chosen from the spp at render time ([`ShearedAo::budget`]).
-            nsamples: params.find("nsamples").is_some().then(|| p.count("nsamples")).transpose()?,
+            nsamples: p.count("nsamples")?,
             screen_radius: p.count("screenradius")?,
             brute_samples: p.count("brutesamples")?,
-            max_points: params.find("maxpoints").is_some().then(|| p.count("maxpoints")).transpose()?,
+            max_points: p.count("maxpoints")?,
             filter: FilterParams {
                 cells: p.count("cells")? as usize,
                 omega_v: p.float("omegav")? as f64,
@@ -203,20 +186,6 @@ impl ShearedAo {
                 jacobian: p.bool("jacobian")?,
             },
         }))
-    }
-}
-
-impl ShearedAo {
-    /// `nsamples` and `maxpoints` at `spp` camera samples per pixel, each as given or, unset, by
-    /// spp: 8 rays per camera sample up to 4 spp, then 32 / spp (at least 2), and 512 / nsamples
-    /// points, so that pass 1 casts about 32 rays per pixel and every receiver filters 512 rays
-    /// from a neighbourhood of about 16 pixels whatever the spp. (With 8 and 64 at every spp the
-    /// neighbourhood shrank to 4 pixels at 16 spp while pass 1's rays grew to 128 per pixel:
-    /// measured in `docs/integrators/sheared-ao.md`, 0.56 against 0.42 of `ambientocclusion`'s
-    /// CPU time to the same error on blinds at 16 spp.)
-    pub fn budget(&self, spp: u32) -> (u32, u32) {
-        let n = self.nsamples.unwrap_or(if spp <= 4 { 8 } else { (32 / spp.max(1)).max(2) });
-        (n, self.max_points.unwrap_or(512 / n.max(1)).max(1))
     }
 }
 
@@ -578,10 +547,9 @@ impl Integrator for ShearedAo {
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         let start = Instant::now();
-        let (nsamples, max_points) = self.budget(scene.sampler.samples_per_pixel());
-        let n = scene.sampler.round_count(nsamples);
-        if n != nsamples && self.nsamples.is_some() {
-            ctx.warnings.warn(None, format!("sheared-ao: taking {n} samples, not {nsamples} as specified"));
+        let n = scene.sampler.round_count(self.nsamples);
+        if n != self.nsamples {
+            ctx.warnings.warn(None, format!("sheared-ao: taking {n} samples, not {} as specified", self.nsamples));
         }
         let nc = (self.filter.cells * self.filter.cells) as u32;
         let full_res = IVec2::new(film.spec.full_resolution.0 as i32, film.spec.full_resolution.1 as i32);
@@ -620,7 +588,7 @@ impl Integrator for ShearedAo {
             .filter(|d| d.length_squared() <= r * r)
             .collect();
         offsets.sort_by_key(|d| (d.length_squared(), d.y, d.x));
-        let max_points = max_points as usize;
+        let max_points = self.max_points as usize;
         let (receivers, points, brute_cells) = (AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0));
         let results = with_threads(ctx.threads, || {
             tile_list
