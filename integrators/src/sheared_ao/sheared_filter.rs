@@ -92,27 +92,49 @@ impl Default for FilterParams {
 /// (up to [`atan_unit`]'s 1e-5 rad), and every cell subtends projected solid angle π / n².
 #[inline]
 pub fn cell_of(w: DVec3, n: usize) -> usize {
-    let rho = (w.x * w.x + w.y * w.y).sqrt();
-    let o = if rho == 0.0 {
-        DVec2::ZERO
-    } else if w.x.abs() >= w.y.abs() {
-        let s = if w.x < 0.0 { -1.0 } else { 1.0 };
-        DVec2::new(s * rho, s * rho * atan_unit(w.y / w.x) * (1.0 / FRAC_PI_4))
-    } else {
-        let s = if w.y < 0.0 { -1.0 } else { 1.0 };
-        DVec2::new(s * rho * atan_unit(w.x / w.y) * (1.0 / FRAC_PI_4), s * rho)
-    };
-    let nf = n as f64;
-    let last = nf - 1.0;
-    // Clamped as floats (`max` and `min` return the number when one operand is NaN), so the
-    // value is an in-range integer part and the unchecked conversion is exact; the saturating
-    // `as` conversions were a fifth of the filter's instructions.
-    let index = |x: f64| -> usize {
-        let x = ((x + 1.0) * 0.5 * nf).max(0.0).min(last);
-        // SAFETY: `x` is finite and in [0, n − 1], so its integer part fits a usize.
-        unsafe { x.to_int_unchecked::<usize>() }
-    };
-    index(o.y) * n + index(o.x)
+    Grid::new(n).cell_of(w)
+}
+
+/// The cell grid of [`cell_of`] with `n` as a float computed once: a `usize` to `f64`
+/// conversion takes several instructions on x86-64, and the lookup runs twice per neighbour ray.
+#[derive(Clone, Copy, Debug)]
+struct Grid {
+    n: usize,
+    nf: f64,
+    last: f64,
+}
+
+impl Grid {
+    fn new(n: usize) -> Self {
+        let nf = n as f64;
+        Grid { n, nf, last: nf - 1.0 }
+    }
+
+    #[inline]
+    fn cell_of(&self, w: DVec3) -> usize {
+        let rho = (w.x * w.x + w.y * w.y).sqrt();
+        let o = if rho == 0.0 {
+            DVec2::ZERO
+        } else if w.x.abs() >= w.y.abs() {
+            let s = if w.x < 0.0 { -1.0 } else { 1.0 };
+            DVec2::new(s * rho, s * rho * atan_unit(w.y / w.x) * (1.0 / FRAC_PI_4))
+        } else {
+            let s = if w.y < 0.0 { -1.0 } else { 1.0 };
+            DVec2::new(s * rho * atan_unit(w.x / w.y) * (1.0 / FRAC_PI_4), s * rho)
+        };
+        let (nf, last) = (self.nf, self.last);
+        // Clamped as floats (`max` and `min` return the number when one operand is NaN), so the
+        // value is an in-range integer part and the unchecked conversion is exact; the saturating
+        // `as` conversions were a fifth of the filter's instructions. (To i32, one instruction
+        // on x86-64; to usize, a branch and several.)
+        let index = |x: f64| -> usize {
+            let x = ((x + 1.0) * 0.5 * nf).max(0.0).min(last);
+            // SAFETY: `x` is finite and in [0, n − 1] with n ≤ 32 (`"integer cells"`), so its
+            // integer part fits an i32 and is not negative.
+            (unsafe { x.to_int_unchecked::<i32>() }) as usize
+        };
+        index(o.y) * self.n + index(o.x)
+    }
 }
 
 /// atan(x) for |x| ≤ 1 (a minimax polynomial, |error| < 1e-5 rad): the cell lookup runs for
@@ -241,20 +263,35 @@ struct Bounds {
     /// Eq. 8 in closed form, `z_min z_max / (Ω_v (z_max − z_min))`, with `z_max = ∞` (so
     /// `z_min / Ω_v`) in a cell with a miss; ∞ with one depth and no miss, or no occluder.
     radius: f64,
+    /// `radius²`.
+    radius2: f64,
     /// Harmonic mean of the bounds (∞ without occluder: unoccluded rays are not warped).
     mid: f64,
 }
 
-/// What loop 1 found about one neighbour ray, kept for loop 2 (computed once).
+/// [`Visit::cell`] of a ray that escaped, or whose hit lies beyond `maxdistance`.
+const MISS: u32 = u32::MAX;
+/// [`Visit::cell`] of a ray whose hit is on or behind the receiver's tangent plane: it lends
+/// nothing.
+const BEHIND: u32 = u32::MAX - 1;
+
+/// What loop 1 found about one neighbour ray, kept for loop 2 (computed once): its direction
+/// `d` in the receiver's frame and, when its hit is in front of the receiver, the effective
+/// direction `v` from the receiver to the hit (local), its distance and its cell (else
+/// [`MISS`] or [`BEHIND`]).
 #[derive(Clone, Copy, Debug)]
-enum Visit {
-    /// It escaped, or its hit lies beyond `maxdistance`.
-    Miss,
-    /// Its hit is in front of the receiver: the effective direction `v` from the receiver to the
-    /// hit (local), its distance and its cell.
-    Occluded { v: DVec3, len: f64, cell: u32 },
-    /// Its hit is on or behind the receiver's tangent plane: it lends nothing.
-    Behind,
+struct Visit {
+    d: DVec3,
+    v: DVec3,
+    len: f64,
+    cell: u32,
+}
+
+/// A neighbour point's offset from the receiver (local) and its squared length.
+#[derive(Clone, Copy, Debug)]
+struct Offset {
+    o: DVec3,
+    oo: f64,
 }
 
 /// Scratch space for [`filter_receiver`] (one per thread).
@@ -265,12 +302,10 @@ pub struct Scratch {
     wv: Vec<f64>,
     /// The cells' central directions (local).
     centers: Vec<DVec3>,
-    /// Per neighbour ray, in the neighbours' order: what loop 1 found, and its direction in the
-    /// receiver's frame.
+    /// Per neighbour ray, in the neighbours' order: what loop 1 found.
     visits: Vec<Visit>,
-    dirs: Vec<DVec3>,
-    /// Per neighbour point: its offset from the receiver (local).
-    offsets: Vec<DVec3>,
+    /// Per neighbour point.
+    offsets: Vec<Offset>,
 }
 
 /// The importance weight of an occluded neighbour ray warped to the receiver: the receiver's
@@ -309,54 +344,53 @@ pub fn same_surface(recv: &Receiver, q: &CachePoint) -> bool {
 /// Pass 2's first loop, in the receiver's frame (z = its normal): each cell's occluder depth
 /// bounds (cells binned by the direction from the receiver to the hit), whether a ray of the
 /// cell escaped, the contact test, the filter's radius (Eq. 8) and the harmonic mid depth.
-/// Records each point's offset and each ray's direction and what it found about it, in order,
-/// for the second loop.
+/// Records each point's offset and what it found about each ray, in order, for the second
+/// loop.
 fn cell_depth_bounds<'a>(
     recv: &Receiver,
     neighbours: impl Iterator<Item = &'a CachePoint>,
     params: &FilterParams,
+    grid: &Grid,
     scratch: &mut Scratch,
 ) {
     let (frame, inf) = (&recv.frame, f64::INFINITY);
-    let Scratch { bounds, visits, dirs, offsets, .. } = scratch;
+    let Scratch { bounds, visits, offsets, .. } = scratch;
     visits.clear();
-    dirs.clear();
     offsets.clear();
     for q in neighbours {
-        visits.reserve(q.rays.len());
-        dirs.reserve(q.rays.len());
         // Points of a neighbourhood are subtracted in f64 world coordinates, then turned.
         let o = frame.to_local(q.p - recv.p);
-        offsets.push(o);
-        for r in &q.rays {
+        offsets.push(Offset { o, oo: o.length_squared() });
+        // (`extend` over a slice reserves once and writes without a capacity test per ray.)
+        visits.extend(q.rays.iter().map(|r| {
             let d = frame.to_local(r.d);
-            dirs.push(d);
+            let mut visit = Visit { d, v: DVec3::ZERO, len: 0.0, cell: MISS };
+            if !r.t.is_finite() {
+                return visit;
+            }
             let u = o + r.t * d;
             let z = u.length();
-            if !(r.t.is_finite() && z <= params.max_distance) {
-                // A miss, or an occluder beyond `maxdistance` (its cell is marked below).
-                visits.push(Visit::Miss);
-                continue;
+            if !(z <= params.max_distance) {
+                // An occluder beyond `maxdistance`: a miss (its cell is marked below).
+                return visit;
             }
             if !(u.z > 1e-9 * z) {
-                visits.push(Visit::Behind);
-                continue;
+                visit.cell = BEHIND;
+                return visit;
             }
             let v = u / z;
-            let cell = cell_of(v, params.cells);
+            let cell = grid.cell_of(v);
             let b = &mut bounds[cell];
             b.z_min = b.z_min.min(z);
             b.z_max = b.z_max.max(z);
-            visits.push(Visit::Occluded { v, len: z, cell: cell as u32 });
-        }
+            Visit { d, v, len: z, cell: cell as u32 }
+        }));
     }
     // A cell's escaped rays matter only where it also has occluders (its radius): the
     // directions of the misses are binned only when some cell has.
     if bounds.iter().any(|b| b.z_max > 0.0) {
-        for (visit, d) in visits.iter().zip(dirs.iter()) {
-            if let Visit::Miss = visit {
-                bounds[cell_of(*d, params.cells)].miss = true;
-            }
+        for visit in visits.iter().filter(|v| v.cell == MISS) {
+            bounds[grid.cell_of(visit.d)].miss = true;
         }
     }
     let contact = 2.0 * params.omega_v * recv.footprint;
@@ -374,7 +408,19 @@ fn cell_depth_bounds<'a>(
         } else {
             inf
         };
+        b.radius2 = b.radius * b.radius;
     }
+}
+
+/// The receiver-wide terms of [`warp_unoccluded`].
+struct WarpCtx<'a> {
+    params: &'a FilterParams,
+    grid: Grid,
+    /// The receiver's harmonic mid depth over all cells ([`Warp::Sphere`]) and its square.
+    gmid: f64,
+    gmid2: f64,
+    bounds: &'a [Bounds],
+    centers: &'a [DVec3],
 }
 
 /// The effective direction from the receiver (local) of an unoccluded neighbour ray of local
@@ -382,31 +428,25 @@ fn cell_depth_bounds<'a>(
 /// [`Warp::Cell`] in a cell without occluders, its own direction unwarped with weight 1
 /// (`Some((d, c, true))`).
 #[inline]
-fn warp_unoccluded(
-    d: DVec3,
-    o: DVec3,
-    gmid: f64,
-    params: &FilterParams,
-    bounds: &[Bounds],
-    centers: &[DVec3],
-) -> Option<(DVec3, usize, bool)> {
-    let target = if params.warp == Warp::Sphere {
-        if !gmid.is_finite() {
+fn warp_unoccluded(d: DVec3, off: &Offset, cx: &WarpCtx) -> Option<(DVec3, usize, bool)> {
+    let o = off.o;
+    let target = if cx.params.warp == Warp::Sphere {
+        if !cx.gmid.is_finite() {
             d
         } else {
             let od = o.dot(d);
-            let tau = -od + (od * od - o.length_squared() + gmid * gmid).max(0.0).sqrt();
+            let tau = -od + (od * od - off.oo + cx.gmid2).max(0.0).sqrt();
             o + tau * d
         }
     } else {
-        let c0 = cell_of(d, params.cells);
-        let mid = bounds[c0].mid;
+        let c0 = cx.grid.cell_of(d);
+        let mid = cx.bounds[c0].mid;
         if !mid.is_finite() {
             // No occluder in the ray's cell: no warp (target at infinity, v = d), infinite
             // radius: weight 1 in that cell.
             return (d.z > GRAZING).then_some((d, c0, true));
         }
-        let a = centers[c0];
+        let a = cx.centers[c0];
         let den = a.dot(d);
         if !(den > GRAZING) {
             return None;
@@ -422,7 +462,7 @@ fn warp_unoccluded(
         return None;
     }
     let v = target / len;
-    Some((v, cell_of(v, params.cells), false))
+    Some((v, cx.grid.cell_of(v), false))
 }
 
 /// Warped rays closer to grazing than this (cosine with the sample ray) are rejected.
@@ -440,14 +480,17 @@ pub fn filter_receiver<'a>(
     out: &mut Vec<CellValue>,
 ) {
     let nc = params.cells * params.cells;
+    let grid = Grid::new(params.cells);
     let inf = f64::INFINITY;
     scratch.bounds.clear();
-    scratch.bounds.resize(nc, Bounds { z_min: inf, z_max: 0.0, brute: false, miss: false, radius: inf, mid: inf });
+    scratch
+        .bounds
+        .resize(nc, Bounds { z_min: inf, z_max: 0.0, brute: false, miss: false, radius: inf, radius2: inf, mid: inf });
     if scratch.centers.len() != nc {
         scratch.centers = (0..nc).map(|c| cell_center(c, params.cells)).collect();
     }
     let neighbours = neighbours.filter(|q| same_surface(recv, q));
-    cell_depth_bounds(recv, neighbours.clone(), params, scratch);
+    cell_depth_bounds(recv, neighbours.clone(), params, &grid, scratch);
     // The receiver's mid depth over all cells, for `Warp::Sphere`.
     let (gmin, gmax) = scratch
         .bounds
@@ -460,36 +503,50 @@ pub fn filter_receiver<'a>(
     scratch.w.resize(nc, 0.0);
     scratch.wv.clear();
     scratch.wv.resize(nc, 0.0);
-    let Scratch { bounds, w: sw, wv: swv, centers, visits, dirs, offsets } = scratch;
-    let (mut visit, mut dir) = (visits.iter(), dirs.iter());
-    for (q, &o) in neighbours.zip(offsets.iter()) {
+    let Scratch { bounds, w: sw, wv: swv, centers, visits, offsets } = scratch;
+    let cx = WarpCtx { params, grid, gmid, gmid2: gmid * gmid, bounds, centers };
+    let mut start = 0;
+    for (q, off) in neighbours.zip(offsets.iter()) {
+        let o = off.o;
         let own = o == DVec3::ZERO;
-        for r in &q.rays {
-            let (Some(visit), Some(&d)) = (visit.next(), dir.next()) else { break };
-            let (v, c, visible, len) = match *visit {
-                Visit::Occluded { v, len, cell } => (v, cell as usize, 0.0, len),
-                Visit::Miss => match warp_unoccluded(d, o, gmid, params, bounds, centers) {
+        let Some(vs) = visits.get(start..start + q.rays.len()) else { break };
+        start += q.rays.len();
+        for (r, visit) in q.rays.iter().zip(vs) {
+            let d = visit.d;
+            // (Every test that rejects a ray is a `continue`: their order does not matter, and
+            // the cheapest come first.)
+            let (v, c, visible, len) = if visit.cell < BEHIND {
+                let c = visit.cell as usize;
+                if bounds[c].brute {
+                    continue;
+                }
+                (visit.v, c, 0.0, visit.len)
+            } else if visit.cell == MISS {
+                match warp_unoccluded(d, off, &cx) {
                     Some((_, c, true)) => {
                         sw[c] += 1.0;
                         swv[c] += 1.0;
                         continue;
                     }
-                    Some((v, c, false)) => (v, c, 1.0, 0.0),
-                    None => continue,
-                },
-                Visit::Behind => continue,
+                    Some((v, c, false)) if !bounds[c].brute => (v, c, 1.0, 0.0),
+                    _ => continue,
+                }
+            } else {
+                continue;
             };
             let vd = v.dot(d);
             if !(vd > GRAZING) {
                 continue;
             }
             let b = &bounds[c];
-            if b.brute {
-                continue;
-            }
-            // Tangent offset: the sample ray meets the plane through p perpendicular to v at p + x.
-            let x = o + (-v.dot(o) / vd) * d;
-            let mut w = if b.radius.is_finite() { kernel(x.length_squared() / (b.radius * b.radius)) } else { 1.0 };
+            let mut w = if b.radius.is_finite() {
+                // Tangent offset: the sample ray meets the plane through p perpendicular to v at
+                // p + x.
+                let x = o + (-v.dot(o) / vd) * d;
+                kernel(x.length_squared() / b.radius2)
+            } else {
+                1.0
+            };
             // (The receiver's own rays weigh exactly 1: their Jacobian is 1 up to rounding, and a
             // weight sum a rounding below `minweight` would flip the cell to brute force.)
             if params.jacobian && visible == 0.0 && !own {
