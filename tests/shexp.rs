@@ -468,7 +468,7 @@ fn with_sphere_sets(desc: &penumbra_parser::SceneDescription, spheres: u32) -> S
     let mut scene = Scene::build(desc, req, &BuildOptions::default(), &DiagSink::new()).unwrap();
     let params = sphereset::fit::FitParams { spheres, ..Default::default() };
     let dir = sphereset::cache::default_dir();
-    let sets = sphereset::build_for_scene(&scene.meshes, &scene.objects, &params, dir.as_deref());
+    let sets = sphereset::build_for_scene(&scene.meshes, &scene.objects, &params, Default::default(), dir.as_deref());
     scene.prepared = Some(std::sync::Arc::new(sets));
     scene
 }

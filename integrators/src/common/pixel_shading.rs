@@ -1,8 +1,9 @@
 //! Pixel shading ("multisample antialiasing"): the camera samples of a pixel only resolve
 //! which surfaces the pixel sees and where their edges run; samples that see the same smooth
-//! piece of surface form a cluster, shaded once at its most central member. `ltc` and `ratio`
-//! use it through `PixelEstimator::begin_pixel`; the value shaded per cluster is the
-//! integrator's (`T`).
+//! piece of surface form a cluster, shaded once at its most central member. `ltc`, `ratio`,
+//! `silhouette` and `shexp` use it through `PixelEstimator::begin_pixel`; the value shaded per
+//! cluster is the integrator's (`T`, which [`Blend`]s: where the lighting varies across a
+//! cluster its members take a blend of the shared value and their own, [`shade_clusters`]).
 
 use super::params::{ParamSpec, Params};
 use glam::{DVec2, DVec3};
@@ -20,14 +21,69 @@ pub const SHADING: ParamSpec = ParamSpec::choice(
     "shade each surface a pixel sees once (camera samples only anti-alias), or every camera sample",
 );
 
-/// Pixel shading's refinement threshold for noise-free shaders (`silhouette`, `shexp`): two
-/// samples of one surface in a pixel whose values differ by more than this fraction of the
-/// larger in any colour make every sample of it shaded ([`shade_clusters`]' `differs`).
+/// Pixel shading's refinement band for noise-free shaders (`silhouette`, `shexp`): a cluster
+/// whose two shaded samples differ by `d` (the largest difference in any colour as a fraction
+/// of the larger value, [`rgb_difference`]) gives each member `(1 − w)` of the shared value
+/// plus `w` of its own, `w` rising linearly from 0 at `d =` [`REFINE`] to 1 at `d =`
+/// [`REFINE_FULL`] ([`refine_weight`]). A hard switch at one threshold let rounding decide
+/// between the shared value and the member's own: the scene scaled by 1e4 or turned changed
+/// single pixels by a few percent (`penumbra stability`); the blend makes a pixel a continuous
+/// function of the values. Below [`REFINE`] nothing changes: the same members are shaded as
+/// with the switch, so the cost is the switch's.
 pub const REFINE: f32 = 0.1;
+/// The difference from which a member takes its own value alone.
+pub const REFINE_FULL: f32 = 0.2;
 
-/// Whether two shaded values differ by more than [`REFINE`] of the larger in any colour.
-pub fn rgb_differs(a: Rgb, b: Rgb) -> bool {
-    ((a - b).abs() - REFINE * a.abs().max(b.abs())).max_element() > 0.0
+/// The largest difference of two shaded values in any colour, as a fraction of the larger
+/// (0 where both are 0).
+pub fn rgb_difference(a: Rgb, b: Rgb) -> f32 {
+    let (d, m) = ((a - b).abs(), a.abs().max(b.abs()));
+    (0..3).map(|c| if m[c] > 0.0 { d[c] / m[c] } else { 0.0 }).fold(0.0, f32::max)
+}
+
+/// The weight of a member's own value for a cluster whose two shaded samples differ by `d`
+/// ([`REFINE`]; 1 for a NaN).
+pub fn refine_weight(d: f32) -> f32 {
+    ramp(d, REFINE, REFINE_FULL)
+}
+
+/// 0 up to `lo`, 1 from `hi`, linear between; 1 for a NaN `x`.
+fn ramp(x: f32, lo: f32, hi: f32) -> f32 {
+    let w = (x - lo) / (hi - lo);
+    if w.is_nan() {
+        1.0
+    } else {
+        w.clamp(0.0, 1.0)
+    }
+}
+
+/// A value pixel shading can blend between a cluster's shared value and a member's own.
+pub trait Blend: Copy {
+    /// `(1 − w)·self + w·other` (`w` in [0, 1]; `other` itself at `w = 1`).
+    fn blend(&self, other: &Self, w: f32) -> Self;
+}
+
+impl Blend for Rgb {
+    fn blend(&self, other: &Self, w: f32) -> Self {
+        *self * (1.0 - w) + *other * w
+    }
+}
+
+impl<A: Blend, B: Blend> Blend for (A, B) {
+    fn blend(&self, other: &Self, w: f32) -> Self {
+        (self.0.blend(&other.0, w), self.1.blend(&other.1, w))
+    }
+}
+
+/// `None` (a shader that failed, such as `silhouette`'s traversal) has nothing to blend: the
+/// member's own value stands.
+impl<A: Blend> Blend for Option<A> {
+    fn blend(&self, other: &Self, w: f32) -> Self {
+        match (self, other) {
+            (Some(a), Some(b)) => Some(a.blend(b, w)),
+            _ => *other,
+        }
+    }
 }
 
 /// Reads [`SHADING`]: `true` for pixel shading.
@@ -46,18 +102,18 @@ pub struct SharedPixel<T> {
     shaded: Vec<Option<T>>,
 }
 
-impl<T: Copy> SharedPixel<T> {
+impl<T: Blend> SharedPixel<T> {
     /// Traces the pixel's camera `rays` (one traversal for the bundle when it meets few
     /// triangles) and shades each cluster once with `shade` ([`shade_clusters`]), which is
-    /// given `stats` to count its own rays; `samples` are the rays' camera samples; `differs`
-    /// as [`shade_clusters`]'.
+    /// given `stats` to count its own rays; `samples` are the rays' camera samples;
+    /// `difference` as [`shade_clusters`]'.
     pub fn trace(
         rays: &[Ray],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
         light_distance: impl Fn(DVec3) -> f64,
-        differs: Option<fn(&T, &T) -> bool>,
+        difference: Option<fn(&T, &T) -> f32>,
         mut shade: impl FnMut(&SurfacePoint, &mut ThreadStats) -> Option<T>,
     ) -> SharedPixel<T> {
         let candidates = scene.bundle_candidates(rays);
@@ -69,7 +125,7 @@ impl<T: Copy> SharedPixel<T> {
             stats.add_continued(queries);
             hits.push(first);
         }
-        let shaded = shade_clusters(rays, samples, &hits, light_distance, differs, |p| shade(p, stats));
+        let shaded = shade_clusters(rays, samples, &hits, light_distance, difference, |p| shade(p, stats));
         SharedPixel { hits, shaded }
     }
 
@@ -90,8 +146,9 @@ impl<T: Copy> SharedPixel<T> {
     }
 }
 
-/// A pixel cluster whose extent exceeds this fraction of its distance to the nearest light is
-/// shaded sample by sample.
+/// A pixel cluster whose extent exceeds this fraction of its distance to the nearest light
+/// starts to take each member's own value (the lighting varies across the pixel); from twice
+/// this fraction it takes the members' own values alone (a blend between, as [`REFINE`]'s).
 const NEAR_FIELD: f64 = 0.05;
 
 /// Samples of a pixel that see the same smooth piece of surface (its members are the samples
@@ -132,21 +189,25 @@ fn clusters_of(rays: &[Ray], samples: &[CameraSample], hits: &[FirstSurface]) ->
 
 /// Groups the pixel's hits into clusters and shades each cluster once, at the member whose
 /// camera sample lies closest to the members' mean film position (the first such member on a
-/// tie) — every member when the cluster's extent is not small against `light_distance` of that
-/// point (the lighting varies across the pixel: a light grazing the floor). The choice is made
-/// on the film, not on the rays' world directions, so that it is the same for the scene
-/// rotated, scaled or moved (`penumbra stability`): near-ties between world-space dot products
-/// fell either way with rounding and picked another shading point.
+/// tie). The choice is made on the film, not on the rays' world directions, so that it is the
+/// same for the scene rotated, scaled or moved (`penumbra stability`): near-ties between
+/// world-space dot products fell either way with rounding and picked another shading point.
 ///
-/// With `differs`, a cluster is also shaded at its member farthest from that one on the film
-/// (the first on a tie), which keeps its own value; when `differs` finds the two values apart
-/// (a shadow edge or a highlight crossing the pixel), every member is shaded.
-pub fn shade_clusters<T: Copy>(
+/// With `difference`, a cluster is also shaded at its member farthest from that one on the film
+/// (the first on a tie), which keeps its own value, and `difference` of the two values (a
+/// fraction; infinite for values that cannot be compared) gives the weight [`refine_weight`]
+/// of each member's own value: a shadow edge or a highlight crossing the pixel. The extent of
+/// the cluster against `light_distance` of the shading point gives another weight (a light
+/// grazing the floor, [`NEAR_FIELD`]); the larger counts. With a weight `w > 0` every member is
+/// shaded and takes `(1 − w)` of the shared value plus `w` of its own ([`Blend`]), so that
+/// the pixel varies continuously with the scene: a weight that jumped from 0 to 1 at a
+/// threshold let rounding pick either value.
+pub fn shade_clusters<T: Blend>(
     rays: &[Ray],
     samples: &[CameraSample],
     hits: &[FirstSurface],
     light_distance: impl Fn(DVec3) -> f64,
-    differs: Option<fn(&T, &T) -> bool>,
+    difference: Option<fn(&T, &T) -> f32>,
     mut shade: impl FnMut(&SurfacePoint) -> Option<T>,
 ) -> Vec<Option<T>> {
     let (cluster, clusters) = clusters_of(rays, samples, hits);
@@ -165,29 +226,31 @@ pub fn shade_clusters<T: Copy>(
             continue;
         };
         let extent = members().map(|m| (pos(m) - pos(rep)).length()).fold(0.0, f64::max);
-        let mut every = extent > NEAR_FIELD * light_distance(pos(rep));
+        let near = if extent > 0.0 { extent / (NEAR_FIELD * light_distance(pos(rep))) } else { 0.0 };
+        let mut w = ramp(near as f32, 1.0, 2.0);
         let v = shade_one(rep);
         let mut far = None;
-        if let (Some(differs), false) = (differs, every) {
+        if let Some(difference) = difference {
             let by_distance = |a: &usize, b: &usize| {
                 let (da, db) = ((film(*a) - film(rep)).length_squared(), (film(*b) - film(rep)).length_squared());
                 da.total_cmp(&db).then(b.cmp(a))
             };
             if let Some(f) = members().filter(|&m| m != rep).max_by(by_distance) {
-                let w = shade_one(f);
-                every = match (&v, &w) {
-                    (Some(a), Some(b)) => differs(a, b),
-                    (None, None) => false,
-                    _ => true,
+                let fv = shade_one(f);
+                let d = match (&v, &fv) {
+                    (Some(a), Some(b)) => refine_weight(difference(a, b)),
+                    (None, None) => 0.0,
+                    _ => 1.0,
                 };
-                far = Some((f, w));
+                w = w.max(d);
+                far = Some((f, fv));
             }
         }
         for m in members() {
             shaded[m] = match far {
-                Some((f, w)) if f == m => w,
-                _ if m == rep || !every => v,
-                _ => shade_one(m),
+                Some((f, fv)) if f == m => fv,
+                _ if m == rep || w <= 0.0 => v,
+                _ => v.blend(&shade_one(m), w),
             };
         }
     }
