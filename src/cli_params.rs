@@ -75,10 +75,7 @@ pub fn integrator_list(names: &[String]) -> Result<Vec<String>, String> {
     let mut out: Vec<String> = Vec::new();
     for n in names.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
         if penumbra_integrators::find(n).is_none() {
-            return Err(format!(
-                "unknown integrator \"{n}\"; valid names: {}",
-                penumbra_integrators::names().join(", ")
-            ));
+            return Err(unknown_integrator(n));
         }
         if !out.iter().any(|m| m == n) {
             out.push(n.to_string());
@@ -118,6 +115,57 @@ pub fn merge(base: &ParamSet, cli: &[Param]) -> ParamSet {
         ps.add(p.clone());
     }
     ps
+}
+
+/// The message for an integrator name penumbra does not know: the valid names, and the
+/// nearest one when the name looks like a misspelling of it (issue 41).
+pub fn unknown_integrator(name: &str) -> String {
+    let names = penumbra_integrators::names();
+    let hint = nearest(name, &names).map(|n| format!(" (did you mean \"{n}\"?)")).unwrap_or_default();
+    format!("unknown integrator \"{name}\"{hint}; valid names: {}", names.join(", "))
+}
+
+/// `-i NAME` as clap's value parser: a name the registry knows, else a usage error (exit 64)
+/// with [`unknown_integrator`]'s message.
+pub fn integrator_arg(name: &str) -> Result<String, String> {
+    let name = name.trim();
+    if name.is_empty() {
+        // `-i a,,b` / `-i a,`: an empty item of a list, dropped by the list's reader.
+        return Ok(String::new());
+    }
+    match penumbra_integrators::find(name) {
+        Some(_) => Ok(name.to_string()),
+        None => Err(unknown_integrator(name)),
+    }
+}
+
+/// The candidate nearest to `name` by edit distance (case-insensitive), if it is within a
+/// third of the name's length (at least 1), or one of them starts with the other.
+pub fn nearest<'a>(name: &str, candidates: &[&'a str]) -> Option<&'a str> {
+    let lower = name.to_ascii_lowercase();
+    let budget = (lower.chars().count() / 3).max(1);
+    candidates
+        .iter()
+        .map(|c| (edit_distance(&lower, &c.to_ascii_lowercase()), *c))
+        .filter(|(d, c)| *d <= budget || (lower.len() >= 3 && c.starts_with(lower.as_str())))
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, c)| c)
+}
+
+/// Levenshtein distance over chars.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diag = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let next = (diag + usize::from(ca != *cb)).min(row[j] + 1).min(row[j + 1] + 1);
+            diag = row[j + 1];
+            row[j + 1] = next;
+        }
+    }
+    row[b.len()]
 }
 
 #[cfg(test)]
@@ -169,5 +217,18 @@ mod conform_tests {
         assert!(e.contains("auto, silhouette"), "{e}");
         let e = conformed("ambientocclusion", &["nsamples=0"]).unwrap_err();
         assert!(e.contains("must be in 1..=1048576, got 0"), "{e}");
+    }
+
+    #[test]
+    fn misspelt_integrators_get_the_nearest_name() {
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(nearest("directlightning", &penumbra_integrators::names()), Some("directlighting"));
+        assert_eq!(nearest("LTC", &penumbra_integrators::names()), Some("ltc"));
+        assert_eq!(nearest("ambient", &penumbra_integrators::names()), Some("ambientocclusion"));
+        assert_eq!(nearest("nosuch", &penumbra_integrators::names()), None);
+        let m = unknown_integrator("shexpp");
+        assert!(m.contains("did you mean \"shexp\"") && m.contains("valid names: "), "{m}");
+        assert!(integrator_arg("path").is_ok());
+        assert!(integrator_arg("nosuch").unwrap_err().starts_with("unknown integrator \"nosuch\"; valid"));
     }
 }

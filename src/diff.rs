@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+use crate::cli::format::{fmt_g, num, viridis};
 use penumbra_core::image::{self, Image};
 use penumbra_core::metrics::{self, CompareResults, MetricsError, Status, Thresholds};
 use serde_json::{json, Value};
@@ -232,19 +233,6 @@ fn flip_value(a: &Image, b: &Image, skip: bool) -> FlipValue {
     }
 }
 
-/// A JSON number, or "inf" / "-inf" / "nan" strings for non-finite values.
-pub(crate) fn num(v: f64) -> Value {
-    if v.is_finite() {
-        json!(v)
-    } else if v.is_nan() {
-        json!("nan")
-    } else if v > 0.0 {
-        json!("inf")
-    } else {
-        json!("-inf")
-    }
-}
-
 fn percent(n: u64, of: u64) -> f64 {
     if of == 0 {
         0.0
@@ -343,67 +331,12 @@ fn report_text(r: &CompareResults, t: &Thresholds, flip: &FlipValue, values_at_m
     s
 }
 
-/// Formats like C's `%.{prec}g` (and C++ streams' default): `prec` significant
-/// digits, scientific notation when the exponent is < -4 or >= prec, trailing
-/// zeros removed; "inf", "-inf", "nan" for non-finite values.
-pub fn fmt_g(v: f64, prec: usize) -> String {
-    if v.is_nan() {
-        return "nan".into();
-    }
-    if v.is_infinite() {
-        return if v > 0.0 { "inf".into() } else { "-inf".into() };
-    }
-    if v == 0.0 {
-        return "0".into();
-    }
-    let prec = prec.max(1);
-    // Exponent after rounding to `prec` significant digits.
-    let sci = format!("{:.*e}", prec - 1, v);
-    let (mant, exp) = sci.split_once('e').unwrap_or((&sci, "0"));
-    let exp: i32 = exp.parse().unwrap_or(0);
-    let strip = |m: &str| -> String {
-        if m.contains('.') {
-            m.trim_end_matches('0').trim_end_matches('.').to_string()
-        } else {
-            m.to_string()
-        }
-    };
-    if exp < -4 || exp >= prec as i32 {
-        format!("{}e{}{:02}", strip(mant), if exp < 0 { '-' } else { '+' }, exp.abs())
-    } else {
-        let decimals = (prec as i32 - 1 - exp).max(0) as usize;
-        strip(&format!("{:.*}", decimals, v))
-    }
-}
-
 // ---------------------------------------------------------------------------
 // Heat map
 // ---------------------------------------------------------------------------
 
-/// Viridis, sampled at 9 evenly spaced stops (matplotlib's values) and
-/// interpolated linearly in between.
-const VIRIDIS: [[u8; 3]; 9] = [
-    [68, 1, 84],
-    [71, 45, 123],
-    [59, 82, 139],
-    [44, 114, 142],
-    [33, 145, 140],
-    [40, 174, 128],
-    [94, 201, 98],
-    [173, 220, 48],
-    [253, 231, 37],
-];
-
 /// Colour for non-finite errors (a NaN or Inf against something else).
 const NONFINITE_COLOR: [u8; 3] = [255, 0, 255];
-
-pub(crate) fn viridis(t: f64) -> [u8; 3] {
-    let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) } * (VIRIDIS.len() - 1) as f64;
-    let i = (t.floor() as usize).min(VIRIDIS.len() - 2);
-    let f = t - i as f64;
-    let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
-    std::array::from_fn(|k| (a[k] as f64 + (b[k] as f64 - a[k] as f64) * f).round() as u8)
-}
 
 /// 3×5 bitmap glyphs, one row per u8 (low 3 bits, bit 2 = leftmost column).
 fn glyph(c: char) -> Option<[u8; 5]> {
@@ -539,36 +472,6 @@ fn write_heatmap(out: &Path, w: u32, h: u32, errs: &[f32]) -> Result<(f64, f64),
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn fmt_g_matches_c() {
-        assert_eq!(fmt_g(0.0333333333, 6), "0.0333333");
-        assert_eq!(fmt_g(34.31363, 6), "34.3136");
-        assert_eq!(fmt_g(1e-6, 6), "1e-06");
-        assert_eq!(fmt_g(100.0, 3), "100");
-        assert_eq!(fmt_g(0.0999999, 6), "0.0999999");
-        assert_eq!(fmt_g(123456789.0, 6), "1.23457e+08");
-        assert_eq!(fmt_g(0.0001, 6), "0.0001");
-        assert_eq!(fmt_g(0.00001234, 6), "1.234e-05");
-        assert_eq!(fmt_g(999999.5, 6), "1e+06");
-        assert_eq!(fmt_g(-2.5, 6), "-2.5");
-        assert_eq!(fmt_g(f64::INFINITY, 6), "inf");
-        assert_eq!(fmt_g(6.25, 3), "6.25");
-    }
-
-    #[test]
-    fn viridis_endpoints_and_monotone_luma() {
-        assert_eq!(viridis(0.0), [68, 1, 84]);
-        assert_eq!(viridis(1.0), [253, 231, 37]);
-        assert_eq!(viridis(f64::NAN), [68, 1, 84]);
-        let luma = |c: [u8; 3]| 0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64;
-        let mut prev = -1.0;
-        for i in 0..=100 {
-            let l = luma(viridis(i as f64 / 100.0));
-            assert!(l > prev, "luma not increasing at {i}");
-            prev = l;
-        }
-    }
 
     #[test]
     fn crop_parsing() {

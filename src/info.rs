@@ -1,4 +1,4 @@
-//! `penumbra info SCENE [-i NAME]`: what a scene contains, checked as `render` checks it.
+//! `penumbra info [SCENE] [-i NAME]`: what a scene contains, checked as `render` checks it.
 
 use penumbra::{cli_params, pipeline};
 use penumbra_core::integrator::check_scene;
@@ -11,10 +11,10 @@ use std::process::ExitCode;
 
 #[derive(clap::Args)]
 pub struct InfoArgs {
-    /// The pbrt-v3 scene file.
-    pub scene: PathBuf,
+    /// The pbrt-v3 scene file (default: the embedded default scene, as `render`).
+    pub scene: Option<PathBuf>,
     /// Check and describe the build for this integrator (default: the scene's, as `render`).
-    #[arg(short = 'i', long = "integrator")]
+    #[arg(short = 'i', long = "integrator", value_parser = penumbra::cli_params::integrator_arg)]
     pub integrator: Option<String>,
     /// Integrator parameter `key=value`, as for `render` (repeatable).
     #[arg(long = "param", value_name = "KEY=VALUE")]
@@ -25,7 +25,7 @@ pub struct InfoArgs {
 /// integrator without its BVH: every warning and error `render` reports before rendering, with
 /// the same locations and exit status.
 pub fn run(args: InfoArgs) -> ExitCode {
-    let parsed = match penumbra_parser::parse_file(&args.scene) {
+    let parsed = match pipeline::load_scene(args.scene.as_deref()) {
         Ok(p) => p,
         Err(e) => {
             eprint!("{e}");
@@ -81,7 +81,7 @@ fn check(desc: &SceneDescription, args: &InfoArgs, params: &[Param], warnings: &
     let _ = writeln!(
         o,
         "{} builds: {} ({} spp)",
-        integrator.name(),
+        pipeline::integrator_name(desc, args.integrator.as_deref()),
         if builds.is_empty() { "geometry only".to_string() } else { builds.join(", ") },
         scene.sampler.samples_per_pixel()
     );

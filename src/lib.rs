@@ -2,10 +2,12 @@
 //! choose an integrator, build what it needs, render), so tests and `sweep`
 //! call exactly what `penumbra render` runs.
 
+pub mod check;
 pub mod cli_params;
 pub mod output;
 pub mod pipeline;
 pub mod relight;
+pub mod scene_identity;
 pub mod shard;
 
 /// Exit statuses shared by every subcommand (`diff` adds idiff's 1–4 for its verdicts).

@@ -1,6 +1,6 @@
 //! `penumbra merge`: shards (`render --tile I/N`, `render --spp-offset K`) into one image.
 
-use crate::render::{has_extension, write_outputs};
+use crate::cli::{has_extension, write_outputs};
 use penumbra::output::{self, MissingDir};
 use penumbra::shard::{self, Shard};
 use std::path::PathBuf;

@@ -13,7 +13,9 @@ pub enum MissingDir {
 
 /// Checks that `path` can be written (atomically, through a temporary file beside it, as
 /// `penumbra_core::image::write_atomic` does): its directory exists (or is created, per
-/// `missing`) and is writable, and `path` is not a directory. Returns the directories created.
+/// `missing`) and is writable, and `path` is not a directory or an existing file the user may
+/// not write (a read-only reference image is refused before any work, not replaced). Returns the
+/// directories created.
 pub fn prepare(path: &Path, missing: MissingDir) -> Result<Vec<PathBuf>, String> {
     if path.file_name().is_none() {
         return Err(format!("{}: not a file name", path.display()));
@@ -21,6 +23,7 @@ pub fn prepare(path: &Path, missing: MissingDir) -> Result<Vec<PathBuf>, String>
     if path.is_dir() {
         return Err(format!("{}: is a directory", path.display()));
     }
+    penumbra_core::image::existing_writable(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),

@@ -67,12 +67,18 @@ pub fn choose_integrator(
     } else {
         desc.integrator.params.mark_all_used();
         if cli_name.is_none() {
-            let known = penumbra_integrators::PBRT_UNIMPLEMENTED.contains(&scene_name);
+            if !penumbra_integrators::PBRT_UNIMPLEMENTED.contains(&scene_name) {
+                // pbrt-v3 renders nothing for an integrator it does not know (issue 41).
+                let message = crate::cli_params::unknown_integrator(scene_name);
+                return Err(Diagnostic::error(
+                    Some(desc.integrator.loc.clone()),
+                    format!("{message} (pbrt-v3 stops here too; -i chooses one)"),
+                ));
+            }
             warnings.warn(
                 Some(desc.integrator.loc.clone()),
                 format!(
-                    "{} integrator \"{scene_name}\" is not implemented by penumbra: rendering with \"{FALLBACK_INTEGRATOR}\" instead (choose one with -i)",
-                    if known { "pbrt-v3" } else { "unknown" }
+                    "pbrt-v3 integrator \"{scene_name}\" is not implemented by penumbra: rendering with \"{FALLBACK_INTEGRATOR}\" instead (choose one with -i)"
                 ),
             );
             // pbrt-v3's other integrators share `path`'s `maxdepth`.
@@ -83,12 +89,8 @@ pub fn choose_integrator(
             ParamSet::default()
         }
     };
-    let entry = penumbra_integrators::find(name).ok_or_else(|| {
-        Diagnostic::error(
-            None,
-            format!("unknown integrator \"{name}\"; valid names: {}", penumbra_integrators::names().join(", ")),
-        )
-    })?;
+    let entry = penumbra_integrators::find(name)
+        .ok_or_else(|| Diagnostic::error(None, crate::cli_params::unknown_integrator(name)))?;
     let params = cli_params::merge(&base, &cli_params::conform(entry, cli_params)?);
     let integrator = (entry.create)(&params, warnings)?;
     warnings.extend(params.report_unused(&format!("integrator \"{name}\"")));
@@ -153,21 +155,22 @@ pub fn render_film(
 ) -> Result<(Film, RenderStats), PipelineError> {
     let mut film = Film::new(spec, scene.filter.radius(), integrator.extra_channels());
     let ctx = RenderContext { threads: opts.threads, cancel: opts.cancel, progress: opts.progress, warnings };
-    penumbra_core::phase::take();
+    penumbra_core::profiling::take();
     let mut stats = integrator.render(scene, &ctx, &mut film)?;
-    stats.phases = penumbra_core::phase::take();
+    stats.phases = penumbra_core::profiling::take();
     Ok((film, stats))
 }
 
 /// Chooses the integrator, builds what it needs and renders.
 pub fn render(desc: &SceneDescription, opts: &RenderOptions, warnings: &DiagSink) -> Result<Rendered, PipelineError> {
     let integrator = choose_integrator(desc, opts.integrator, opts.params, warnings)?;
-    render_with(integrator.as_ref(), desc, opts, warnings)
+    render_with(integrator_name(desc, opts.integrator), integrator.as_ref(), desc, opts, warnings)
 }
 
-/// Builds what `integrator` needs and renders (`opts.integrator` and `opts.params` are not read:
-/// the integrator is already made).
+/// Builds what `integrator` (registered as `name`) needs and renders (`opts.integrator` and
+/// `opts.params` are not read: the integrator is already made).
 pub fn render_with(
+    name: &str,
     integrator: &dyn Integrator,
     desc: &SceneDescription,
     opts: &RenderOptions,
@@ -176,7 +179,7 @@ pub fn render_with(
     let scene = build_scene(integrator, desc, &opts.build, warnings)?;
     let (film, stats) = render_film(integrator, &scene, scene.film.clone(), opts, warnings)?;
     Ok(Rendered {
-        integrator: integrator.name().to_string(),
+        integrator: name.to_string(),
         image: film.to_image(opts.with_variance),
         film: scene.film.clone(),
         stats,

@@ -1,17 +1,18 @@
 //! `penumbra render`.
 
+use crate::cli::{
+    cancel_on_interrupt, check_crop, full_resolution, has_extension, spp_parser, write_outputs, RenderFlags,
+};
 use penumbra::cli_params;
 use penumbra::output::{self, MissingDir};
 use penumbra::pipeline::{self, RenderOptions};
 use penumbra::shard::{self, ShardRequest};
-use penumbra_core::image::Image;
 use penumbra_core::scene::{BuildOptions, Crop};
-use penumbra_core::shard::TileLayout;
+use penumbra_core::shard_rects::TileLayout;
 use penumbra_parser::{DiagSink, Param, SceneDescription};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::Instant;
 
 #[derive(clap::Args, Default)]
@@ -19,31 +20,20 @@ pub struct RenderArgs {
     /// The pbrt-v3 scene file (default: the embedded default scene).
     pub scene: Option<PathBuf>,
     /// Integrator to use (overrides the scene's `Integrator`).
-    #[arg(short = 'i', long = "integrator")]
+    #[arg(short = 'i', long = "integrator", value_parser = penumbra::cli_params::integrator_arg)]
     pub integrator: Option<String>,
-    /// Integrator parameter `key=value` (repeatable): one the integrator declares (listed
-    /// below), its value of the declared type.
-    #[arg(long = "param", value_name = "KEY=VALUE")]
-    pub params: Vec<String>,
+    #[command(flatten)]
+    pub flags: RenderFlags,
     /// Samples per pixel (overrides the scene's sampler).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=penumbra_core::sampler::MAX_SAMPLES))]
+    #[arg(long, value_parser = spp_parser())]
     pub spp: Option<u32>,
     /// Output image (.exr, .png or .pfm; default: the scene's Film filename).
     #[arg(short = 'o', long = "output")]
     pub output: Option<PathBuf>,
-    /// Worker threads (default: all cores).
-    #[arg(long, default_value_t = 0)]
-    pub threads: usize,
     /// Crop `x0,x1,y0,y1`: pixel bounds (integers, half-open) or, if any value has a
     /// decimal point, fractions of the image as pbrt-v3's `cropwindow`.
-    #[arg(long, allow_hyphen_values = true)]
-    pub crop: Option<String>,
-    /// Override the film resolution `WxH` (e.g. for quick previews).
-    #[arg(long)]
-    pub resolution: Option<String>,
-    /// Sampler seed.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    #[arg(long, value_name = "x0,x1,y0,y1", allow_hyphen_values = true, value_parser = crate::cli::parse_crop)]
+    pub crop: Option<Crop>,
     /// PNG output: multiply by 2^S before the sRGB encoding (stops; EXR and PFM keep the
     /// rendered values).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
@@ -56,10 +46,10 @@ pub struct RenderArgs {
     pub quiet: bool,
     /// Render shard I of N of the image's pixels (whole 16-pixel tiles, balanced by pixel
     /// count) into a shard file (`-o NAME.shard`) for `penumbra merge`.
-    #[arg(long, value_name = "I/N")]
-    pub tile: Option<String>,
+    #[arg(long, value_name = "I/N", value_parser = parse_tile)]
+    pub tile: Option<(u32, u32)>,
     /// How `--tile` deals out the tiles: `rows` (runs in raster order) or `grid` (blocks).
-    #[arg(long, value_name = "rows|grid", default_value = "rows")]
+    #[arg(long, value_name = "rows|grid", default_value = "rows", value_parser = ["rows", "grid"])]
     pub tile_layout: String,
     /// Render samples K … K+spp−1 of each pixel's sample sequence into a shard file, to be
     /// merged with other ranges into one image at the summed spp (halton, sobol or random
@@ -84,80 +74,23 @@ impl RenderArgs {
     }
 }
 
-/// `--tile I/N` and `--tile-layout`, checked.
-pub fn parse_tile(tile: Option<&str>, layout: &str, spp_offset: Option<u32>) -> Result<ShardRequest, String> {
+/// `--tile I/N` with 0 <= I < N (a clap value parser: a malformed value is a usage error).
+pub fn parse_tile(t: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("--tile expects I/N with 0 <= I < N (e.g. 2/7), got \"{t}\"");
+    let (i, n) = t.split_once('/').ok_or_else(bad)?;
+    let (i, n): (u32, u32) = (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+/// The shard `--tile`, `--tile-layout` and `--spp-offset` ask for.
+pub fn shard_request(tile: Option<(u32, u32)>, layout: &str, spp_offset: Option<u32>) -> Result<ShardRequest, String> {
     let layout = TileLayout::parse(layout)
         .ok_or_else(|| format!("--tile-layout must be \"rows\" or \"grid\", got \"{layout}\""))?;
-    let (index, count) = match tile {
-        None => (0, 1),
-        Some(t) => {
-            let bad = || format!("--tile expects I/N with 0 <= I < N (e.g. 2/7), got \"{t}\"");
-            let (i, n) = t.split_once('/').ok_or_else(bad)?;
-            let (i, n): (u32, u32) = (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
-            if n == 0 || i >= n {
-                return Err(bad());
-            }
-            (i, n)
-        }
-    };
+    let (index, count) = tile.unwrap_or((0, 1));
     Ok(ShardRequest { index, count, layout, spp_offset })
-}
-
-pub fn parse_crop(s: &str) -> Result<Crop, String> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    if parts.len() != 4 {
-        return Err(format!("--crop needs 4 comma-separated values x0,x1,y0,y1, got \"{s}\""));
-    }
-    if parts.iter().any(|p| p.contains('.')) {
-        let v: Result<Vec<f32>, _> = parts.iter().map(|p| p.parse::<f32>()).collect();
-        let v = v.map_err(|_| format!("--crop: \"{s}\" is not four numbers"))?;
-        Ok(Crop::Fraction([v[0], v[1], v[2], v[3]]))
-    } else {
-        let v: Result<Vec<i32>, _> = parts.iter().map(|p| p.parse::<i32>()).collect();
-        let v = v.map_err(|_| format!("--crop: \"{s}\" is not four integers"))?;
-        Ok(Crop::Pixels([v[0], v[1], v[2], v[3]]))
-    }
-}
-
-/// The film's full resolution: `--resolution`, else the scene's (pbrt-v3's default 1280×720).
-pub fn full_resolution(scene: &SceneDescription, resolution: Option<(u32, u32)>) -> (i32, i32) {
-    match resolution {
-        Some((w, h)) => (w as i32, h as i32),
-        None => {
-            let p = &scene.film.params;
-            (p.get_one_int("xresolution", 1280), p.get_one_int("yresolution", 720))
-        }
-    }
-}
-
-/// A `--crop` must lie inside the image and contain a pixel (as `diff --crop`): not clamped.
-pub fn check_crop(crop: Crop, (w, h): (i32, i32)) -> Result<(), String> {
-    let bad = match crop {
-        Crop::Pixels([x0, x1, y0, y1]) => !(0 <= x0 && x0 < x1 && x1 <= w && 0 <= y0 && y0 < y1 && y1 <= h),
-        Crop::Fraction([x0, x1, y0, y1]) => !(0.0 <= x0 && x0 < x1 && x1 <= 1.0 && 0.0 <= y0 && y0 < y1 && y1 <= 1.0),
-    };
-    if !bad || w <= 0 || h <= 0 {
-        // (An out-of-range film resolution is the scene build's located error.)
-        return Ok(());
-    }
-    Err(match crop {
-        Crop::Pixels([x0, x1, y0, y1]) => format!(
-            "--crop {x0},{x1},{y0},{y1} is outside the {w}x{h} image: pixel bounds need 0 <= x0 < x1 <= {w} and 0 <= y0 < y1 <= {h}"
-        ),
-        Crop::Fraction([x0, x1, y0, y1]) => format!(
-            "--crop {x0},{x1},{y0},{y1}: fractions need 0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1"
-        ),
-    })
-}
-
-pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("--resolution expects WxH, got \"{s}\""))?;
-    let w: u32 = w.trim().parse().map_err(|_| format!("--resolution: bad width in \"{s}\""))?;
-    let h: u32 = h.trim().parse().map_err(|_| format!("--resolution: bad height in \"{s}\""))?;
-    if w == 0 || h == 0 || w > 1 << 16 || h > 1 << 16 {
-        return Err(format!("--resolution {w}x{h} is out of range"));
-    }
-    Ok((w, h))
 }
 
 fn print_warnings(w: &DiagSink) {
@@ -171,22 +104,12 @@ fn fail(msg: impl std::fmt::Display) -> ExitCode {
     ExitCode::FAILURE
 }
 
-pub fn has_extension(path: &Path, ext: &str) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext))
-}
-
-/// `out.exr` → `out.stats.json`.
-pub fn stats_path(image: &Path) -> PathBuf {
-    let stem = image.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "penumbra".into());
-    image.with_file_name(format!("{stem}.stats.json"))
-}
-
 pub fn run(mut args: RenderArgs) -> ExitCode {
-    let (threads, warning) = cli_params::thread_count(args.threads);
+    let (threads, warning) = cli_params::thread_count(args.flags.threads);
     if let Some(w) = warning {
         eprintln!("{w}");
     }
-    args.threads = threads;
+    args.flags.threads = threads;
     let warnings = DiagSink::new();
     let t0 = Instant::now();
     let mut parsed = match pipeline::load_scene(args.scene.as_deref()) {
@@ -207,7 +130,7 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
     }
     // A malformed `--param`, one the integrator does not declare, or one of the wrong type is
     // a usage error.
-    let params = match cli_params::parse_all(&args.params)
+    let params = match cli_params::parse_all(&args.flags.params)
         .and_then(|p| pipeline::conform_params(&parsed.scene, args.integrator.as_deref(), &p))
     {
         Ok(p) => p,
@@ -256,13 +179,13 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
     let opts = RenderOptions {
         integrator: args.integrator.as_deref(),
         params: &inputs.params,
-        build: BuildOptions { spp: args.spp, seed: args.seed, crop: inputs.crop, resolution: inputs.resolution },
-        threads: args.threads,
+        build: BuildOptions { spp: args.spp, seed: args.flags.seed, crop: inputs.crop, resolution: inputs.resolution },
+        threads: args.flags.threads,
         with_variance: args.variance,
         cancel: &cancel,
         progress: Some(&progress),
     };
-    penumbra_core::phase::set_enabled(args.phases);
+    penumbra_core::profiling::set_enabled(args.phases);
     if let Some(req) = inputs.shard {
         let scene_name = scene_label(&args);
         let result = shard::render_shard(&parsed.scene, &scene_name, &opts, req, &warnings);
@@ -360,14 +283,13 @@ struct Inputs {
 
 impl Inputs {
     fn of(args: &RenderArgs, scene: &SceneDescription, params: Vec<Param>) -> Result<Inputs, String> {
-        let crop = args.crop.as_deref().map(parse_crop).transpose()?;
-        let resolution = args.resolution.as_deref().map(parse_resolution).transpose()?;
+        let (crop, resolution) = (args.crop, args.flags.resolution);
         if let Some(c) = crop {
             check_crop(c, full_resolution(scene, resolution))?;
         }
         let film_name = PathBuf::from(scene.film.params.get_one_string("filename", "pbrt.exr"));
         if args.shard_mode() {
-            let req = parse_tile(args.tile.as_deref(), &args.tile_layout, args.spp_offset)?;
+            let req = shard_request(args.tile, &args.tile_layout, args.spp_offset)?;
             let output = args.output.clone().unwrap_or_else(|| {
                 let stem = film_name.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
                 let range = args.spp_offset.map(|k| format!("-spp{k}")).unwrap_or_default();
@@ -392,19 +314,6 @@ impl Inputs {
     }
 }
 
-/// A flag set by the first Ctrl-C (renders stop at the next tile, then exit with status 130,
-/// as a shell reports SIGINT); a second one exits with 130 at once.
-pub fn cancel_on_interrupt() -> Arc<AtomicBool> {
-    let cancel = Arc::new(AtomicBool::new(false));
-    let c = cancel.clone();
-    let _ = ctrlc::set_handler(move || {
-        if c.swap(true, Ordering::SeqCst) {
-            std::process::exit(penumbra::exit::INTERRUPTED.into());
-        }
-    });
-    cancel
-}
-
 /// The tile progress bar on stderr.
 fn progress_bar() -> indicatif::ProgressBar {
     let b = indicatif::ProgressBar::new(1);
@@ -422,12 +331,12 @@ fn stats_json(args: &RenderArgs, r: &pipeline::Rendered, output: &Path, parse_se
     serde_json::json!({
         "scene": scene_label(args),
         "integrator": r.integrator,
-        "parameters": args.params,
+        "parameters": args.flags.params,
         "image": output.display().to_string(),
         "resolution": [r.film.full_resolution.0, r.film.full_resolution.1],
         "pixel_bounds": [r.film.pixel_bounds.min.x, r.film.pixel_bounds.max.x, r.film.pixel_bounds.min.y, r.film.pixel_bounds.max.y],
         "spp": r.stats.spp,
-        "seed": args.seed,
+        "seed": args.flags.seed,
         "exposure": args.exposure,
         "threads": r.stats.threads,
         "parse_seconds": parse_seconds,
@@ -436,27 +345,4 @@ fn stats_json(args: &RenderArgs, r: &pipeline::Rendered, output: &Path, parse_se
         "render_seconds": r.stats.render_seconds,
         "stats": r.stats,
     })
-}
-
-/// Writes the image (R, G, B only unless it is an EXR; a PNG with `exposure` stops), then `stats`
-/// beside it; returns the image written.
-pub fn write_outputs(
-    mut image: Image,
-    output: &Path,
-    exposure: f32,
-    stats: &serde_json::Value,
-) -> Result<Image, String> {
-    if !has_extension(output, "exr") && image.channels.len() > 3 {
-        image = image.select_channels(&["R", "G", "B"]).map_err(|e| e.to_string())?;
-    }
-    if has_extension(output, "png") {
-        penumbra_core::image::write_png(&image, output, exposure)
-    } else {
-        penumbra_core::image::write(&image, output)
-    }
-    .map_err(|e| e.to_string())?;
-    let sp = stats_path(output);
-    let text = serde_json::to_string_pretty(stats).unwrap_or_default();
-    penumbra_core::image::write_atomic(&sp, |w| w.write_all(text.as_bytes())).map_err(|e| e.to_string())?;
-    Ok(image)
 }

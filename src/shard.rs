@@ -20,11 +20,13 @@
 //! 4. A `u64` FNV-1a hash of every byte before it (a truncated or damaged file is refused).
 
 use crate::pipeline::{self, PipelineError, RenderOptions};
+use crate::scene_identity::scene_identity;
 use penumbra_core::film::{Film, FilmSpec, PixelSums};
+use penumbra_core::fnv::fnv1a64;
 use penumbra_core::geometry::Bounds2i;
+use penumbra_core::integrator::build_scene;
 use penumbra_core::sampler::OffsetSampler;
-use penumbra_core::scene::Scene;
-use penumbra_core::shard::{shard_rects, TileLayout};
+use penumbra_core::shard_rects::{shard_rects, TileLayout};
 use penumbra_core::{IVec2, Vec2};
 use penumbra_parser::{DiagSink, Param, ParamValue, SceneDescription};
 use serde::{Deserialize, Serialize};
@@ -36,39 +38,10 @@ pub const FORMAT_VERSION: u32 = 1;
 /// `f64` values per pixel before the extra channels (the `u64` count included).
 const SUMS_PER_PIXEL: usize = 11;
 
-/// The 64-bit FNV-1a offset basis: the hash of nothing.
-pub const FNV_START: u64 = 0xcbf2_9ce4_8422_2325;
-
-/// 64-bit FNV-1a of `bytes`, continued from `h` (start with [`FNV_START`]).
-pub fn fnv1a64_from(mut h: u64, bytes: &[u8]) -> u64 {
-    for &b in bytes {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
-}
-
-/// The hash of a scene: every file the parser read (the main file, its `Include`s, `.spd`
-/// files), contents only, in reading order (so a scene copied elsewhere keeps its hash); the
-/// embedded default scene's text when no file was read. Assets (meshes, image maps) are not
-/// hashed.
-pub fn scene_hash(desc: &SceneDescription) -> Result<String, String> {
-    let mut h = FNV_START;
-    if desc.files_read.is_empty() {
-        h = fnv1a64_from(h, pipeline::DEFAULT_SCENE.as_bytes());
-    }
-    for f in &desc.files_read {
-        let bytes = std::fs::read(f).map_err(|e| format!("cannot read {} to hash the scene: {e}", f.display()))?;
-        h = fnv1a64_from(h, &(bytes.len() as u64).to_le_bytes());
-        h = fnv1a64_from(h, &bytes);
-    }
-    Ok(format!("{h:016x}"))
-}
-
 /// What every shard of one image has in common; `merge` refuses a shard whose identity differs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Identity {
-    /// [`scene_hash`].
+    /// [`scene_identity`](crate::scene_identity::scene_identity).
     pub scene_hash: String,
     pub integrator: String,
     /// The command line's `--param` values, as given.
@@ -186,17 +159,17 @@ pub fn render_shard(
             req.index, req.count
         )));
     }
-    let hash = scene_hash(desc).map_err(PipelineError::Invalid)?;
+    let hash = scene_identity(desc).map_err(PipelineError::Invalid)?;
     let integrator = pipeline::choose_integrator(desc, opts.integrator, opts.params, warnings)?;
     if req.spp_offset.is_some() && !integrator.merges_sample_ranges() {
         return Err(PipelineError::Invalid(format!(
             "--spp-offset: {}'s estimate at a pixel depends on all of the pixel's samples (work shared \
              between them, or an image-space pass), so renders of sample ranges would not add up to one \
              render; render it at the full sample count (--tile still splits it)",
-            integrator.name()
+            pipeline::integrator_name(desc, opts.integrator)
         )));
     }
-    let mut scene = Scene::build(desc, integrator.requirements(), &opts.build, warnings)?;
+    let mut scene = build_scene(integrator.as_ref(), desc, &opts.build, warnings)?;
     let build_seconds = scene.report.total_seconds();
     let sampler = scene.sampler.name().to_string();
     if let Some(k) = req.spp_offset {
@@ -233,7 +206,7 @@ pub fn render_shard(
             format: FORMAT_VERSION,
             identity: Identity {
                 scene_hash: hash,
-                integrator: integrator.name().to_string(),
+                integrator: pipeline::integrator_name(desc, opts.integrator).to_string(),
                 params: param_identity(opts.params),
                 seed: opts.build.seed,
                 sampler,
@@ -295,7 +268,7 @@ impl Shard {
                 out.extend_from_slice(&v.to_le_bytes());
             }
         }
-        let h = fnv1a64_from(FNV_START, &out);
+        let h = fnv1a64(&out);
         out.extend_from_slice(&h.to_le_bytes());
         out
     }
@@ -306,7 +279,7 @@ impl Shard {
         }
         let (body, tail) = bytes.split_at(bytes.len() - 8);
         let stored = u64::from_le_bytes(tail.try_into().unwrap_or_default());
-        if fnv1a64_from(FNV_START, body) != stored {
+        if fnv1a64(body) != stored {
             return Err("damaged or truncated shard file (its checksum does not match)".into());
         }
         let mut at = MAGIC.len();

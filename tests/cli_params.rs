@@ -1,5 +1,5 @@
 //! Strict `--param` (issue 20 item 5), command-line locations, and the integrator parameter
-//! lists of `render --help` and the README, generated from the registry (issue 14 item 5).
+//! lists of `render --help` and docs/integrators/, generated from the registry (issue 14 item 5).
 
 mod common;
 use common::{cli_dir as dir, penumbra, stderr};
@@ -148,17 +148,35 @@ fn render_help_lists_every_integrator_and_its_parameters() {
     assert!(help.contains("nsamples: integer = 64, in 1..=1048576. occlusion rays per camera sample"), "{help}");
 }
 
+/// The README's integrator table and every integrator's page with its parameter table are
+/// generated from the registry and up to date (a newly registered integrator fails here
+/// until its page exists).
 #[test]
-fn readme_parameter_list_is_generated_from_the_registry() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/README.md");
-    let readme = std::fs::read_to_string(path).unwrap();
-    let generated = penumbra_integrators::with_generated_params(&readme).unwrap();
+fn docs_generated_from_the_registry_are_up_to_date() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let fix = "run `cargo run -p penumbra-integrators --example generate-docs`";
+    let readme = std::fs::read_to_string(format!("{root}/README.md")).unwrap();
     assert!(
-        generated == readme,
-        "README.md's integrator parameter list is out of date: run `cargo run -p penumbra-integrators --example readme-params`"
+        penumbra_integrators::with_generated_table(&readme).unwrap() == readme,
+        "README.md's integrator table is out of date: {fix}"
     );
     for e in penumbra_integrators::REGISTRY {
-        assert!(readme.contains(&format!("**`{}`**", e.name)), "{}", e.name);
+        let page_path = penumbra_integrators::doc_page(e.name);
+        assert!(readme.contains(&format!("| [`{}`]({page_path}) |", e.name)), "{}", e.name);
+        let page = std::fs::read_to_string(format!("{root}/{page_path}")).unwrap_or_else(|err| {
+            panic!("{page_path}: {err} (every registered integrator has a page; see CONTRIBUTING.md)")
+        });
+        let generated = penumbra_integrators::with_generated_params(e, &page).unwrap();
+        assert!(generated == page, "{page_path}: the parameter table is out of date: {fix}");
     }
-    assert!(readme.contains("| `\"bool shadows\"` | true |"));
+    let ltc = std::fs::read_to_string(format!("{root}/docs/integrators/ltc.md")).unwrap();
+    assert!(ltc.contains("| `\"bool shadows\"` | true |"));
+}
+
+/// README.md stays a front door (issue 33): the details live in docs/.
+#[test]
+fn readme_is_short() {
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let lines = readme.lines().count();
+    assert!(lines <= 300, "README.md has {lines} lines; move details to docs/ (at most 300)");
 }

@@ -225,9 +225,11 @@ fn info_checks_the_scene_as_render_does() {
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(out.contains("ltc builds: bvh, lights, materials"), "{out}");
     assert!(out.contains("lights: 0.") && out.contains("(1 lights)"), "{out}");
+    // A usage error (64), found before the scene is read: no summary on stdout (issue 41).
     let o = penumbra(&d, &["info", "misspelled.pbrt", "-i", "nosuch"]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(64));
     assert!(stderr(&o).contains("unknown integrator \"nosuch\""), "{}", stderr(&o));
+    assert!(o.stdout.is_empty(), "{}", String::from_utf8_lossy(&o.stdout));
     std::fs::remove_dir_all(&d).ok();
 }
 

@@ -93,9 +93,11 @@ fn expected_rays(name: &str) -> Option<(&'static [&'static str], u64, u64)> {
         // The analytic part is unshadowed; one stochastic sample, drawn from the light (a
         // shadow ray; BRDF-drawn samples, from the second on, cast one only when they meet it).
         "ratio" => (&["nsamples=1"], 1, 1),
-        // The camera ray and one shadow ray to the light (measured: 256 and 256 of 256);
-        // sample shading, so that every camera sample integrates.
-        "silhouette" => (&["shading=sample"], 1, 1),
+        // `ao` (its default here would be `shade`, whose only light goes through
+        // directlighting's estimator): the camera ray and one shadow ray through the longest
+        // visible interval (measured: 256 and 256 of 256); sample shading, so that every camera
+        // sample integrates.
+        "silhouette" => (&["mode=ao", "shading=sample"], 1, 1),
         // No environment here: the area light goes through directlighting's estimator.
         "shexp" => (&[], 1 + 2, 2),
         // Its own driver: pass 1 traces one camera ray per camera sample (the margin is clipped

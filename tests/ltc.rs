@@ -138,16 +138,31 @@ fn stiff_scenes_are_finite_and_never_brighter_than_unshadowed() {
         let u = render_path(&path, &o(&["shadows=false"]));
         let bad = r.image.data.iter().filter(|v| !v.is_finite() || **v < 0.0).count();
         assert_eq!(bad, 0, "{name}: {bad} non-finite or negative values");
-        let brighter = r.image.data.iter().zip(&u.image.data).filter(|(s, u)| **s > **u * (1.0 + 1e-5) + 1e-7).count();
+        // The glossy lobes' quadrature is exact to a relative 1e-3 of each piece (shadowed and
+        // unshadowed pieces are integrated separately: measured up to 3.1e-4 apart on
+        // grazing-light's floor).
+        let brighter = r.image.data.iter().zip(&u.image.data).filter(|(s, u)| **s > **u * (1.0 + 1e-3) + 1e-7).count();
         assert_eq!(brighter, 0, "{name}: {brighter} values brighter than unshadowed");
-        // Against pbrt-v3 (whose receivers here are partly glossy, where LTC approximates): the
-        // image mean within 10 % (measured at 16 spp: +3.5 % for extreme roughness, −1.2 % for the
-        // light at grazing incidence over plastic, ≤ 0.8 % elsewhere; the Lambertian parts are exact).
+        // Against pbrt-v3 (its 1024-spp render, box-filtered to 64², whose image mean is the
+        // full-resolution one's): the image mean within 1 % (issue 43's goal). Rendered at 64²
+        // with 256 coverage samples (camera rays only; at 16 the anti-aliasing of grazing-light's
+        // edges alone moves its mean by −0.65 %). Measured at 16 spp, coverage 256: ≤ 0.1 % on
+        // every scene (roughness-extremes +0.08 %, was +3.5 % with the LTC's α ≤ 1 table clamped;
+        // grazing-light −0.00 %).
         let reference = reference(&format!("stiff/{name}.exr"));
-        let full = render_path(&path, &Opts { integrator: Some("ltc"), spp: Some(16), ..Default::default() });
+        let full = render_path(
+            &path,
+            &Opts {
+                integrator: Some("ltc"),
+                params: &["coveragesamples=256"],
+                spp: Some(16),
+                resolution: Some((64, 64)),
+                ..Default::default()
+            },
+        );
         let rel = mean(&full.image) / mean(&reference) - 1.0;
         eprintln!("{name}: ltc vs pbrt-v3 mean {:+.2}%", rel * 100.0);
-        assert!(rel.abs() < 0.10, "{name}: mean off by {:.2}%", rel * 100.0);
+        assert!(rel.abs() < 0.01, "{name}: mean off by {:.2}%", rel * 100.0);
     }
 }
 

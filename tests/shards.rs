@@ -8,7 +8,7 @@ use common::*;
 use penumbra::pipeline::{self, RenderOptions};
 use penumbra::shard::{self, Shard, ShardRequest};
 use penumbra_core::scene::{BuildOptions, Crop};
-use penumbra_core::shard::TileLayout;
+use penumbra_core::shard_rects::TileLayout;
 use penumbra_integrators::REGISTRY;
 use penumbra_parser::{DiagSink, SceneDescription};
 use std::path::Path;

@@ -340,3 +340,43 @@ fn pixel_shading_matches_sample_shading() {
         assert!(p.image.data.iter().all(|v| v.is_finite() && *v >= 0.0));
     }
 }
+
+/// A scene lit by an area light only (issue 37 item 4, issue 32's rule): the default mode is
+/// `shade`, which takes lights other than infinite ones through `directlighting`'s estimator —
+/// the same estimate, sample for sample — and says so; never ambient occlusion in place of the
+/// scene's lighting (`-i silhouette` on `ltc/quad-cube` gave a mean of 2.2 where its light gives
+/// 0.105). A scene without lights is rendered as `ao`, with a warning.
+#[test]
+fn default_mode_shades_the_scenes_lights_and_says_how() {
+    let world = "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [4 4 4] \"bool twosided\" \"true\"\n\
+        Shape \"trianglemesh\" \"integer indices\" [0 2 1 0 3 2] \"point P\" [-1 3 -1 1 3 -1 1 3 1 -1 3 1]\nAttributeEnd\n\
+        Material \"plastic\" \"float roughness\" [0.2]\nShape \"sphere\" \"float radius\" [0.5]\nMaterial \"matte\"\n\
+        Shape \"trianglemesh\" \"integer indices\" [0 1 2 0 2 3] \"point P\" [-6 -0.5 -6 -6 -0.5 6 6 -0.5 6 6 -0.5 -6]\n";
+    let text = format!(
+        "LookAt 0 2 -4  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [40]\n\
+         Film \"image\" \"integer xresolution\" [16] \"integer yresolution\" [16]\nSampler \"halton\" \"integer pixelsamples\" [4]\n\
+         WorldBegin\n{world}WorldEnd\n"
+    );
+    let o = |integrator, params| Opts { integrator: Some(integrator), params, resolution: None, ..Default::default() };
+    let ours = render_text(&text, &o("silhouette", &["shading=sample"]));
+    let direct = render_text(&text, &o("directlighting", &[]));
+    assert_same(&ours.image.data, &direct.image.data, "silhouette (default mode) vs directlighting");
+    assert!(
+        ours.warnings.iter().any(|w| w.contains("no \"infinite\" light") && w.contains("directlighting's estimator")),
+        "no warning names the case: {:?}",
+        ours.warnings
+    );
+    let pixel = render_text(&text, &o("silhouette", &[]));
+    let rel = (mean(&pixel.image) / mean(&direct.image) - 1.0).abs();
+    assert!(rel < 0.02, "pixel shading: mean {} vs directlighting {}", mean(&pixel.image), mean(&direct.image));
+    // Without lights: ambient occlusion (π on an open plane), and a warning.
+    let r = render_text(
+        "LookAt 0 5 0  0 0 0  0 0 1\nCamera \"orthographic\" \"float screenwindow\" [-1e-4 1e-4 -1e-4 1e-4]\n\
+         Film \"image\" \"integer xresolution\" [1] \"integer yresolution\" [1]\nSampler \"halton\" \"integer pixelsamples\" [1]\n\
+         WorldBegin\nMaterial \"matte\"\n\
+         Shape \"trianglemesh\" \"integer indices\" [0 1 2 0 2 3] \"point P\" [-6 0 -6 -6 0 6 6 0 6 6 0 -6]\nWorldEnd\n",
+        &o("silhouette", &["resolution=16"]),
+    );
+    assert!((r.image.data[0] as f64 - PI).abs() < 1e-5, "{}", r.image.data[0]);
+    assert!(r.warnings.iter().any(|w| w.contains("no lights") && w.contains("ambient occlusion")), "{:?}", r.warnings);
+}

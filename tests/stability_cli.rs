@@ -162,9 +162,12 @@ fn a_fixed_ray_epsilon_is_flagged_by_scale_and_translation() {
 #[test]
 fn bad_options_exit_4() {
     let out = out_dir("bad");
+    // An unknown integrator name is a usage error (64) in every subcommand, with the nearest
+    // name suggested (tests/cli_new_user.rs).
+    let o = stability("scenes/suite/stiff/grazing-light.pbrt", &["-i", "nope"], &out);
+    assert_eq!(o.status.code(), Some(64), "{}", text(&o.stderr));
     for args in [
         &["-i", "ltc", "--fail-on", "zz=1"][..],
-        &["-i", "nope"][..],
         &["-i", "ltc", "--variants", "spin"][..],
         &["-i", "ltc", "--scales", "0"][..],
     ] {

@@ -283,3 +283,58 @@ fn planned_items_collect_to_the_sweeps_rows() {
     let _ = std::fs::remove_dir_all(&plain);
     let _ = std::fs::remove_dir_all(&fanned);
 }
+
+/// The cached `--reference-spp` reference belongs to the scene as a whole: editing a file the
+/// scene includes, or a PLY mesh it names, makes the next sweep render a new reference instead
+/// of reusing the stale one (the cache key is the scene identity shards use too).
+#[test]
+fn editing_an_included_file_or_a_mesh_invalidates_the_cached_reference() {
+    let dir = out_dir("identity");
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("main.pbrt");
+    std::fs::write(
+        &scene,
+        "LookAt 0 4 -6  0 0.5 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 40 ]\n\
+         Sampler \"halton\" \"integer pixelsamples\" [ 4 ]\nWorldBegin\n\
+         AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [ 8 8 8 ]\n  Shape \"trianglemesh\" \
+         \"integer indices\" [ 0 1 2 0 2 3 ] \"point P\" [ -1 3 -1 1 3 -1 1 3 1 -1 3 1 ]\nAttributeEnd\n\
+         Include \"objects.pbrt\"\nWorldEnd\n",
+    )
+    .unwrap();
+    let objects = |kd: f32| {
+        format!(
+            "Material \"matte\" \"rgb Kd\" [ {kd} {kd} {kd} ]\nShape \"plymesh\" \"string filename\" \"floor.ply\"\n"
+        )
+    };
+    let ply = |y: f32| {
+        format!(
+            "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+             element face 2\nproperty list uchar int vertex_indices\nend_header\n\
+             -4 {y} -4\n4 {y} -4\n4 {y} 4\n-4 {y} 4\n3 0 2 1\n3 0 3 2\n"
+        )
+    };
+    std::fs::write(dir.join("objects.pbrt"), objects(0.5)).unwrap();
+    std::fs::write(dir.join("floor.ply"), ply(0.0)).unwrap();
+    let out = dir.join("out");
+    let run = || {
+        let o = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+            .arg("sweep")
+            .arg(&scene)
+            .args(["-i", "directlighting", "--reference-spp", "4", "--budgets", "1", "--resolution", "8x8", "-o"])
+            .arg(&out)
+            .output()
+            .expect("run penumbra");
+        let stderr = text(&o.stderr);
+        assert!(o.status.success(), "{}\n{stderr}", text(&o.stdout));
+        let cached = std::fs::read_dir(out.join("cache")).unwrap().count();
+        (stderr.contains("using cached reference"), cached)
+    };
+    assert_eq!(run(), (false, 1), "the first sweep renders its reference");
+    assert_eq!(run(), (true, 1), "an unchanged scene reuses it");
+    std::fs::write(dir.join("objects.pbrt"), objects(0.25)).unwrap();
+    assert_eq!(run(), (false, 2), "an edited include renders a new one");
+    std::fs::write(dir.join("floor.ply"), ply(-0.5)).unwrap();
+    assert_eq!(run(), (false, 3), "an edited mesh renders a new one");
+    assert_eq!(run(), (true, 3));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -7,11 +7,19 @@
 //! instead of NaN or infinity; elsewhere the values are pbrt-v3's.
 
 use crate::microfacet::{cos_phi, sin_phi, sin_theta, MicrofacetDistribution};
-use crate::phase::Phase;
+use crate::profiling::Phase;
 use crate::spectrum::Rgb;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 use std::ops::BitOr;
+
+pub mod disney;
+pub mod fourier;
+pub mod hair;
+
+pub use disney::DisneyLobe;
+pub use fourier::{FourierBxdf, FourierTable};
+pub use hair::HairBxdf;
 
 /// The largest f32 below 1 (pbrt-v3's `OneMinusEpsilon`).
 pub const ONE_MINUS_EPSILON: f32 = 0.999_999_94;
@@ -202,6 +210,13 @@ pub enum Fresnel {
         eta_t: Rgb,
         k: Rgb,
     },
+    /// `disney`'s specular Fresnel (pbrt-v3's `DisneyFresnel`): the dielectric term of index
+    /// `eta` blended by `metallic` into Schlick's with normal-incidence reflectance `r0`.
+    Disney {
+        r0: Rgb,
+        metallic: f32,
+        eta: f32,
+    },
 }
 
 impl Fresnel {
@@ -211,6 +226,9 @@ impl Fresnel {
             Fresnel::NoOp => Rgb::ONE,
             Fresnel::Dielectric { eta_i, eta_t } => Rgb::splat(fr_dielectric(cos_i, eta_i, eta_t)),
             Fresnel::Conductor { eta_i, eta_t, k } => fr_conductor(cos_i.abs(), eta_i, eta_t, k),
+            Fresnel::Disney { r0, metallic, eta } => {
+                Rgb::splat(fr_dielectric(cos_i, 1.0, eta)) * (1.0 - metallic) + disney::fr_schlick(r0, cos_i) * metallic
+            }
         }
     }
 }
@@ -266,6 +284,18 @@ pub enum Bxdf {
         rs: Rgb,
         distribution: MicrofacetDistribution,
     },
+    /// The diffuse, retro-reflection, sheen and clearcoat lobes of `disney` ([`disney`]).
+    Disney(DisneyLobe),
+    /// `hair`'s fibre scattering ([`hair`]).
+    Hair(HairBxdf),
+    /// `fourier`'s tabulated BSDF ([`fourier`]).
+    Fourier(FourierBxdf),
+    /// Where a BSSRDF's light leaves the surface (pbrt-v3's `SeparableBSSRDFAdapter`): the
+    /// directional term `Sw` of a separable BSSRDF of relative index `eta` ([`crate::bssrdf`]).
+    SubsurfaceExit {
+        eta: f32,
+        mode: TransportMode,
+    },
 }
 
 impl Bxdf {
@@ -318,6 +348,10 @@ impl Bxdf {
             Bxdf::FresnelSpecular { .. } => F::REFLECTION | F::TRANSMISSION | F::SPECULAR,
             Bxdf::MicrofacetReflection { .. } | Bxdf::FresnelBlend { .. } => F::REFLECTION | F::GLOSSY,
             Bxdf::MicrofacetTransmission { .. } => F::TRANSMISSION | F::GLOSSY,
+            Bxdf::Disney(l) => l.flags(),
+            Bxdf::Hair(h) => h.flags(),
+            Bxdf::Fourier(b) => b.flags(),
+            Bxdf::SubsurfaceExit { .. } => F::REFLECTION | F::DIFFUSE,
         }
     }
 
@@ -411,6 +445,13 @@ impl Bxdf {
                 let specular = distribution.d(wh) / (4.0 * wi.dot(wh).abs() * wi.z.abs().max(wo.z.abs())) * schlick;
                 diffuse + finite_or_zero(specular)
             }
+            Bxdf::Disney(l) => l.f(wo, wi),
+            Bxdf::Hair(h) => h.f(wo, wi),
+            Bxdf::Fourier(b) => b.f(wo, wi),
+            Bxdf::SubsurfaceExit { eta, mode } => {
+                let f = crate::bssrdf::sw(wi.z, eta);
+                Rgb::splat(if mode == TransportMode::Radiance { f * eta * eta } else { f })
+            }
         }
     }
 
@@ -431,7 +472,7 @@ impl Bxdf {
                 let d = distribution.d(wh);
                 let lambda_o = distribution.lambda(wo);
                 let f = if has_f {
-                    let g = 1.0 / (1.0 + lambda_o + distribution.lambda(wi));
+                    let g = distribution.g_of_lambdas(lambda_o, distribution.lambda(wi));
                     let fr = fresnel.evaluate(wi.dot(toward_normal(wh)));
                     finite_or_zero(r * d * g * fr / (4.0 * cos_i * cos_o))
                 } else {
@@ -466,7 +507,7 @@ impl Bxdf {
 
     fn pdf_raw(&self, wo: Vec3, wi: Vec3) -> f32 {
         match *self {
-            Bxdf::LambertianReflection { .. } | Bxdf::OrenNayar { .. } => {
+            Bxdf::LambertianReflection { .. } | Bxdf::OrenNayar { .. } | Bxdf::SubsurfaceExit { .. } => {
                 if same_hemisphere(wo, wi) {
                     wi.z.abs() * FRAC_1_PI
                 } else {
@@ -519,6 +560,9 @@ impl Bxdf {
                 let pdf_wh = distribution.pdf(wo, wh);
                 0.5 * (wi.z.abs() * FRAC_1_PI + finite_pdf(pdf_wh / (4.0 * wo.dot(wh))))
             }
+            Bxdf::Disney(l) => l.pdf(wo, wi),
+            Bxdf::Hair(h) => h.pdf(wo, wi),
+            Bxdf::Fourier(b) => b.pdf(wo, wi),
         }
     }
 
@@ -547,7 +591,7 @@ impl Bxdf {
             }
         };
         match *self {
-            Bxdf::LambertianReflection { .. } | Bxdf::OrenNayar { .. } => {
+            Bxdf::LambertianReflection { .. } | Bxdf::OrenNayar { .. } | Bxdf::SubsurfaceExit { .. } => {
                 let mut wi = cosine_sample_hemisphere(u);
                 if wo.z < 0.0 {
                     wi.z = -wi.z;
@@ -638,6 +682,39 @@ impl Bxdf {
                 };
                 lobe(wi)
             }
+            Bxdf::Disney(l) => lobe(l.sample_wi(wo, u)?),
+            Bxdf::Hair(h) => lobe(h.sample_wi(wo, u)?),
+            Bxdf::Fourier(b) => lobe(b.sample_wi(wo, u)?),
+        }
+    }
+
+    /// The lobe with its value multiplied by `s` (pbrt-v3's `ScaledBxDF`, for `mix`): exact for
+    /// every lobe but `FresnelBlend`, whose value is affine, not linear, in its colours (see
+    /// the `material` module notes).
+    pub fn scaled(self, s: Rgb) -> Bxdf {
+        match self {
+            Bxdf::LambertianReflection { r } => Bxdf::LambertianReflection { r: r * s },
+            Bxdf::LambertianTransmission { t } => Bxdf::LambertianTransmission { t: t * s },
+            Bxdf::OrenNayar { r, a, b } => Bxdf::OrenNayar { r: r * s, a, b },
+            Bxdf::SpecularReflection { r, fresnel } => Bxdf::SpecularReflection { r: r * s, fresnel },
+            Bxdf::SpecularTransmission { t, eta_a, eta_b, mode } => {
+                Bxdf::SpecularTransmission { t: t * s, eta_a, eta_b, mode }
+            }
+            Bxdf::FresnelSpecular { r, t, eta_a, eta_b, mode } => {
+                Bxdf::FresnelSpecular { r: r * s, t: t * s, eta_a, eta_b, mode }
+            }
+            Bxdf::MicrofacetReflection { r, distribution, fresnel } => {
+                Bxdf::MicrofacetReflection { r: r * s, distribution, fresnel }
+            }
+            Bxdf::MicrofacetTransmission { t, distribution, eta_a, eta_b, mode } => {
+                Bxdf::MicrofacetTransmission { t: t * s, distribution, eta_a, eta_b, mode }
+            }
+            Bxdf::FresnelBlend { rd, rs, distribution } => Bxdf::FresnelBlend { rd: rd * s, rs: rs * s, distribution },
+            Bxdf::Disney(l) => Bxdf::Disney(l.scaled(s)),
+            Bxdf::Hair(h) => Bxdf::Hair(h.scaled(s)),
+            Bxdf::Fourier(b) => Bxdf::Fourier(b.scaled(s)),
+            // Only `path` builds it, at a BSSRDF's exit point, never inside a `mix`.
+            Bxdf::SubsurfaceExit { .. } => self,
         }
     }
 }
@@ -761,7 +838,7 @@ impl Bsdf {
     /// surface). Reflection lobes count when `wo` and `wi` are on the same side of
     /// the *geometric* normal, transmission lobes otherwise (pbrt-v3).
     pub fn f(&self, wo_w: Vec3, wi_w: Vec3, flags: BxdfFlags) -> Rgb {
-        crate::phase::timed(Phase::Shading, || {
+        crate::profiling::timed(Phase::Shading, || {
             let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
             if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
                 return Rgb::ZERO;
@@ -772,7 +849,7 @@ impl Bsdf {
 
     /// `(self.f(wo_w, wi_w, flags), self.pdf(wo_w, wi_w, flags))`, bit for bit, in one pass.
     pub fn f_pdf(&self, wo_w: Vec3, wi_w: Vec3, flags: BxdfFlags) -> (Rgb, f32) {
-        crate::phase::timed(Phase::Shading, || {
+        crate::profiling::timed(Phase::Shading, || {
             let (wo, wi) = (self.world_to_local(wo_w), self.world_to_local(wi_w));
             if wo.z == 0.0 || !wo.is_finite() || !wi.is_finite() {
                 return (Rgb::ZERO, 0.0);
@@ -797,7 +874,7 @@ impl Bsdf {
 
     /// Average of the matching lobes' densities (pbrt-v3's `BSDF::Pdf`).
     pub fn pdf(&self, wo_w: Vec3, wi_w: Vec3, flags: BxdfFlags) -> f32 {
-        crate::phase::timed(Phase::Shading, || {
+        crate::profiling::timed(Phase::Shading, || {
             if self.n == 0 {
                 return 0.0;
             }
@@ -825,7 +902,7 @@ impl Bsdf {
     /// pdf is the average over all matching lobes and `f` the sum of the matching
     /// lobes selected by the geometric normal, as [`Bsdf::pdf`] and [`Bsdf::f`].
     pub fn sample_f(&self, wo_w: Vec3, u: Vec2, flags: BxdfFlags) -> Option<BsdfSample> {
-        crate::phase::timed(Phase::Shading, || {
+        crate::profiling::timed(Phase::Shading, || {
             let matching = self.num_components(flags);
             if matching == 0 {
                 return None;

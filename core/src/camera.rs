@@ -1,8 +1,9 @@
 //! Cameras with pbrt-v3's conventions: left-handed camera space looking down
 //! +z, `fov` spanning the shorter image axis, the screen window, thin lenses.
 
-use crate::geometry::Ray;
-use glam::{DVec3, Vec2, Vec3};
+use crate::geometry::{Ray, RayDifferential, RayOffsets};
+use crate::motion::Motion;
+use glam::{DMat4, DVec3, Vec2, Vec3};
 use penumbra_parser::{CameraDesc, DiagSink, Diagnostic, Transform};
 
 /// A point on the film (absolute raster coordinates of the full image), the lens and time.
@@ -26,13 +27,23 @@ pub enum Projection {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
     pub projection: Projection,
+    /// The camera's transform at shutter open (`ActiveTransform StartTime`).
     pub world_from_camera: Transform,
+    /// The camera's motion when its transform is animated (pbrt-v3's `CameraToWorld`
+    /// `AnimatedTransform`): each ray takes the transform at its time.
+    pub motion: Option<Motion>,
     pub resolution: (u32, u32),
     /// `[x0, x1, y0, y1]` in screen space.
     pub screen_window: [f32; 4],
     pub lens_radius: f32,
     pub focal_distance: f32,
     pub shutter: (f32, f32),
+    /// The sample count the ray differentials are scaled for (`None`: the render's own).
+    /// pbrt-v3 scales them by 1/√spp, so its texture filtering depends on the sample count and
+    /// the resolution; a render compared with a reference made at another count or resolution
+    /// sets this so that both filter textures over the same footprint (`tests/matrix`: a
+    /// reference at 2× the resolution and N spp filters as 1× at 4N).
+    pub footprint_spp: Option<u32>,
 }
 
 fn concentric_disk(u: Vec2) -> Vec2 {
@@ -54,10 +65,12 @@ impl Camera {
     pub fn from_desc(desc: &CameraDesc, resolution: (u32, u32), warnings: &DiagSink) -> Result<Camera, Diagnostic> {
         let p = &desc.entity.params;
         let loc = Some(desc.entity.loc.clone());
-        if desc.world_from_camera.is_animated() {
+        let motion = Motion::new(&desc.world_from_camera);
+        if desc.world_from_camera.is_animated() && motion.is_none() {
             warnings.warn(
                 loc.clone(),
-                "animated camera transform: motion blur is not supported; using the transform at shutter open",
+                "animated camera transform with a singular keyframe or TransformTimes end <= start: no motion \
+                 blur, using the transform at shutter open",
             );
         }
         let mut shutter = (p.get_one_float("shutteropen", 0.0), p.get_one_float("shutterclose", 1.0));
@@ -124,61 +137,147 @@ impl Camera {
         Ok(Camera {
             projection,
             world_from_camera: desc.world_from_camera.start,
+            motion,
             resolution: (resolution.0.max(1), resolution.1.max(1)),
             screen_window: screen,
             lens_radius,
             focal_distance,
             shutter,
+            footprint_spp: None,
         })
     }
 
-    /// The camera ray for a film sample, in world space, with a unit direction.
     /// Whether [`Camera::generate_ray`] reads `CameraSample::p_lens` (a thin lens).
     pub fn uses_lens(&self) -> bool {
         self.lens_radius > 0.0
     }
 
-    /// Whether [`Camera::generate_ray`] reads `CameraSample::time` (it does not: camera
-    /// transforms are static).
+    /// Whether [`Camera::generate_ray`] reads `CameraSample::time` (when the camera moves).
     pub fn uses_time(&self) -> bool {
-        false
+        self.motion.is_some()
     }
 
+    /// The world-from-camera matrix of a sample's time (`CameraSample::time` in [0, 1) maps
+    /// onto the shutter interval as pbrt-v3's `Lerp(sample.time, shutterOpen, shutterClose)`).
+    fn world_from_camera_at(&self, time: f32) -> CameraToWorld<'_> {
+        match &self.motion {
+            Some(m) => CameraToWorld::Moving(m.at(self.shutter.0 + time * (self.shutter.1 - self.shutter.0))),
+            None => CameraToWorld::Fixed(&self.world_from_camera),
+        }
+    }
+
+    /// The camera ray for a film sample, in world space, with a unit direction.
     pub fn generate_ray(&self, s: &CameraSample) -> Ray {
-        let (w, h) = (self.resolution.0 as f32, self.resolution.1 as f32);
-        let (o, d) = match self.projection {
+        let (o, d) = self.camera_space_ray(s.p_film, s.p_lens);
+        self.to_world(&self.world_from_camera_at(s.time), o, d)
+    }
+
+    /// The camera ray with its offset rays one pixel step away in x and y (pbrt-v3's
+    /// `GenerateRayDifferential`; the caller scales them to the sample spacing with
+    /// [`RayDifferential::scale_offsets`]). Perspective and orthographic cameras shift the
+    /// film point by one pixel through the same lens point, as pbrt-v3's do; the environment
+    /// camera takes pbrt-v3's generic `Camera::GenerateRayDifferential`, a finite difference
+    /// over 0.05 pixel.
+    pub fn generate_ray_differential(&self, s: &CameraSample) -> RayDifferential {
+        let (o, d) = self.camera_space_ray(s.p_film, s.p_lens);
+        let m = self.world_from_camera_at(s.time);
+        let ray = self.to_world(&m, o, d);
+        let shifted = |dx: f32, dy: f32| self.camera_space_ray(s.p_film + Vec2::new(dx, dy), s.p_lens);
+        let offsets = match self.projection {
+            Projection::Perspective { .. } | Projection::Orthographic => {
+                let ((rx_o, rx_d), (ry_o, ry_d)) = (shifted(1.0, 0.0), shifted(0.0, 1.0));
+                Some(self.offsets_to_world(&m, rx_o, rx_d, ry_o, ry_d))
+            }
             Projection::Environment => {
-                let theta = std::f32::consts::PI * s.p_film.y / h;
-                let phi = 2.0 * std::f32::consts::PI * s.p_film.x / w;
+                const EPS: f32 = 0.05;
+                let rx = self.generate_ray(&CameraSample { p_film: s.p_film + Vec2::new(EPS, 0.0), ..*s });
+                let ry = self.generate_ray(&CameraSample { p_film: s.p_film + Vec2::new(0.0, EPS), ..*s });
+                Some(RayOffsets {
+                    rx_o: ray.o + (rx.o - ray.o) / EPS,
+                    rx_d: ray.d + (rx.d - ray.d) / EPS,
+                    ry_o: ray.o + (ry.o - ray.o) / EPS,
+                    ry_d: ray.d + (ry.d - ray.d) / EPS,
+                })
+            }
+        };
+        RayDifferential { ray, offsets }
+    }
+
+    /// The camera ray as the render driver hands it to estimators: with its offset rays scaled
+    /// by `1/√spp` (pbrt-v3's `ScaleDifferentials`), so they span the spacing of a pixel's
+    /// `spp` samples ([`Camera::footprint_spp`] in place of `spp` when set).
+    pub fn sample_ray(&self, s: &CameraSample, spp: u32) -> RayDifferential {
+        let mut ray = self.generate_ray_differential(s);
+        ray.scale_offsets(1.0 / (self.footprint_spp.unwrap_or(spp).max(1) as f32).sqrt());
+        ray
+    }
+
+    /// Camera-space origin and (unnormalised) direction of the ray through film point
+    /// `p_film` and lens point `p_lens`.
+    fn camera_space_ray(&self, p_film: Vec2, p_lens: Vec2) -> (Vec3, Vec3) {
+        let (w, h) = (self.resolution.0 as f32, self.resolution.1 as f32);
+        match self.projection {
+            Projection::Environment => {
+                let theta = std::f32::consts::PI * p_film.y / h;
+                let phi = 2.0 * std::f32::consts::PI * p_film.x / w;
                 (Vec3::ZERO, Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()))
             }
             _ => {
                 let [x0, x1, y0, y1] = self.screen_window;
-                let sx = x0 + (s.p_film.x / w) * (x1 - x0);
-                let sy = y1 - (s.p_film.y / h) * (y1 - y0);
+                let sx = x0 + (p_film.x / w) * (x1 - x0);
+                let sy = y1 - (p_film.y / h) * (y1 - y0);
                 let (mut o, mut d) = match self.projection {
-                    // Not normalised here: the world direction is normalised once, below.
+                    // Not normalised here: the world direction is normalised once, in `to_world`.
                     Projection::Perspective { tan_half_fov } => {
                         (Vec3::ZERO, Vec3::new(sx * tan_half_fov, sy * tan_half_fov, 1.0))
                     }
                     _ => (Vec3::new(sx, sy, 0.0), Vec3::Z),
                 };
                 if self.lens_radius > 0.0 {
-                    let lens = self.lens_radius * concentric_disk(s.p_lens);
+                    let lens = self.lens_radius * concentric_disk(p_lens);
                     // The plane of focus is z = focal_distance in camera space.
                     let focus = o + d * (self.focal_distance / d.z);
-                    o = Vec3::new(o.x + lens.x, o.y + lens.y, 0.0);
+                    // pbrt-v3 starts the ray at the lens point itself, for the orthographic
+                    // camera too (not at the film point moved by it): its orthographic depth
+                    // of field converges every ray through the lens disk at the camera's
+                    // origin, whatever its screen window. penumbra renders what pbrt-v3
+                    // renders (the conformance cell camera-orthographic-dof was −16 %).
+                    o = Vec3::new(lens.x, lens.y, 0.0);
                     d = focus - o;
                 }
                 (o, d)
             }
-        };
-        let t = &self.world_from_camera;
-        let ow = t.apply_point([o.x as f64, o.y as f64, o.z as f64]);
-        let dw = t.apply_vector([d.x as f64, d.y as f64, d.z as f64]);
-        let dw = DVec3::from(dw).normalize_or_zero();
-        Ray::new(DVec3::from(ow).as_vec3(), dw.as_vec3(), f32::INFINITY)
+        }
     }
+
+    fn to_world(&self, m: &CameraToWorld, o: Vec3, d: Vec3) -> Ray {
+        let (ow, dw) = point_and_direction_to_world(m, o, d);
+        Ray::new(ow, dw, f32::INFINITY)
+    }
+
+    fn offsets_to_world(&self, m: &CameraToWorld, rx_o: Vec3, rx_d: Vec3, ry_o: Vec3, ry_d: Vec3) -> RayOffsets {
+        let (rx_o, rx_d) = point_and_direction_to_world(m, rx_o, rx_d);
+        let (ry_o, ry_d) = point_and_direction_to_world(m, ry_o, ry_d);
+        RayOffsets { rx_o, rx_d, ry_o, ry_d }
+    }
+}
+
+/// The camera's transform at one time.
+enum CameraToWorld<'a> {
+    Fixed(&'a Transform),
+    Moving(DMat4),
+}
+
+/// A camera-space point and direction in world space by `m` (the direction normalised).
+fn point_and_direction_to_world(m: &CameraToWorld, o: Vec3, d: Vec3) -> (Vec3, Vec3) {
+    let (ow, dw) = match m {
+        CameraToWorld::Fixed(t) => (
+            DVec3::from(t.apply_point([o.x as f64, o.y as f64, o.z as f64])),
+            DVec3::from(t.apply_vector([d.x as f64, d.y as f64, d.z as f64])),
+        ),
+        CameraToWorld::Moving(m) => (m.project_point3(o.as_dvec3()), m.transform_vector3(d.as_dvec3())),
+    };
+    (ow.as_vec3(), dw.normalize_or_zero().as_vec3())
 }
 
 #[cfg(test)]
@@ -223,5 +322,63 @@ mod tests {
         let e = cam("environment", ParamSet::new(), (200, 100));
         let up = e.generate_ray(&sample(0.0, 0.0));
         assert!((up.d - Vec3::Y).length() < 1e-5);
+    }
+
+    /// The offset rays of each projection, turned into the differentials of a plane facing the
+    /// camera at distance 5 with u = x/2, v = y/3: the pixel footprint on the plane in closed
+    /// form (one pixel of the screen window at that distance, over √spp).
+    #[test]
+    fn differentials_on_a_facing_plane_are_the_pixel_footprint() {
+        use crate::interaction::SurfaceInteraction;
+        let res = 64u32;
+        let spp = 16u32;
+        let plane_hit = |r: &RayDifferential| {
+            let t = -r.o.z / r.d.z;
+            let p = r.o + t * r.d;
+            let mut si = SurfaceInteraction {
+                p,
+                n: -Vec3::Z,
+                uv: Vec2::new(p.x / 2.0, p.y / 3.0),
+                dpdu: Vec3::new(2.0, 0.0, 0.0),
+                dpdv: Vec3::new(0.0, 3.0, 0.0),
+                ..Default::default()
+            };
+            si.compute_differentials(r);
+            si.diff
+        };
+        let mut fov90 = ParamSet::new();
+        fov90.add(Param::new("fov", ParamValue::Float(vec![90.0]), penumbra_parser::FileLoc::builtin()));
+        // Perspective, fov 90 on a square image: the screen window [-1, 1]² spans 10 at distance 5.
+        let mut ortho = ParamSet::new();
+        ortho.add(Param::new(
+            "screenwindow",
+            ParamValue::Float(vec![-2.0, 2.0, -2.0, 2.0]),
+            penumbra_parser::FileLoc::builtin(),
+        ));
+        for (kind, params, span) in [("perspective", fov90, 10.0f32), ("orthographic", ortho, 4.0)] {
+            let c = cam(kind, params, (res, res));
+            let centre = sample(res as f32 / 2.0, res as f32 / 2.0);
+            let d = plane_hit(&c.sample_ray(&centre, spp));
+            let step = span / res as f32 / (spp as f32).sqrt();
+            let close = |a: f32, b: f32| (a.abs() - b).abs() <= 2e-3 * b;
+            assert!(close(d.dpdx.length(), step) && close(d.dpdy.length(), step), "{kind}: {d:?} vs {step}");
+            assert!(close(d.dudx, step / 2.0) && close(d.dvdy, step / 3.0), "{kind}: {d:?}");
+            assert!(d.dvdx.abs() < 1e-6 && d.dudy.abs() < 1e-6, "{kind}: {d:?}");
+            // Without scaling: one whole pixel.
+            let full = plane_hit(&c.generate_ray_differential(&centre));
+            assert!(close(full.dpdx.length(), span / res as f32), "{kind}: {full:?}");
+            // `footprint_spp` replaces the render's count: 2048 at 64 spp spans 1/√2048 pixel.
+            let c2048 = Camera { footprint_spp: Some(2048), ..c.clone() };
+            let f = plane_hit(&c2048.sample_ray(&centre, 64));
+            assert!(close(f.dpdx.length(), span / res as f32 / 2048f32.sqrt()), "{kind}: {f:?}");
+        }
+        // The environment camera's offsets are a 0.05-pixel finite difference of its directions:
+        // at the equator, one pixel in x turns the direction by 2π/width.
+        let e = cam("environment", ParamSet::new(), (128, 64));
+        let r = e.generate_ray_differential(&sample(17.3, 32.0));
+        let o = r.offsets.unwrap();
+        let turn = (o.rx_d - r.d).length();
+        assert!((turn - std::f32::consts::TAU / 128.0).abs() < 2e-3 * turn, "{turn}");
+        assert!((o.ry_d - r.d).length() > 0.0 && o.rx_o == r.o);
     }
 }

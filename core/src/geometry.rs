@@ -20,6 +20,69 @@ impl Ray {
     }
 }
 
+/// The rays one pixel step away in x and in y that travel beside a [`RayDifferential`]'s
+/// main ray (pbrt-v3's `rxOrigin`, `rxDirection`, `ryOrigin`, `ryDirection`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayOffsets {
+    pub rx_o: Vec3,
+    pub rx_d: Vec3,
+    pub ry_o: Vec3,
+    pub ry_d: Vec3,
+}
+
+/// A ray with, optionally, its offset rays (pbrt-v3's `RayDifferential`): camera rays have
+/// them (scaled to the pixel's sample spacing), rays perfectly specular bounces spawn from a
+/// ray with offsets carry them on, every other ray has none. Dereferences to the main ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayDifferential {
+    pub ray: Ray,
+    pub offsets: Option<RayOffsets>,
+}
+
+impl RayDifferential {
+    /// A ray without offset rays.
+    pub fn plain(ray: Ray) -> Self {
+        RayDifferential { ray, offsets: None }
+    }
+
+    /// pbrt-v3's `ScaleDifferentials`: moves the offset rays' origins and directions towards
+    /// the main ray's by the factor `s` (`1/√spp` for camera rays).
+    pub fn scale_offsets(&mut self, s: f32) {
+        let (o, d) = (self.ray.o, self.ray.d);
+        if let Some(r) = &mut self.offsets {
+            r.rx_o = o + (r.rx_o - o) * s;
+            r.ry_o = o + (r.ry_o - o) * s;
+            r.rx_d = d + (r.rx_d - d) * s;
+            r.ry_d = d + (r.ry_d - d) * s;
+        }
+    }
+}
+
+impl From<Ray> for RayDifferential {
+    fn from(ray: Ray) -> Self {
+        RayDifferential::plain(ray)
+    }
+}
+
+impl AsRef<Ray> for Ray {
+    fn as_ref(&self) -> &Ray {
+        self
+    }
+}
+
+impl AsRef<Ray> for RayDifferential {
+    fn as_ref(&self) -> &Ray {
+        &self.ray
+    }
+}
+
+impl std::ops::Deref for RayDifferential {
+    type Target = Ray;
+    fn deref(&self) -> &Ray {
+        &self.ray
+    }
+}
+
 /// pbrt-v3's γ(n) = nε / (1 − nε) with ε = 2⁻²⁴.
 #[inline]
 pub fn gamma(n: i32) -> f32 {

@@ -3,7 +3,7 @@
 use crate::camera::CameraSample;
 use crate::film::Film;
 use crate::geometry::Bounds2i;
-use crate::geometry::Ray;
+use crate::geometry::RayDifferential;
 use crate::sampler::Sampler;
 use crate::scene::{BuildOptions, Requirements, Scene};
 use crate::Rgb;
@@ -74,13 +74,14 @@ pub struct RenderStats {
     pub threads: usize,
     /// Integrator-specific figures.
     pub counters: BTreeMap<String, f64>,
-    /// Calls and estimated thread-seconds per phase ([`crate::phase`]), filled in by whoever
-    /// runs the integrator (`penumbra render`), from [`crate::phase::take`].
-    pub phases: crate::phase::Phases,
+    /// Calls and estimated thread-seconds per phase ([`crate::profiling`]), filled in by whoever
+    /// runs the integrator (`penumbra render`), from [`crate::profiling::take`].
+    pub phases: crate::profiling::Phases,
 }
 
+/// An integrator: what it needs built, and its render. Its name, parameters and natural
+/// reference are the registry's (`penumbra_integrators::REGISTRY`), not the integrator's.
 pub trait Integrator: Send + Sync {
-    fn name(&self) -> &str;
     /// What the scene build must provide.
     fn requirements(&self) -> Requirements;
     /// Builds what this integrator's own method needs over the built scene (a structure no
@@ -165,8 +166,9 @@ pub enum RadianceBound {
     /// Every value is at most this (e.g. ambient occlusion's hemisphere integral).
     Constant(f32),
     /// Every pixel is at most the same pixel rendered by this integrator with the same scene
-    /// and samples (e.g. `ltc` without shadows: the unshadowed value).
-    Image(Box<dyn Integrator>),
+    /// and samples (e.g. `ltc` without shadows: the unshadowed value), up to the relative
+    /// tolerance given (the two renders' numerical precision).
+    Image(Box<dyn Integrator>, f32),
 }
 
 /// A per-pixel-sample estimator; [`render_pixels`] gives it a whole `render`.
@@ -176,16 +178,18 @@ pub trait PixelEstimator: Send + Sync {
     type Shared: Send;
     /// Request sample arrays before rendering (pbrt-v3's `Request*Array`), on the prototype sampler.
     fn request_samples(&self, _sampler: &mut dyn Sampler) {}
-    /// Radiance along a camera ray; `aov` holds the integrator's extra channels for this sample.
-    /// The driver has counted the camera ray (see [`ThreadStats`]).
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb;
+    /// Radiance along a camera ray. The driver has counted the camera ray (see [`ThreadStats`]).
+    /// The ray carries its offset rays, scaled by `1/√spp` as pbrt-v3 scales them
+    /// ([`Scene::first_point`] turns them into the surface's differentials, for texture
+    /// filtering and bump mapping).
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb;
     /// Work shared by all samples of one pixel (e.g. `ltc` shading each surface seen in the
     /// pixel once): called with the pixel's camera samples and their rays, in sample order,
     /// before any of its samples is estimated. `Some` makes the driver call [`li_shared`](Self::li_shared)
     /// instead of `li` for that pixel. Only called when [`shares_pixel_work`](Self::shares_pixel_work).
     fn begin_pixel(
         &self,
-        _rays: &[Ray],
+        _rays: &[RayDifferential],
         _samples: &[CameraSample],
         _scene: &Scene,
         _stats: &mut ThreadStats,
@@ -204,19 +208,20 @@ pub trait PixelEstimator: Send + Sync {
     }
     /// `li` for sample `index` (`< rays.len()` of `begin_pixel`) of a pixel whose shared work
     /// is `shared`.
-    #[allow(clippy::too_many_arguments)]
-    fn li_shared(
-        &self,
-        ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-        _shared: &Self::Shared,
-        _index: usize,
-    ) -> Rgb {
-        self.li(ray, scene, sampler, stats, aov)
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, _shared: &Self::Shared, _index: usize) -> Rgb {
+        self.li(ray, cx)
     }
+}
+
+/// What a [`PixelEstimator`]'s per-sample call works with besides the ray.
+pub struct SampleContext<'a> {
+    pub scene: &'a Scene,
+    /// The pixel's sampler, at this sample (the camera sample's dimensions drawn).
+    pub sampler: &'a mut dyn Sampler,
+    /// This thread's counters.
+    pub stats: &'a mut ThreadStats,
+    /// The integrator's extra channels for this sample (zero on entry).
+    pub aov: &'a mut [f32],
 }
 
 /// The tiles covering `bounds`, on the fixed grid, in raster order.
@@ -246,17 +251,17 @@ pub fn draw_camera_sample(sampler: &mut dyn Sampler, p: IVec2, uses_time: bool, 
     CameraDims { uses_time, uses_lens }.sample(sampler, p, true)
 }
 
-/// Runs `f` on a pool of `threads` workers (0: all cores); each worker's [`crate::phase`]
+/// Runs `f` on a pool of `threads` workers (0: all cores); each worker's [`crate::profiling`]
 /// counters are flushed to the process-wide totals before the pool ends.
 pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> Result<R, RenderError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| RenderError::Failed(format!("cannot start worker threads: {e}")))?;
-    let on = crate::phase::enabled();
-    pool.broadcast(|_| crate::phase::enable_here(on));
+    let on = crate::profiling::enabled();
+    pool.broadcast(|_| crate::profiling::enable_here(on));
     let r = pool.install(f);
-    pool.broadcast(|_| crate::phase::flush());
+    pool.broadcast(|_| crate::profiling::flush());
     Ok(r)
 }
 
@@ -280,6 +285,7 @@ pub fn render_pixels<E: PixelEstimator + ?Sized>(
         proto: proto.as_ref(),
         spp,
         camera: CameraDims { uses_time: scene.camera.uses_time(), uses_lens: scene.camera.uses_lens() },
+        cancel: ctx.cancel,
     };
     let results: Vec<Option<TileResult>> = with_threads(ctx.threads, || {
         tile_list
@@ -288,7 +294,7 @@ pub fn render_pixels<E: PixelEstimator + ?Sized>(
                 if ctx.cancel.load(Ordering::Relaxed) {
                     return None;
                 }
-                let r = pass.render_tile(*tb);
+                let r = pass.render_tile(*tb)?;
                 let d = done.fetch_add(1, Ordering::Relaxed) + 1;
                 if let Some(pr) = ctx.progress {
                     pr(d, total);
@@ -380,6 +386,8 @@ struct TilePass<'a, E: ?Sized> {
     proto: &'a dyn Sampler,
     spp: u32,
     camera: CameraDims,
+    /// Checked before every pixel, so that a slow pixel estimator stops within a pixel.
+    cancel: &'a AtomicBool,
 }
 
 /// Per-tile scratch: the sampler, the extra channels of one sample, and a pixel's camera
@@ -388,11 +396,12 @@ struct TileScratch {
     sampler: Box<dyn Sampler>,
     aov: Vec<f32>,
     cams: Vec<CameraSample>,
-    rays: Vec<Ray>,
+    rays: Vec<RayDifferential>,
 }
 
 impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
-    fn render_tile(&self, tb: Bounds2i) -> TileResult {
+    /// `None` when the render was cancelled before the tile was done.
+    fn render_tile(&self, tb: Bounds2i) -> Option<TileResult> {
         let mut out = TileResult { tile: self.film.make_tile(tb), stats: ThreadStats::default(), camera_samples: 0 };
         let mut scratch = TileScratch {
             sampler: self.proto.clone_box(),
@@ -405,9 +414,12 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
             if pixel_bounds.is_some_and(|b| !b.contains(p)) {
                 continue;
             }
+            if self.cancel.load(Ordering::Relaxed) {
+                return None;
+            }
             self.render_pixel(p, &mut scratch, &mut out);
         }
-        out
+        Some(out)
     }
 
     /// The shared pass (when the estimator shares pixel work), then every sample of pixel `p`.
@@ -431,12 +443,13 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
             };
             aov.iter_mut().for_each(|v| *v = 0.0);
             let (est, scene, stats) = (self.est, self.scene, &mut out.stats);
-            crate::phase::camera_ray_given(true);
+            crate::profiling::camera_ray_given(true);
+            let cx = SampleContext { scene, sampler: sampler.as_mut(), stats: &mut *stats, aov: aov.as_mut_slice() };
             let l = match &shared {
-                Some(sh) => est.li_shared(&ray, scene, sampler.as_mut(), stats, aov, sh, i),
-                None => est.li(&ray, scene, sampler.as_mut(), stats, aov),
+                Some(sh) => est.li_shared(&ray, cx, sh, i),
+                None => est.li(&ray, cx),
             };
-            crate::phase::camera_ray_given(false);
+            crate::profiling::camera_ray_given(false);
             out.camera_samples += 1;
             let l = guard_radiance(l, self.film.spec.max_sample_luminance, stats);
             out.tile.add_sample(scene.filter.as_ref(), cs.p_film, l, aov);
@@ -454,14 +467,16 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
             scratch.rays.push(self.generate_ray(&cs));
             scratch.cams.push(cs);
         }
-        crate::phase::camera_ray_given(true);
+        crate::profiling::camera_ray_given(true);
         let shared = self.est.begin_pixel(&scratch.rays, &scratch.cams, self.scene, stats);
-        crate::phase::camera_ray_given(false);
+        crate::profiling::camera_ray_given(false);
         shared
     }
 
-    fn generate_ray(&self, cs: &CameraSample) -> Ray {
-        crate::phase::timed(crate::phase::Phase::CameraRay, || self.scene.camera.generate_ray(cs))
+    /// The camera ray with its offset rays scaled to the sample spacing (pbrt-v3's
+    /// `ScaleDifferentials(1 / √spp)`).
+    fn generate_ray(&self, cs: &CameraSample) -> RayDifferential {
+        crate::profiling::timed(crate::profiling::Phase::CameraRay, || self.scene.camera.sample_ray(cs, self.spp))
     }
 }
 

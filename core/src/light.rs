@@ -6,8 +6,12 @@
 //! `trianglemesh`/`plymesh`/`loopsubdiv`/`heightfield`/`nurbs` area light is one light
 //! per triangle (pbrt-v3 makes one `Triangle` shape, hence one light, per
 //! triangle); a quadric (sphere, disk, …) is one light over all the triangles
-//! of its tessellation, sampled by area (a triangle chosen in proportion to its
-//! area, then a uniform point on it), so its surface density is 1 / total area.
+//! of its tessellation. Spheres, disks and cylinders are sampled as pbrt-v3's shapes
+//! sample themselves (the sphere by the cone it subtends; see [`quadric`], which also
+//! says how pbrt-v3 mixes object and world space under a scale and how
+//! `"string shapesampling" "physical"` avoids it); other quadrics by area (a triangle
+//! chosen in proportion to its area, then a uniform point on it), so their surface
+//! density is 1 / total area.
 //!
 //! Mesh `i` of the scene is the geometry of `SceneObject` `i` (the scene builder
 //! pushes them together); an emissive triangle maps to its light through
@@ -23,7 +27,7 @@ use crate::geometry::{face_forward, gamma, interpolate, Bounds3, Ray};
 use crate::image::Image;
 use crate::interaction::SceneObject;
 use crate::mesh::TriangleMesh;
-use crate::phase::Phase;
+use crate::profiling::Phase;
 use crate::sampling::{spherical_phi, spherical_theta, uniform_sample_triangle, Distribution1D, Distribution2D};
 use crate::spectrum::luminance;
 use crate::Rgb;
@@ -33,6 +37,9 @@ use std::f32::consts::PI;
 
 use crate::image::read_scene_input as read_image;
 use crate::spectrum::spectrum_to_rgb;
+
+pub mod quadric;
+use quadric::{QuadricSampler, ShapeSampling};
 
 /// The receiving point of a light query.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -202,11 +209,15 @@ pub struct DiffuseAreaLight {
     pub n_samples: u32,
     /// `geom.tris`' geometry as a sample needs it (the meshes do not change after the build).
     triangles: Vec<LightTriangle>,
+    /// pbrt-v3's own sampling of the sphere, disk or cylinder the light is on (`None`: by area
+    /// over `triangles`).
+    quadric: Option<Box<QuadricSampler>>,
 }
 
 /// An emitting triangle as [`DiffuseAreaLight::sample_point`] reads it: its vertices, its
-/// winding normal (normalised, after the mesh's flip) and its vertex shading normals (missing
-/// ones zero), the values [`sampled_normal`] computes from the mesh at every sample.
+/// winding normal (normalised) and its vertex normals (missing ones zero; negated where pbrt-v3
+/// negates them for a sample), the values [`TriangleMesh::sample_normal`] computes from the
+/// mesh at every sample.
 #[derive(Clone, Debug, PartialEq)]
 struct LightTriangle {
     pv: [Vec3; 3],
@@ -216,19 +227,17 @@ struct LightTriangle {
 
 impl LightTriangle {
     fn new(mesh: &TriangleMesh, tri: usize, pv: [Vec3; 3]) -> Self {
-        let mut n = (pv[1] - pv[0]).cross(pv[2] - pv[0]).normalize_or_zero();
-        if mesh.flip_normals {
-            n = -n;
-        }
+        let n = (pv[1] - pv[0]).cross(pv[2] - pv[0]).normalize_or_zero();
+        let sign = mesh.sample_normal_sign();
         let shading = match (&mesh.normals, mesh.indices.get(tri)) {
-            (Some(ns), Some(idx)) => Some(idx.map(|i| ns.get(i as usize).copied().unwrap_or(Vec3::ZERO))),
+            (Some(ns), Some(idx)) => Some(idx.map(|i| sign * ns.get(i as usize).copied().unwrap_or(Vec3::ZERO))),
             _ => None,
         };
         LightTriangle { pv, n, shading }
     }
 
-    /// The normal pbrt-v3's `Triangle::Sample` gives the point with barycentrics `b`: the
-    /// winding normal, face-forwarded to the interpolated shading normal when there is one.
+    /// The normal pbrt-v3's `Shape::Sample` gives the point with barycentrics `b` (flat, on
+    /// the emitting side; [`TriangleMesh::sample_normal`]).
     #[inline]
     fn normal_at(&self, b: [f32; 3]) -> Vec3 {
         if let Some(nv) = self.shading {
@@ -282,6 +291,37 @@ impl DiffuseAreaLight {
             tri_dist,
             n_samples,
             triangles,
+            quadric: None,
+        })
+    }
+
+    /// Whether the light's points are chosen by area over its triangles
+    /// ([`Self::sample_point`], independent of the receiver) rather than by its quadric's own
+    /// pbrt-v3 sampling (which depends on the receiver).
+    pub fn samples_by_area(&self) -> bool {
+        self.quadric.is_none()
+    }
+
+    /// The quadric's sample at `ctx` ([`quadric::QuadricSampler::sample`]).
+    fn sample_quadric(&self, q: &QuadricSampler, ctx: &LightContext, u: Vec2) -> Option<LightLiSample> {
+        let s = q.sample(ctx, u)?;
+        let d = s.p - ctx.p;
+        if !(d.length_squared() > 0.0) {
+            return None;
+        }
+        let wi = d.normalize();
+        let g = &self.geom;
+        if !(g.two_sided || s.n.dot(-wi) > 0.0) {
+            return None;
+        }
+        Some(LightLiSample {
+            li: g.l,
+            wi,
+            pdf: s.pdf,
+            p_light: s.p,
+            p_light_error: s.p_error,
+            n_light: s.n,
+            delta: false,
         })
     }
 
@@ -492,10 +532,8 @@ fn tri_vertices(mesh: &TriangleMesh, tri: usize) -> Option<[Vec3; 3]> {
     )
 }
 
-/// The normal pbrt-v3's `Triangle::Sample` gives the point with barycentrics `b`:
-/// the winding normal, face-forwarded to the interpolated shading normal when the
-/// mesh has normals, else flipped by `ReverseOrientation` xor handedness (as
-/// `Scene::interaction` orients hits).
+/// The normal pbrt-v3's `Shape::Sample` gives the point with barycentrics `b`
+/// ([`TriangleMesh::sample_normal`], through the light's cached triangle).
 fn sampled_normal(mesh: &TriangleMesh, tri: usize, pv: [Vec3; 3], b: [f32; 3]) -> Vec3 {
     LightTriangle::new(mesh, tri, pv).normal_at(b)
 }
@@ -515,7 +553,7 @@ impl Light {
     /// (`_meshes`: area lights keep what they sample of their triangles; the argument stays so
     /// that callers need not change.)
     pub fn sample_li(&self, ctx: &LightContext, u: Vec2, _meshes: &[TriangleMesh]) -> Option<LightLiSample> {
-        crate::phase::timed(Phase::LightSampling, || match self {
+        crate::profiling::timed(Phase::LightSampling, || match self {
             Light::Point(l) => point_sample(ctx, l.p, l.i, |_| Rgb::ONE),
             Light::Spot(l) => point_sample(ctx, l.p, l.i, |w| Rgb::splat(l.falloff(w))),
             Light::Goniometric(l) => point_sample(ctx, l.p, l.i, |w| l.scale(w)),
@@ -561,14 +599,18 @@ impl Light {
                     delta: false,
                 })
             }
-            Light::Area(a) => a.sample_li_from(ctx, &a.sample_point(u)?),
+            Light::Area(a) => match &a.quadric {
+                Some(q) => a.sample_quadric(q, ctx, u),
+                None => a.sample_li_from(ctx, &a.sample_point(u)?),
+            },
         })
     }
 
     /// [`Light::sample_li`] for an area light whose point [`DiffuseAreaLight::sample_point`]
-    /// already chose (it does not depend on `ctx`): the same sample. `None` for other lights.
+    /// already chose (it does not depend on `ctx`): the same sample, for lights that
+    /// [`DiffuseAreaLight::samples_by_area`]. `None` for other lights.
     pub fn sample_li_from(&self, ctx: &LightContext, point: &AreaLightPoint) -> Option<LightLiSample> {
-        crate::phase::timed(Phase::LightSampling, || match self {
+        crate::profiling::timed(Phase::LightSampling, || match self {
             Light::Area(a) => a.sample_li_from(ctx, point),
             _ => None,
         })
@@ -576,8 +618,9 @@ impl Light {
 
     /// Solid-angle pdf of sampling `wi` from `ctx`; for area lights the caller passes the point it found on the light (`light_hit`: point and geometric normal), since the caller already traced the ray.
     pub fn pdf_li(&self, ctx: &LightContext, wi: Vec3, light_hit: Option<(Vec3, Vec3)>) -> f32 {
-        crate::phase::timed(Phase::LightSampling, || match self {
+        crate::profiling::timed(Phase::LightSampling, || match self {
             Light::Infinite(l) => l.angles(wi).map_or(0.0, |a| l.pdf_at(a)),
+            Light::Area(a) if a.quadric.is_some() => a.quadric.as_ref().map_or(0.0, |q| q.pdf(ctx, light_hit)),
             Light::Area(a) => {
                 let Some((p, n)) = light_hit else { return 0.0 };
                 let d2 = (p - ctx.p).length_squared();
@@ -604,7 +647,7 @@ impl Light {
 
     /// Radiance of infinite lights along an escaping ray (zero for other lights).
     pub fn le(&self, ray: &Ray) -> Rgb {
-        crate::phase::timed(Phase::LightSampling, || match self {
+        crate::profiling::timed(Phase::LightSampling, || match self {
             Light::Infinite(l) => l.lookup_dir(ray.d),
             _ => Rgb::ZERO,
         })
@@ -614,7 +657,7 @@ impl Light {
     /// lights with radiance there, infinite lights, does not depend on the receiving point):
     /// the same values, with the direction's angles found once.
     pub fn le_and_pdf(&self, ray: &Ray) -> (Rgb, f32) {
-        crate::phase::timed(Phase::LightSampling, || match self {
+        crate::profiling::timed(Phase::LightSampling, || match self {
             Light::Infinite(l) => match l.angles(ray.d) {
                 Some(a) => (l.lookup_at(a), l.pdf_at(a)),
                 None => (Rgb::ZERO, 0.0),
@@ -639,7 +682,10 @@ impl Light {
             Light::Point(l) => 4.0 * PI * l.i,
             Light::Spot(l) => l.i * 2.0 * PI * (1.0 - 0.5 * (l.cos_falloff_start + l.cos_total_width)),
             Light::Distant(l) => l.l * PI * l.scene_radius * l.scene_radius,
-            Light::Area(a) => (if a.geom.two_sided { 2.0 } else { 1.0 }) * a.geom.l * a.geom.area * PI,
+            Light::Area(a) => {
+                let area = a.quadric.as_ref().map_or(a.geom.area, |q| q.area());
+                (if a.geom.two_sided { 2.0 } else { 1.0 }) * a.geom.l * area * PI
+            }
             Light::Infinite(l) => PI * l.scene_radius * l.scene_radius * l.map.mean(),
             Light::Goniometric(l) => 4.0 * PI * l.i * mean(&l.map),
             Light::Projection(l) => {
@@ -665,6 +711,12 @@ impl Light {
         }
     }
 
+    /// Whether this is an area light whose points do not depend on the receiver
+    /// ([`DiffuseAreaLight::samples_by_area`]).
+    pub fn area_samples_by_area(&self) -> bool {
+        matches!(self, Light::Area(a) if a.samples_by_area())
+    }
+
     /// The light geometry, for analytic integrators.
     pub fn area(&self) -> Option<&AreaLight> {
         match self {
@@ -688,6 +740,77 @@ enum MeshLights {
 pub struct Lights {
     pub lights: Vec<Light>,
     mesh_lights: Vec<MeshLights>,
+}
+
+/// A `diffuse` `AreaLightSource`'s parameters.
+#[derive(Clone, Debug)]
+struct AreaParams {
+    l: Rgb,
+    two_sided: bool,
+    n_samples: u32,
+    sampling: ShapeSampling,
+    loc: FileLoc,
+}
+
+/// `"string shapesampling"`: `"pbrt-v3"` (default) or `"physical"` ([`quadric`]).
+fn shape_sampling_param(p: &ParamSet, owner: &str, loc: &FileLoc, warnings: &DiagSink) -> ShapeSampling {
+    match p.get_one_string("shapesampling", "pbrt-v3").as_str() {
+        "pbrt-v3" => ShapeSampling::Pbrt,
+        "physical" => ShapeSampling::Physical,
+        other => {
+            warnings.warn(
+                Some(p.loc_of("shapesampling").unwrap_or(loc).clone()),
+                format!(
+                    "{owner}: \"shapesampling\" \"{other}\" unknown (\"pbrt-v3\" or \"physical\"): using \"pbrt-v3\""
+                ),
+            );
+            ShapeSampling::Pbrt
+        }
+    }
+}
+
+/// Warns where pbrt-v3's sampling of a quadric light (reproduced by default) makes it emit
+/// other than its geometry does: a scaling transform, a partial sphere or disk.
+fn warn_quadric_sampling(
+    q: &crate::mesh::Quadric,
+    kind: &str,
+    sampling: ShapeSampling,
+    light_loc: &FileLoc,
+    shape_loc: &FileLoc,
+    warnings: &DiagSink,
+) {
+    if sampling == ShapeSampling::Physical {
+        return;
+    }
+    let s = quadric::axis_scales(&q.world_from_object);
+    let scaled = s.iter().any(|v| (v - 1.0).abs() > 1e-4);
+    let hint = "\"string shapesampling\" \"physical\" on the AreaLightSource gives the light its geometry emits";
+    if scaled {
+        let scale = if (s[0] - s[1]).abs() <= 1e-4 * s[0] && (s[0] - s[2]).abs() <= 1e-4 * s[0] {
+            format!("{:.4}", s[0])
+        } else {
+            format!("({:.4}, {:.4}, {:.4}) along object x, y, z", s[0], s[1], s[2])
+        };
+        let factor = 1.0 / (s[0] * s[1].max(s[2]).max(1e-30));
+        warnings.warn(
+            Some(shape_loc.clone()),
+            format!(
+                "area light (at {light_loc}) on a {kind} scaled by {scale}: sampled as pbrt-v3 samples it, with its \
+                 object-space radius and area against world-space distances, so it is not the light its geometry \
+                 emits (about {factor:.3}x as bright where light sampling dominates{}); {hint}",
+                if kind == "sphere" && s[0] > 1.0 { ", and darker where its samples fall inside itself" } else { "" }
+            ),
+        );
+    }
+    if !q.shape.sampled_whole() {
+        warnings.warn(
+            Some(shape_loc.clone()),
+            format!(
+                "area light (at {light_loc}) on a partial {kind} (zmin/zmax/phimax/innerradius): pbrt-v3 samples the \
+                 whole {kind}, so points the shape cuts away emit too; reproduced; {hint}"
+            ),
+        );
+    }
 }
 
 /// Shape types pbrt-v3 turns into one `Triangle` shape per triangle (so one area light per triangle).
@@ -834,7 +957,7 @@ impl Lights {
         }
 
         // Area lights: parse each AreaLightSource once.
-        let mut area_params: Vec<Option<Option<(Rgb, bool, u32)>>> = vec![None; desc.area_lights.len()];
+        let mut area_params: Vec<Option<Option<AreaParams>>> = vec![None; desc.area_lights.len()];
         let mut mesh_lights = vec![MeshLights::None; meshes.len()];
         let mut warned_instance = false;
         for (oi, obj) in objects.iter().enumerate().take(meshes.len()) {
@@ -858,12 +981,13 @@ impl Lights {
                     let sc = spectrum_param(p, "scale", Rgb::ONE, &owner, &ent.loc)?;
                     let two_sided = p.get_one_bool("twosided", false);
                     let ns = n_samples_param(p);
+                    let sampling = shape_sampling_param(p, &owner, &ent.loc, warnings);
                     let l = l * sc;
                     if !l.is_finite() {
                         warnings.warn(Some(ent.loc.clone()), format!("{owner}: non-finite radiance: ignored"));
                         None
                     } else {
-                        Some((l, two_sided, ns))
+                        Some(AreaParams { l, two_sided, n_samples: ns, sampling, loc: ent.loc.clone() })
                     }
                 } else {
                     warnings.warn(
@@ -876,7 +1000,9 @@ impl Lights {
                 warnings.extend(ent.params.report_unused(&owner));
                 area_params[ai] = Some(parsed);
             }
-            let Some(Some((l, two_sided, n_samples))) = area_params[ai] else { continue };
+            let Some(Some(AreaParams { l, two_sided, n_samples, sampling, ref loc })) = area_params[ai] else {
+                continue;
+            };
             if l == Rgb::ZERO {
                 continue;
             }
@@ -893,7 +1019,11 @@ impl Lights {
                     }
                 }
                 mesh_lights[oi] = MeshLights::PerTriangle(per);
-            } else if let Some(a) = over(&mut (0..mesh.triangle_count() as u32)) {
+            } else if let Some(mut a) = over(&mut (0..mesh.triangle_count() as u32)) {
+                if let Some(q) = &mesh.quadric {
+                    warn_quadric_sampling(q, &obj.kind, sampling, loc, &obj.loc, warnings);
+                    a.quadric = QuadricSampler::new(q, mesh.reverse_orientation, sampling).map(Box::new);
+                }
                 mesh_lights[oi] = MeshLights::Whole(lights.len() as u32);
                 lights.push(Light::Area(a));
             }
@@ -1081,8 +1211,8 @@ mod tests {
         }
     }
     use crate::geometry::Frame;
+    use crate::goodness_of_fit::chi2_test;
     use crate::rng::Rng;
-    use crate::stats::chi2_test;
     use penumbra_parser::{AnimatedTransform, CameraDesc, Entity, LightDesc, Param, ParamValue, SpectrumValue};
     use std::f64::consts::PI as PI64;
     use std::path::PathBuf;
@@ -1217,11 +1347,7 @@ mod tests {
             }
         }
         let (t, tri) = best?;
-        let v = mesh.vertices(tri);
-        let mut n = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
-        if mesh.flip_normals {
-            n = -n;
-        }
+        let (n, _) = mesh.hit_normals(tri, [1.0 / 3.0; 3]);
         Some((t, o + d * t as f32, n))
     }
 
@@ -1432,7 +1558,8 @@ mod tests {
                 for facing in [true, false] {
                     let mut mesh = facing_triangle(p, v);
                     if !facing {
-                        mesh.flip_normals = true;
+                        // The winding is the emitting side of a mesh without normals.
+                        mesh.indices[0].swap(1, 2);
                     }
                     let meshes = [mesh];
                     let area = entity("diffuse", vec![param("twosided", ParamValue::Bool(vec![two_sided]))]);

@@ -8,8 +8,11 @@
 //!   a mixed substrate is approximate.
 //! - Bump mapping ignores ∂n/∂u, ∂n/∂v of the shading normal (pbrt-v3 adds
 //!   `displacement · ∂n/∂u`; penumbra's interactions do not carry normal derivatives).
-//! - Unsupported materials (hair, disney, fourier, subsurface, kdsubsurface) and
-//!   unknown types render as `matte` with their `Kd` (default 0.5), with one warning per type.
+//! - Unknown material types render as `matte` with their `Kd` (default 0.5), with one warning
+//!   per type.
+//!
+//! `disney`, `fourier`, `hair`, `subsurface` and `kdsubsurface` live in their own modules
+//! ([`disney`], [`fourier`], [`hair`], [`subsurface`]); see `docs/materials.md`.
 
 use crate::bxdf::{Bsdf, Bxdf, Fresnel, TransportMode};
 use crate::geometry::face_forward;
@@ -20,6 +23,11 @@ use crate::texture::{FloatParam, SpectrumParam, TextureEvalContext, Textures};
 use glam::{Vec2, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, SceneDescription};
 use std::collections::HashSet;
+
+pub mod disney;
+pub mod fourier;
+pub mod hair;
+pub mod subsurface;
 
 /// A material as pbrt-v3 defines it; texture-valued parameters refer to [`Textures`].
 #[derive(Clone, Debug, PartialEq)]
@@ -95,32 +103,32 @@ pub enum Material {
         remap: bool,
         bump: Option<FloatParam>,
     },
+    /// pbrt-v3's Disney BSDF ([`disney`]).
+    Disney(Box<disney::Disney>),
+    /// A tabulated BSDF read from a `.bsdf` file ([`fourier`]).
+    Fourier(fourier::Fourier),
+    /// Chiang et al.'s hair fibre ([`hair`]).
+    Hair(Box<hair::Hair>),
+    /// `subsurface` and `kdsubsurface` ([`subsurface`]).
+    Subsurface(Box<subsurface::Subsurface>),
 }
 
-/// The shading-geometry derivatives pbrt-v3 bump-maps with (`si.shading.{n, dpdu, dpdv}`).
+/// The shading-geometry derivatives pbrt-v3 bump-maps with (`si.shading.{n, dpdu, dpdv,
+/// dndu, dndv}`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadingGeometry {
     pub n: Vec3,
     pub dpdu: Vec3,
     pub dpdv: Vec3,
+    pub dndu: Vec3,
+    pub dndv: Vec3,
 }
 
 impl ShadingGeometry {
-    /// As pbrt-v3's triangles set it up. Without per-vertex normals the shading
-    /// derivatives are the geometric ∂p/∂u, ∂p/∂v; with them, pbrt-v3 uses unit
-    /// tangents built as `ts = normalize(ss × ns)`, `ss = ts × ns`, which are the
-    /// *negated* x and y axes of penumbra's shading frame.
-    pub fn of(si: &SurfaceInteraction, interpolated_normals: bool) -> Self {
-        if interpolated_normals {
-            ShadingGeometry { n: si.shading.z, dpdu: -si.shading.x, dpdv: -si.shading.y }
-        } else {
-            ShadingGeometry { n: si.shading.z, dpdu: si.dpdu, dpdv: si.dpdv }
-        }
-    }
-    /// Guesses whether the interaction came from a mesh with normals: the shading
-    /// normal differs from the geometric one. Prefer [`Self::of`] when the mesh is known.
-    pub fn infer(si: &SurfaceInteraction) -> Self {
-        Self::of(si, si.shading.z != si.n)
+    /// The interaction's shading geometry, as the scene set it up for its shape (see
+    /// `SurfaceInteraction::shading_dpdu`).
+    pub fn of(si: &SurfaceInteraction) -> Self {
+        ShadingGeometry { n: si.shading.z, dpdu: si.shading_dpdu, dpdv: si.shading_dpdv, dndu: si.dndu, dndv: si.dndv }
     }
 }
 
@@ -139,36 +147,6 @@ impl Default for BsdfOptions {
     }
 }
 
-/// How an LTC-based integrator can describe a material: a diffuse albedo and an
-/// optional GGX (Trowbridge–Reitz) lobe.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LtcDescription {
-    /// Shading normal (after bump mapping).
-    pub n: Vec3,
-    /// Lambertian albedo (for `substrate`, the `Kd` of its Ashikhmin–Shirley diffuse term).
-    pub diffuse: Rgb,
-    pub specular: Option<LtcSpecular>,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LtcSpecular {
-    /// Isotropic GGX alpha (already remapped).
-    pub alpha: f32,
-    pub fresnel: LtcFresnel,
-    /// Multiplier of the microfacet lobe (`Ks` for plastic/uber, 1 for metal/substrate).
-    pub scale: Rgb,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum LtcFresnel {
-    /// pbrt-v3's `FresnelDielectric(eta_i, eta_t)` (plastic uses 1.5, 1 — sic).
-    Dielectric { eta_i: f32, eta_t: f32 },
-    /// `FresnelConductor(1, eta, k)`.
-    Conductor { eta: Rgb, k: Rgb },
-    /// Schlick's approximation with normal-incidence reflectance `f0` (substrate's `Ks`).
-    Schlick { f0: Rgb },
-}
-
 /// The scene's materials, by index in `SceneDescription::materials`; only those some
 /// object uses (and the materials a used `mix` refers to) are built.
 #[derive(Clone, Debug, Default)]
@@ -183,8 +161,6 @@ fn clamp0(c: Rgb) -> Rgb {
 fn is_black(c: Rgb) -> bool {
     c == Rgb::ZERO
 }
-
-const UNSUPPORTED: [&str; 5] = ["hair", "disney", "fourier", "subsurface", "kdsubsurface"];
 
 enum BuildState {
     Unbuilt,
@@ -303,6 +279,16 @@ impl Builder<'_> {
                 bump: bump(tx)?,
                 remap: remap(),
             },
+            "disney" => Material::Disney(Box::new(disney::Disney::create(tx, p, w)?)),
+            "fourier" => Material::Fourier(fourier::Fourier::create(tx, p, w, &e.loc, &self.desc.base_dir)?),
+            "hair" => Material::Hair(Box::new(hair::Hair::create(tx, p, w, &e.loc)?)),
+            "subsurface" | "kdsubsurface" => Material::Subsurface(Box::new(subsurface::Subsurface::create(
+                tx,
+                p,
+                w,
+                &e.loc,
+                e.kind == "kdsubsurface",
+            )?)),
             "mix" => {
                 let amount = tx.get_spectrum_param(p, "amount", one(0.5), w)?;
                 let mut refs = [0usize; 2];
@@ -321,13 +307,8 @@ impl Builder<'_> {
                 Material::Mix { amount, m1: refs[0], m2: refs[1] }
             }
             other => {
-                let known = UNSUPPORTED.contains(&other);
                 if self.warned_types.insert(other.to_string()) {
-                    let msg = if known {
-                        format!("material \"{other}\" is not supported: rendering it as \"matte\" with its Kd")
-                    } else {
-                        format!("material \"{other}\" unknown: rendering it as \"matte\" with its Kd")
-                    };
+                    let msg = format!("material \"{other}\" unknown: rendering it as \"matte\" with its Kd");
                     w.warn(Some(e.loc.clone()), msg);
                 }
                 let kd = tx.get_spectrum_param(p, "Kd", one(0.5), w).unwrap_or(SpectrumParam::Const(one(0.5)));
@@ -389,7 +370,9 @@ fn eval_s(tx: &Textures, p: SpectrumParam, ctx: &TextureEvalContext) -> Rgb {
     clamp0(tx.eval_spectrum(p, ctx))
 }
 
-/// pbrt-v3's `Material::Bump`: the bumped shading normal and ∂p/∂u.
+/// pbrt-v3's `Material::Bump`: the bumped shading normal and ∂p/∂u. The displacement is
+/// differenced over half the pixel footprint in (u, v) (`du = ½(|∂u/∂x| + |∂u/∂y|)`), or over
+/// 0.0005 where the ray had no differentials, as pbrt-v3.
 pub fn bump(
     d: FloatParam,
     si: &SurfaceInteraction,
@@ -397,24 +380,34 @@ pub fn bump(
     ctx: &TextureEvalContext,
     textures: &Textures,
 ) -> (Vec3, Vec3) {
-    let mut du = 0.5 * (ctx.dudx.abs() + ctx.dudy.abs());
-    if du == 0.0 || !du.is_finite() {
-        du = 0.01;
-    }
-    let mut dv = 0.5 * (ctx.dvdx.abs() + ctx.dvdy.abs());
-    if dv == 0.0 || !dv.is_finite() {
-        dv = 0.01;
-    }
-    let base_n = geom.dpdu.cross(geom.dpdv).normalize_or_zero();
-    let shifted_u =
-        TextureEvalContext { p: ctx.p + du * geom.dpdu, uv: ctx.uv + Vec2::new(du, 0.0), n: base_n, ..*ctx };
-    let shifted_v =
-        TextureEvalContext { p: ctx.p + dv * geom.dpdv, uv: ctx.uv + Vec2::new(0.0, dv), n: base_n, ..*ctx };
+    let step = |a: f32, b: f32| {
+        let s = 0.5 * (a.abs() + b.abs());
+        if s == 0.0 || !s.is_finite() {
+            0.0005
+        } else {
+            s
+        }
+    };
+    let du = step(ctx.dudx, ctx.dudy);
+    let dv = step(ctx.dvdx, ctx.dvdy);
+    let base = geom.dpdu.cross(geom.dpdv);
+    let shifted_u = TextureEvalContext {
+        p: ctx.p + du * geom.dpdu,
+        uv: ctx.uv + Vec2::new(du, 0.0),
+        n: (base + du * geom.dndu).normalize_or_zero(),
+        ..*ctx
+    };
+    let shifted_v = TextureEvalContext {
+        p: ctx.p + dv * geom.dpdv,
+        uv: ctx.uv + Vec2::new(0.0, dv),
+        n: (base + dv * geom.dndv).normalize_or_zero(),
+        ..*ctx
+    };
     let u_disp = textures.eval_float(d, &shifted_u);
     let v_disp = textures.eval_float(d, &shifted_v);
     let disp = textures.eval_float(d, ctx);
-    let dpdu = geom.dpdu + (u_disp - disp) / du * geom.n;
-    let dpdv = geom.dpdv + (v_disp - disp) / dv * geom.n;
+    let dpdu = geom.dpdu + (u_disp - disp) / du * geom.n + disp * geom.dndu;
+    let dpdv = geom.dpdv + (v_disp - disp) / dv * geom.n + disp * geom.dndv;
     let ns = dpdu.cross(dpdv).normalize_or_zero();
     if ns == Vec3::ZERO || !ns.is_finite() {
         return (geom.n, geom.dpdu);
@@ -541,29 +534,6 @@ fn trowbridge(urough: f32, vrough: f32, remap: bool) -> MicrofacetDistribution {
     }
 }
 
-/// Scales a lobe's colours by `s` (see the module notes on `FresnelBlend`).
-fn scale_bxdf(b: Bxdf, s: Rgb) -> Bxdf {
-    match b {
-        Bxdf::LambertianReflection { r } => Bxdf::LambertianReflection { r: r * s },
-        Bxdf::LambertianTransmission { t } => Bxdf::LambertianTransmission { t: t * s },
-        Bxdf::OrenNayar { r, a, b } => Bxdf::OrenNayar { r: r * s, a, b },
-        Bxdf::SpecularReflection { r, fresnel } => Bxdf::SpecularReflection { r: r * s, fresnel },
-        Bxdf::SpecularTransmission { t, eta_a, eta_b, mode } => {
-            Bxdf::SpecularTransmission { t: t * s, eta_a, eta_b, mode }
-        }
-        Bxdf::FresnelSpecular { r, t, eta_a, eta_b, mode } => {
-            Bxdf::FresnelSpecular { r: r * s, t: t * s, eta_a, eta_b, mode }
-        }
-        Bxdf::MicrofacetReflection { r, distribution, fresnel } => {
-            Bxdf::MicrofacetReflection { r: r * s, distribution, fresnel }
-        }
-        Bxdf::MicrofacetTransmission { t, distribution, eta_a, eta_b, mode } => {
-            Bxdf::MicrofacetTransmission { t: t * s, distribution, eta_a, eta_b, mode }
-        }
-        Bxdf::FresnelBlend { rd, rs, distribution } => Bxdf::FresnelBlend { rd: rd * s, rs: rs * s, distribution },
-    }
-}
-
 impl Material {
     fn bump_map(&self) -> Option<FloatParam> {
         match self {
@@ -575,18 +545,20 @@ impl Material {
             | Material::Substrate { bump, .. }
             | Material::Uber { bump, .. }
             | Material::Translucent { bump, .. } => *bump,
-            Material::Mix { .. } => None,
+            Material::Disney(d) => d.bump,
+            Material::Fourier(f) => f.bump,
+            Material::Subsurface(s) => s.bump,
+            Material::Mix { .. } | Material::Hair(_) => None,
         }
     }
 
     /// The BSDF at `si` as pbrt-v3's `directlighting` builds it (radiance transport,
-    /// no multiple-lobe glass), without ray differentials; shading derivatives are
-    /// inferred from `si` (see [`ShadingGeometry::infer`]).
+    /// no multiple-lobe glass), with `si`'s differentials and shading geometry.
     pub fn compute_bsdf(&self, si: &SurfaceInteraction, materials: &Materials, textures: &Textures) -> Bsdf {
         self.compute_bsdf_ext(
             si,
             &TextureEvalContext::from_si(si),
-            &ShadingGeometry::infer(si),
+            &ShadingGeometry::of(si),
             BsdfOptions::default(),
             materials,
             textures,
@@ -688,6 +660,10 @@ impl Material {
                 translucent(&l, [kd, ks], [reflect, transmit], roughness, remap)
             }
             Material::Mix { amount, m1, m2 } => self.mix(inp, &l, amount, [m1, m2], depth),
+            Material::Disney(ref d) => d.scatter(&l),
+            Material::Fourier(ref f) => f.scatter(&l),
+            Material::Hair(ref h) => h.scatter(&l, inp.si),
+            Material::Subsurface(ref s) => s.scatter(&l),
         }
     }
 
@@ -748,21 +724,25 @@ impl Material {
         let b2 = sub(m[1]);
         let mut b = Bsdf::new(b1.shading_normal(), b1.local_to_world(Vec3::X), b1.geometric_normal(), b1.eta);
         for l in b1.bxdfs() {
-            let _ = b.add(scale_bxdf(*l, s1));
+            let _ = b.add(l.scaled(s1));
         }
         for l in b2.bxdfs() {
-            let _ = b.add(scale_bxdf(*l, s2));
+            let _ = b.add(l.scaled(s2));
         }
         b
     }
 
     /// Whether a BSDF of this material may have a perfectly specular lobe: `false` is a
-    /// guarantee (matte, plastic, metal, substrate, translucent; uber with constant black `Kr`
-    /// and `Kt` and constant opacity 1), `true` a maybe (mirror, glass, mix, other uber). For
+    /// guarantee (matte, plastic, metal, substrate, translucent, fourier, hair; uber with
+    /// constant black `Kr` and `Kt` and constant opacity 1; disney without a scatter distance),
+    /// `true` a maybe (mirror, glass, mix, subsurface, other uber and disney). For
     /// an integrator that builds the BSDF only to follow specular lobes.
     pub fn may_be_specular(&self) -> bool {
         match *self {
             Material::Mirror { .. } | Material::Glass { .. } | Material::Mix { .. } => true,
+            // A smooth interface; `disney`'s only over a BSSRDF.
+            Material::Subsurface(_) => true,
+            Material::Disney(_) => self.may_have_bssrdf(),
             Material::Uber { kr, kt, opacity, .. } => {
                 kr != SpectrumParam::Const(Rgb::ZERO)
                     || kt != SpectrumParam::Const(Rgb::ZERO)
@@ -772,109 +752,63 @@ impl Material {
         }
     }
 
-    /// The material as a diffuse albedo plus an optional isotropic GGX lobe, for
-    /// analytic (LTC) integrators; `None` when it is not of that form (Oren–Nayar
-    /// matte, anisotropic roughness, mirror, glass, mix, translucent). For `uber`
-    /// only its diffuse and glossy parts are described.
-    pub fn ltc_lobes(&self, si: &SurfaceInteraction, textures: &Textures) -> Option<LtcDescription> {
-        let ctx = TextureEvalContext::from_si(si);
-        let geom = ShadingGeometry::infer(si);
-        self.ltc_lobes_ext(si, &ctx, &geom, textures)
+    /// The material's type as a scene names it (`"matte"`, `"disney"`…; both subsurface kinds
+    /// are `"subsurface"`), for warnings.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Material::Matte { .. } => "matte",
+            Material::Plastic { .. } => "plastic",
+            Material::Metal { .. } => "metal",
+            Material::Mirror { .. } => "mirror",
+            Material::Glass { .. } => "glass",
+            Material::Substrate { .. } => "substrate",
+            Material::Uber { .. } => "uber",
+            Material::Mix { .. } => "mix",
+            Material::Translucent { .. } => "translucent",
+            Material::Disney(_) => "disney",
+            Material::Fourier(_) => "fourier",
+            Material::Hair(_) => "hair",
+            Material::Subsurface(s) => match s.medium {
+                subsurface::Medium::Coefficients { .. } => "subsurface",
+                subsurface::Medium::Albedo { .. } => "kdsubsurface",
+            },
+        }
     }
 
-    /// [`Self::ltc_lobes`] with an explicit texture context and shading geometry.
-    pub fn ltc_lobes_ext(
-        &self,
+    /// Whether the material may have a BSSRDF (`subsurface`, `kdsubsurface`, `disney` with a
+    /// `scatterdistance` that is not constant black and not `thin`).
+    pub fn may_have_bssrdf(&self) -> bool {
+        match self {
+            Material::Subsurface(_) => true,
+            Material::Disney(d) => !d.thin && d.scatter_distance != SpectrumParam::Const(Rgb::ZERO),
+            _ => false,
+        }
+    }
+
+    /// The BSSRDF under the surface at `si` whose BSDF (built with `opts`) is `bsdf`, for the
+    /// material at index `index` of `SceneDescription::materials`; `None` for materials without one.
+    #[allow(clippy::too_many_arguments)]
+    pub fn bssrdf<'a>(
+        &'a self,
         si: &SurfaceInteraction,
         ctx: &TextureEvalContext,
-        geom: &ShadingGeometry,
-        tx: &Textures,
-    ) -> Option<LtcDescription> {
-        let (diffuse, specular) = self.ltc_parts(ctx, tx, true)?;
-        let (n, _) = self.frame(si, ctx, geom, tx);
-        Some(LtcDescription { n, diffuse, specular })
-    }
-
-    /// The diffuse albedo of [`Self::ltc_lobes`] alone (`None` exactly when it is `None`):
-    /// neither the shading frame nor the glossy lobe's Fresnel and remapped roughness are
-    /// evaluated — what a pixel sample needs when its surface's lighting was integrated once
-    /// for the pixel.
-    pub fn ltc_diffuse(&self, si: &SurfaceInteraction, tx: &Textures) -> Option<Rgb> {
-        self.ltc_parts(&TextureEvalContext::from_si(si), tx, false).map(|(d, _)| d)
-    }
-
-    /// The diffuse albedo and, with `specular`, the glossy lobe of [`Self::ltc_lobes`]
-    /// (without it, only what decides whether there is an LTC form is evaluated).
-    fn ltc_parts(&self, ctx: &TextureEvalContext, tx: &Textures, specular: bool) -> Option<(Rgb, Option<LtcSpecular>)> {
-        let alpha = |r: f32, remap: bool| if remap { roughness_to_alpha(r) } else { r };
-        let iso = |ur: f32, vr: f32, remap: bool| {
-            let (a, b) = (alpha(ur, remap), alpha(vr, remap));
-            (a == b).then(|| MicrofacetDistribution::trowbridge_reitz(a, a).alphas().0)
-        };
-        Some(match *self {
-            Material::Matte { kd, sigma, .. } => {
-                if eval_f(tx, sigma, ctx).clamp(0.0, 90.0) != 0.0 {
-                    return None;
-                }
-                (eval_s(tx, kd, ctx), None)
-            }
-            Material::Plastic { kd, .. } if !specular => (eval_s(tx, kd, ctx), None),
-            Material::Plastic { kd, ks, roughness, remap, .. } => {
-                let ks = eval_s(tx, ks, ctx);
-                let r = eval_f(tx, roughness, ctx);
-                let spec = (!is_black(ks)).then(|| LtcSpecular {
-                    alpha: iso(r, r, remap).unwrap_or(1.0),
-                    fresnel: LtcFresnel::Dielectric { eta_i: 1.5, eta_t: 1.0 },
-                    scale: ks,
-                });
-                (eval_s(tx, kd, ctx), spec)
-            }
-            Material::Metal { eta, k, roughness, uroughness, vroughness, remap, .. } => {
-                let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
-                let vr = eval_f(tx, vroughness.unwrap_or(roughness), ctx);
-                let a = iso(ur, vr, remap)?;
-                let spec = specular.then(|| LtcSpecular {
-                    alpha: a,
-                    fresnel: LtcFresnel::Conductor { eta: tx.eval_spectrum(eta, ctx), k: tx.eval_spectrum(k, ctx) },
-                    scale: Rgb::ONE,
-                });
-                (Rgb::ZERO, spec)
-            }
-            Material::Substrate { kd, ks, uroughness, vroughness, remap, .. } => {
-                let ur = eval_f(tx, uroughness, ctx);
-                let vr = eval_f(tx, vroughness, ctx);
-                let a = iso(ur, vr, remap)?;
-                let spec = specular.then(|| LtcSpecular {
-                    alpha: a,
-                    fresnel: LtcFresnel::Schlick { f0: eval_s(tx, ks, ctx) },
-                    scale: Rgb::ONE,
-                });
-                (eval_s(tx, kd, ctx), spec)
-            }
-            Material::Uber { kd, ks, roughness, uroughness, vroughness, eta, opacity, remap, .. } => {
-                let op = eval_s(tx, opacity, ctx);
-                let ks = op * eval_s(tx, ks, ctx);
-                let spec = if is_black(ks) {
-                    None
-                } else {
-                    let ur = eval_f(tx, uroughness.unwrap_or(roughness), ctx);
-                    let vr = match vroughness {
-                        Some(v) => eval_f(tx, v, ctx),
-                        None => ur,
-                    };
-                    let a = iso(ur, vr, remap)?;
-                    specular.then(|| LtcSpecular {
-                        alpha: a,
-                        fresnel: LtcFresnel::Dielectric { eta_i: 1.0, eta_t: eval_f(tx, eta, ctx) },
-                        scale: ks,
-                    })
-                };
-                (op * eval_s(tx, kd, ctx), spec)
-            }
-            _ => return None,
-        })
+        bsdf: &Bsdf,
+        opts: BsdfOptions,
+        textures: &'a Textures,
+        index: usize,
+    ) -> Option<crate::bssrdf::SeparableBssrdf<'a>> {
+        let l =
+            Lobes { tx: textures, ctx, opts, ns: bsdf.shading_normal(), ss: bsdf.local_to_world(Vec3::X), ng: si.n };
+        match self {
+            Material::Subsurface(s) => s.bssrdf(&l, bsdf, si.p, index),
+            Material::Disney(d) => d.bssrdf(&l, bsdf, si.p, index),
+            _ => None,
+        }
     }
 }
+
+mod ltc;
+pub use ltc::{LobeEval, LtcDescription, LtcFresnel, LtcLobe, LtcLobeKind, LtcLobes, MAX_LOBES};
 
 #[cfg(test)]
 mod tests;

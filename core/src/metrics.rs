@@ -455,7 +455,7 @@ pub fn flip_mean(a: &Image, b: &Image, pixels_per_degree: f32) -> Result<f64, Me
             .flat_map(|p| p.to_array())
             .map(|v| {
                 let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
-                (crate::image::srgb_encode(v) * 255.0 + 0.5) as u8
+                (crate::spectrum::srgb_encode(v) * 255.0 + 0.5) as u8
             })
             .collect())
     };

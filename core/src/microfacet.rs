@@ -4,14 +4,14 @@
 //! after Heitz & d'Eon 2014).
 //!
 //! Directions are in the local shading frame (z = normal). Alphas are clamped to
-//! at least [`MIN_ALPHA`] so that `alpha = 0` (which pbrt-v3 turns into NaNs)
-//! stays finite; use a specular lobe for a perfectly smooth surface.
+//! at least [`MIN_ALPHA`], as pbrt-v3's distributions clamp them (0.001; a negative or NaN
+//! alpha becomes it too); use a specular lobe for a perfectly smooth surface.
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
-/// Smallest alpha a distribution is built with.
-pub const MIN_ALPHA: f32 = 1e-4;
+/// Smallest alpha a distribution is built with (pbrt-v3's `std::max(Float(0.001), alpha)`).
+pub const MIN_ALPHA: f32 = 1e-3;
 
 /// pbrt-v3's roughness → alpha remapping (`RoughnessToAlpha`, the same polynomial
 /// in `ln(roughness)` for both distributions), with roughness clamped to ≥ 1e-3.
@@ -61,15 +61,27 @@ pub(crate) fn sin_phi(w: Vec3) -> f32 {
 /// A microfacet normal distribution.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum MicrofacetDistribution {
-    Beckmann { alpha_x: f32, alpha_y: f32 },
-    TrowbridgeReitz { alpha_x: f32, alpha_y: f32 },
+    Beckmann {
+        alpha_x: f32,
+        alpha_y: f32,
+    },
+    TrowbridgeReitz {
+        alpha_x: f32,
+        alpha_y: f32,
+    },
+    /// pbrt-v3's `DisneyMicrofacetDistribution`: Trowbridge–Reitz with the *separable*
+    /// masking-shadowing `G = G1(wo) G1(wi)` (`disney`'s specular lobes).
+    DisneyTrowbridgeReitz {
+        alpha_x: f32,
+        alpha_y: f32,
+    },
 }
 
 fn sane_alpha(a: f32) -> f32 {
     if a.is_nan() {
         MIN_ALPHA
     } else {
-        a.abs().clamp(MIN_ALPHA, 1e4)
+        a.clamp(MIN_ALPHA, 1e4)
     }
 }
 
@@ -84,11 +96,17 @@ impl MicrofacetDistribution {
         MicrofacetDistribution::TrowbridgeReitz { alpha_x: sane_alpha(alpha_x), alpha_y: sane_alpha(alpha_y) }
     }
 
+    /// pbrt-v3's `DisneyMicrofacetDistribution` with the given alphas.
+    pub fn disney(alpha_x: f32, alpha_y: f32) -> Self {
+        MicrofacetDistribution::DisneyTrowbridgeReitz { alpha_x: sane_alpha(alpha_x), alpha_y: sane_alpha(alpha_y) }
+    }
+
     /// `(alpha_x, alpha_y)`.
     pub fn alphas(&self) -> (f32, f32) {
         match *self {
             MicrofacetDistribution::Beckmann { alpha_x, alpha_y }
-            | MicrofacetDistribution::TrowbridgeReitz { alpha_x, alpha_y } => (alpha_x, alpha_y),
+            | MicrofacetDistribution::TrowbridgeReitz { alpha_x, alpha_y }
+            | MicrofacetDistribution::DisneyTrowbridgeReitz { alpha_x, alpha_y } => (alpha_x, alpha_y),
         }
     }
 
@@ -105,7 +123,9 @@ impl MicrofacetDistribution {
         let e = (cp * cp / (ax * ax) + sp * sp / (ay * ay)) * tan2;
         let v = match self {
             MicrofacetDistribution::Beckmann { .. } => (-e).exp() / (PI * ax * ay * cos4),
-            MicrofacetDistribution::TrowbridgeReitz { .. } => 1.0 / (PI * ax * ay * cos4 * (1.0 + e) * (1.0 + e)),
+            MicrofacetDistribution::TrowbridgeReitz { .. } | MicrofacetDistribution::DisneyTrowbridgeReitz { .. } => {
+                1.0 / (PI * ax * ay * cos4 * (1.0 + e) * (1.0 + e))
+            }
         };
         if v.is_finite() {
             v
@@ -133,7 +153,7 @@ impl MicrofacetDistribution {
                     (1.0 - 1.259 * a + 0.396 * a * a) / (3.535 * a + 2.181 * a * a)
                 }
             }
-            MicrofacetDistribution::TrowbridgeReitz { .. } => {
+            MicrofacetDistribution::TrowbridgeReitz { .. } | MicrofacetDistribution::DisneyTrowbridgeReitz { .. } => {
                 let t = (alpha * abs_tan) * (alpha * abs_tan);
                 (-1.0 + (1.0 + t).sqrt()) / 2.0
             }
@@ -145,9 +165,18 @@ impl MicrofacetDistribution {
         1.0 / (1.0 + self.lambda(w))
     }
 
-    /// Height-correlated Smith masking-shadowing.
+    /// Smith masking-shadowing: height-correlated, except the Disney distribution's separable one.
     pub fn g(&self, wo: Vec3, wi: Vec3) -> f32 {
-        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
+        self.g_of_lambdas(self.lambda(wo), self.lambda(wi))
+    }
+
+    /// [`Self::g`] from the two directions' Λ.
+    #[inline]
+    pub fn g_of_lambdas(&self, lambda_o: f32, lambda_i: f32) -> f32 {
+        match self {
+            MicrofacetDistribution::DisneyTrowbridgeReitz { .. } => 1.0 / ((1.0 + lambda_o) * (1.0 + lambda_i)),
+            _ => 1.0 / (1.0 + lambda_o + lambda_i),
+        }
     }
 
     /// Sample a microfacet normal from the distribution of normals visible from
@@ -164,7 +193,9 @@ impl MicrofacetDistribution {
         let ws = Vec3::new(ax * w.x, ay * w.y, w.z).normalize();
         let (mut sx, mut sy) = match self {
             MicrofacetDistribution::Beckmann { .. } => beckmann_sample11(ws.z, u.x, u.y),
-            MicrofacetDistribution::TrowbridgeReitz { .. } => trowbridge_reitz_sample11(ws.z, u.x, u.y),
+            MicrofacetDistribution::TrowbridgeReitz { .. } | MicrofacetDistribution::DisneyTrowbridgeReitz { .. } => {
+                trowbridge_reitz_sample11(ws.z, u.x, u.y)
+            }
         };
         // Rotate into wo's azimuth, unstretch.
         let (cp, sp) = (cos_phi(ws), sin_phi(ws));

@@ -2,6 +2,7 @@
 //! domains with their densities, MIS heuristics, stratification helpers, and
 //! piecewise-constant 1D/2D distributions.
 
+use crate::interpolation::find_interval;
 use crate::rng::{Rng, ONE_MINUS_EPSILON_F32};
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
@@ -39,12 +40,6 @@ pub fn uniform_sample_cone(u: Vec2, cos_theta_max: f32) -> Vec3 {
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let phi = u.y * 2.0 * PI;
     Vec3::new(phi.cos() * sin_theta, phi.sin() * sin_theta, cos_theta)
-}
-
-/// [`uniform_sample_cone`] around the frame (`x`, `y`, `z`).
-pub fn uniform_sample_cone_in_frame(u: Vec2, cos_theta_max: f32, x: Vec3, y: Vec3, z: Vec3) -> Vec3 {
-    let l = uniform_sample_cone(u, cos_theta_max);
-    x * l.x + y * l.y + z * l.z
 }
 
 /// 1 / (solid angle of the cone); infinite for a degenerate cone (`cos_theta_max` = 1).
@@ -210,23 +205,6 @@ pub fn latin_hypercube_2d(samples: &mut [Vec2], rng: &mut Rng) {
     for (p, c) in samples.iter_mut().zip(flat.chunks_exact(2)) {
         *p = Vec2::new(c[0], c[1]);
     }
-}
-
-/// The largest index `i` in `[0, size - 2]` with `pred(i)` true (pred must be monotone: true then false);
-/// 0 if none.
-fn find_interval(size: usize, pred: impl Fn(usize) -> bool) -> usize {
-    let (mut first, mut len) = (0usize, size);
-    while len > 0 {
-        let half = len >> 1;
-        let middle = first + half;
-        if pred(middle) {
-            first = middle + 1;
-            len -= half + 1;
-        } else {
-            len = half;
-        }
-    }
-    first.saturating_sub(1).min(size.saturating_sub(2))
 }
 
 fn sanitize(v: f32) -> f32 {
@@ -443,7 +421,7 @@ mod tests {
         }
         assert!(checked > 20_000);
     }
-    use crate::stats::chi2_test;
+    use crate::goodness_of_fit::chi2_test;
 
     const N: usize = 200_000;
     const ALPHA: f64 = 1e-4;

@@ -16,7 +16,7 @@
 //!   `geomParams`) are not supported: only the material's own parameters are used.
 
 use crate::interaction::SurfaceInteraction;
-use crate::spectrum::Rgb;
+use crate::spectrum::{srgb_decode, Rgb};
 use glam::{Mat4, Vec2, Vec3};
 use penumbra_parser::{
     DiagSink, Diagnostic, FileLoc, ParamSet, SceneDescription, SpectrumValue, TextureDesc, TextureKind, Transform,
@@ -31,9 +31,9 @@ use std::sync::{Arc, OnceLock};
 // Evaluation context and mappings
 // ---------------------------------------------------------------------------
 
-/// The geometry a texture is evaluated at. Screen-space differentials may all be
-/// zero (no ray differentials): image textures then use a bilinear lookup of the
-/// finest MIP level and the antialiased procedural textures point-sample.
+/// The geometry a texture is evaluated at. Screen-space differentials are zero where the
+/// ray had no offset rays: image textures then use a bilinear lookup of the finest MIP level
+/// and the antialiased procedural textures take every octave, as pbrt-v3 does.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TextureEvalContext {
     pub p: Vec3,
@@ -48,47 +48,21 @@ pub struct TextureEvalContext {
 }
 
 impl TextureEvalContext {
-    /// The context at a surface point with no ray differentials.
+    /// The context at a surface point, with its differentials (pbrt-v3's `SurfaceInteraction`
+    /// as textures see it).
     pub fn from_si(si: &SurfaceInteraction) -> Self {
-        TextureEvalContext { p: si.p, n: si.n, uv: si.uv, ..Default::default() }
-    }
-
-    /// The context with screen-space differentials from the offset rays `(origin, direction)`
-    /// for one pixel step in x and y, as pbrt-v3's `SurfaceInteraction::ComputeDifferentials`
-    /// (intersect each offset ray with the tangent plane, then solve for ∂u/∂x… by least
-    /// squares in the two best-conditioned axes). Falls back to zero differentials.
-    pub fn with_ray_differentials(si: &SurfaceInteraction, rx: (Vec3, Vec3), ry: (Vec3, Vec3)) -> Self {
-        let mut c = Self::from_si(si);
-        let n = si.n;
-        let d = n.dot(si.p);
-        let hit = |(o, dir): (Vec3, Vec3)| {
-            let t = -(n.dot(o) - d) / n.dot(dir);
-            t.is_finite().then(|| o + t * dir)
-        };
-        let (Some(px), Some(py)) = (hit(rx), hit(ry)) else { return c };
-        c.dpdx = px - si.p;
-        c.dpdy = py - si.p;
-        let a = n.abs();
-        let dim = if a.x > a.y && a.x > a.z {
-            [1, 2]
-        } else if a.y > a.z {
-            [0, 2]
-        } else {
-            [0, 1]
-        };
-        let m = [[si.dpdu[dim[0]], si.dpdv[dim[0]]], [si.dpdu[dim[1]], si.dpdv[dim[1]]]];
-        let solve = |b: [f32; 2]| -> Option<(f32, f32)> {
-            let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
-            if det.abs() < 1e-10 {
-                return None;
-            }
-            let x0 = (m[1][1] * b[0] - m[0][1] * b[1]) / det;
-            let x1 = (m[0][0] * b[1] - m[1][0] * b[0]) / det;
-            (x0.is_finite() && x1.is_finite()).then_some((x0, x1))
-        };
-        (c.dudx, c.dvdx) = solve([c.dpdx[dim[0]], c.dpdx[dim[1]]]).unwrap_or((0.0, 0.0));
-        (c.dudy, c.dvdy) = solve([c.dpdy[dim[0]], c.dpdy[dim[1]]]).unwrap_or((0.0, 0.0));
-        c
+        let d = &si.diff;
+        TextureEvalContext {
+            p: si.p,
+            n: si.n,
+            uv: si.uv,
+            dpdx: d.dpdx,
+            dpdy: d.dpdy,
+            dudx: d.dudx,
+            dudy: d.dudy,
+            dvdx: d.dvdx,
+            dvdy: d.dvdy,
+        }
     }
 }
 
@@ -462,10 +436,13 @@ impl<T: Texel> MipMap<T> {
     }
 
     /// Filtered lookup: trilinear when `trilinear`, else EWA with eccentricity clamped to `max_aniso`.
+    /// The trilinear filter width is the largest footprint component, not twice it: pbrt-v3's
+    /// commit aaa552a ("Fix trilinear filtering", in the 13d871f the references were made with)
+    /// dropped the factor 2, since each level's bilinear lookup already widens the filter.
     pub fn lookup(&self, st: Vec2, mut d0: Vec2, mut d1: Vec2, trilinear: bool, max_aniso: f32) -> T {
         if trilinear {
             let w = d0.x.abs().max(d0.y.abs()).max(d1.x.abs().max(d1.y.abs()));
-            return self.lookup_width(st, 2.0 * w);
+            return self.lookup_width(st, w);
         }
         if d0.length_squared() < d1.length_squared() {
             std::mem::swap(&mut d0, &mut d1);
@@ -732,10 +709,15 @@ pub enum TextureNode<P, V: Texel> {
         tex1: P,
         tex2: P,
     },
+    /// pbrt-v3's `dots`, whose constructor takes `(outside, inside)` but is called with the
+    /// `"inside"` and `"outside"` parameters in that order: the dots show `"outside"` and the
+    /// space between them `"inside"`. penumbra renders what pbrt-v3 renders.
     Dots {
         mapping: Mapping2D,
-        inside: P,
-        outside: P,
+        /// The `"outside"` parameter (default 0).
+        in_dots: P,
+        /// The `"inside"` parameter (default 1).
+        between_dots: P,
     },
     Fbm {
         mapping: Mapping3D,
@@ -799,26 +781,12 @@ pub struct Textures {
     mips: HashMap<MipKey, CachedMip>,
 }
 
-/// pbrt-v3's sRGB decoding (`InverseGammaCorrect`).
-pub fn srgb_to_linear(v: f32) -> f32 {
-    if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
-}
-
 fn luminance(c: Rgb) -> f32 {
     crate::spectrum::luminance(c)
 }
 
 fn spectrum_value_to_rgb(v: &SpectrumValue) -> Result<Rgb, String> {
     crate::spectrum::spectrum_to_rgb(v).map_err(|e| e.to_string())
-}
-
-/// Converts a spectrum-typed parameter value to RGB as pbrt-v3 does.
-pub fn spectrum_param_to_rgb(v: &SpectrumValue) -> Result<Rgb, String> {
-    spectrum_value_to_rgb(v)
 }
 
 fn read_image(path: &Path) -> Result<crate::image::Image, String> {
@@ -1020,7 +988,7 @@ impl Textures {
                 .map(|c| {
                     let y = luminance(c);
                     if gamma {
-                        srgb_to_linear(y)
+                        srgb_decode(y)
                     } else {
                         y
                     }
@@ -1030,7 +998,7 @@ impl Textures {
         } else {
             let data = rows(&|c| {
                 if gamma {
-                    Vec3::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z))
+                    Vec3::new(srgb_decode(c.x), srgb_decode(c.y), srgb_decode(c.z))
                 } else {
                     c
                 }
@@ -1116,8 +1084,8 @@ impl Textures {
             )?,
             "dots" => TextureNode::Dots {
                 mapping: m2(warnings),
-                inside: self.get_float_param(p, "inside", 1.0, warnings)?,
-                outside: self.get_float_param(p, "outside", 0.0, warnings)?,
+                between_dots: self.get_float_param(p, "inside", 1.0, warnings)?,
+                in_dots: self.get_float_param(p, "outside", 0.0, warnings)?,
             },
             "fbm" => TextureNode::Fbm {
                 mapping: Mapping3D::new(xf),
@@ -1192,8 +1160,8 @@ impl Textures {
             )?,
             "dots" => TextureNode::Dots {
                 mapping: m2(warnings),
-                inside: self.get_spectrum_param(p, "inside", one, warnings)?,
-                outside: self.get_spectrum_param(p, "outside", Vec3::ZERO, warnings)?,
+                between_dots: self.get_spectrum_param(p, "inside", one, warnings)?,
+                in_dots: self.get_spectrum_param(p, "outside", Vec3::ZERO, warnings)?,
             },
             "fbm" => TextureNode::Fbm {
                 mapping: Mapping3D::new(xf),
@@ -1430,7 +1398,7 @@ impl<P: TextureParam<Value = V>, V: Texel + FromScalar> TextureNode<P, V> {
                     tex2.eval(tx, ctx)
                 }
             }
-            TextureNode::Dots { mapping, inside, outside } => {
+            TextureNode::Dots { mapping, in_dots, between_dots } => {
                 let (st, _, _) = mapping.map(ctx);
                 let s_cell = (st.x + 0.5).floor();
                 let t_cell = (st.y + 0.5).floor();
@@ -1441,10 +1409,10 @@ impl<P: TextureParam<Value = V>, V: Texel + FromScalar> TextureNode<P, V> {
                     let sc = s_cell + max_shift * n2(s_cell + 1.5, t_cell + 2.8);
                     let tc = t_cell + max_shift * n2(s_cell + 4.5, t_cell + 9.8);
                     if (st - Vec2::new(sc, tc)).length_squared() < radius * radius {
-                        return inside.eval(tx, ctx);
+                        return in_dots.eval(tx, ctx);
                     }
                 }
-                outside.eval(tx, ctx)
+                between_dots.eval(tx, ctx)
             }
             TextureNode::Fbm { mapping, octaves, omega } => {
                 let (p, dx, dy) = mapping.map(ctx);

@@ -1,7 +1,7 @@
 #![no_main]
 //! `cargo +nightly fuzz run scene_build fuzz/corpus/scene_build`: a fuzzed scene and a fuzzed PLY file,
 //! parsed and built as `render` builds them (every requirement on: BVH, lights, materials and
-//! the textures they reference, adjacency, dual edges), so that vertex indices, PLY bytes,
+//! the textures they reference, BSSRDF tables, adjacency, dual edges), so that vertex indices, PLY bytes,
 //! texture and light parameters — checked in the scene build, not the parser — are reached.
 //!
 //! Input: the scene text, then optionally a NUL byte and the bytes of `mesh.ply`, written to a
@@ -43,6 +43,7 @@ fuzz_target!(|data: &[u8]| {
         materials: true,
         adjacency: true,
         min_pixel_samples: None,
+        subsurface: true,
     };
     let opts = BuildOptions { spp: Some(1), seed: 0, crop: None, resolution: Some((8, 8)) };
     // With `silhouette`'s dual edges, built as its preparation builds them.

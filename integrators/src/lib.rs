@@ -18,70 +18,89 @@ use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 
 pub type Constructor = fn(&ParamSet, &DiagSink) -> Result<Box<dyn Integrator>, Diagnostic>;
 
-/// An integrator penumbra implements.
+/// An integrator penumbra implements: everything known about it besides its code.
 pub struct Entry {
+    /// Its name (`-i NAME`, the scene's `Integrator "NAME"`).
     pub name: &'static str,
+    /// One line: the method and its source.
     pub method: &'static str,
     pub create: Constructor,
     /// The parameters it reads ([`common::params`]): what `--param` accepts, `render --help`
-    /// and the README list.
+    /// and the docs list.
     pub params: &'static [ParamSpec],
+    /// The registered estimator its images converge to (`sweep --reference-spp` renders it
+    /// unless told otherwise): AO images are not direct lighting, and `path` and `whitted` see
+    /// more than it does. A reference is its own reference.
+    pub reference: &'static str,
 }
+
+/// pbrt-v3's direct lighting: the estimator the direct-illumination methods converge to and
+/// are compared with (a sweep's default target error is the one it reaches).
+pub const DIRECT_LIGHTING: &str = "directlighting";
 
 pub const REGISTRY: &[Entry] = &[
     Entry {
-        name: "directlighting",
+        name: DIRECT_LIGHTING,
         method: "pbrt-v3 direct lighting: light + BSDF sampling with MIS, strategy all/one, specular recursion",
         create: directlighting::DirectLighting::create,
         params: directlighting::PARAMS,
+        reference: DIRECT_LIGHTING,
     },
     Entry {
         name: "path",
         method: "pbrt-v3 path tracing: one light per vertex (spatial/uniform/power) with MIS, Russian roulette",
         create: path::PathIntegrator::create,
         params: path::PARAMS,
+        reference: "path",
     },
     Entry {
         name: "whitted",
         method: "pbrt-v3 Whitted ray tracing: every light one sample, perfect specular reflection and transmission",
         create: whitted::Whitted::create,
         params: whitted::PARAMS,
+        reference: "whitted",
     },
     Entry {
         name: "ltc",
         method: "analytic area-light shading and soft shadows with Linearly Transformed Cosines (seed 004)",
         create: ltc::LtcIntegrator::create,
         params: ltc::PARAMS,
+        reference: DIRECT_LIGHTING,
     },
     Entry {
         name: "ratio",
         method: "analytic LTC shading × denoised stochastic shadow ratio S_N/U_N (Heitz, Hill & McGuire 2018)",
         create: ratio::RatioIntegrator::create,
         params: ratio::PARAMS,
+        reference: DIRECT_LIGHTING,
     },
     Entry {
         name: "silhouette",
         method: "semi-analytic integration along visibility silhouettes: 4D dual-edge contours, depth complexity along meridians (seed 000)",
         create: silhouette::Silhouette::create,
         params: silhouette::PARAMS,
+        reference: DIRECT_LIGHTING,
     },
     Entry {
         name: "shexp",
         method: "environment soft shadows from sphere-set occluders by SH exponentiation (seed 003)",
         create: shexp::Shexp::create,
         params: shexp::PARAMS,
+        reference: DIRECT_LIGHTING,
     },
     Entry {
         name: "ambientocclusion",
         method: "ray-traced ambient occlusion (pbrt-v3 semantics: nsamples, cossample; pbrt-v4's maxdistance)",
         create: ambientocclusion::AmbientOcclusion::create,
         params: ambientocclusion::PARAMS,
+        reference: "ambientocclusion",
     },
     Entry {
         name: "sheared-ao",
         method: "sparse ray-traced AO, neighbours' rays warped and weighted by a sheared filter (Egan et al. 2011, seed 002)",
         create: sheared_ao::ShearedAo::create,
         params: sheared_ao::PARAMS,
+        reference: "ambientocclusion",
     },
 ];
 
@@ -93,6 +112,7 @@ pub const HIDDEN: &[Entry] = &[Entry {
         "ambientocclusion with a fixed absolute ray epsilon (deliberately unstable, for penumbra stability's tests)",
     create: ambientocclusion::AmbientOcclusion::create_fixed_epsilon,
     params: ambientocclusion::PARAMS,
+    reference: "ambientocclusion",
 }];
 
 /// pbrt-v3 integrators penumbra does not implement; scenes naming them render with the fallback.
@@ -106,6 +126,11 @@ pub fn find(name: &str) -> Option<&'static Entry> {
     REGISTRY.iter().chain(HIDDEN).find(|e| e.name == name)
 }
 
+/// The registered [`Entry::reference`] of `name` ([`DIRECT_LIGHTING`] for a name not registered).
+pub fn natural_reference(name: &str) -> &'static str {
+    find(name).map_or(DIRECT_LIGHTING, |e| e.reference)
+}
+
 /// `render --help`'s list of the registered integrators and their parameters.
 pub fn help_text() -> String {
     let mut o =
@@ -117,29 +142,49 @@ pub fn help_text() -> String {
     o
 }
 
-/// The README's list of the registered integrators' parameters (between [`README_BEGIN`] and
-/// [`README_END`]; `cargo run -p penumbra-integrators --example readme-params` rewrites it).
-pub fn markdown() -> String {
-    let mut o = String::new();
+/// The page that documents integrator `name`, relative to the repository's root.
+pub fn doc_page(name: &str) -> String {
+    format!("docs/integrators/{name}.md")
+}
+
+/// Marks the generated parameter table in an integrator's page ([`with_generated_params`]).
+pub const PARAMS_BEGIN: &str =
+    "<!-- integrator-params:begin (generated from the registry: cargo run -p penumbra-integrators --example generate-docs) -->";
+pub const PARAMS_END: &str = "<!-- integrator-params:end -->";
+/// Marks the generated integrator table in the README ([`with_generated_table`]).
+pub const TABLE_BEGIN: &str =
+    "<!-- integrator-table:begin (generated from the registry: cargo run -p penumbra-integrators --example generate-docs) -->";
+pub const TABLE_END: &str = "<!-- integrator-table:end -->";
+
+/// `text` with what lies between the lines `begin` and `end` replaced by `generated`.
+fn replace_between(text: &str, begin: &str, end: &str, generated: &str, what: &str) -> Result<String, String> {
+    let b = text.find(begin).ok_or_else(|| format!("{what}: the marker `{begin}` is missing"))?;
+    let e = text.find(end).ok_or_else(|| format!("{what}: the marker `{end}` is missing"))?;
+    let from = b + begin.len();
+    if e < from {
+        return Err(format!("{what}: the end marker comes before the begin marker"));
+    }
+    Ok(format!("{}\n\n{}\n{}", &text[..from], generated.trim_end(), &text[e..]))
+}
+
+/// `page` (the text of `entry`'s [`doc_page`]) with its parameter table, between
+/// [`PARAMS_BEGIN`] and [`PARAMS_END`], generated from `entry.params`.
+pub fn with_generated_params(entry: &Entry, page: &str) -> Result<String, String> {
+    replace_between(page, PARAMS_BEGIN, PARAMS_END, &common::params::markdown(entry.params), &doc_page(entry.name))
+}
+
+/// The README's integrator table: one line per registered integrator, linking its page.
+pub fn integrator_table() -> String {
+    let mut o = String::from("| integrator | method (its page: parameters, measurements, limits) |\n|---|---|\n");
     for e in REGISTRY {
-        o += &format!("\n**`{}`**\n\n", e.name);
-        o += &common::params::markdown(e.params);
+        o += &format!("| [`{}`]({}) | {} |\n", e.name, doc_page(e.name), e.method.replace('|', "\\|"));
     }
     o
 }
 
-pub const README_BEGIN: &str = "<!-- integrator-params:begin (generated from the registry: cargo run -p penumbra-integrators --example readme-params) -->";
-pub const README_END: &str = "<!-- integrator-params:end -->";
-
-/// `readme` with the text between its markers replaced by [`markdown`].
-pub fn with_generated_params(readme: &str) -> Result<String, String> {
-    let begin = readme.find(README_BEGIN).ok_or("README: the integrator-params begin marker is missing")?;
-    let end = readme.find(README_END).ok_or("README: the integrator-params end marker is missing")?;
-    let from = begin + README_BEGIN.len();
-    if end < from {
-        return Err("README: the integrator-params end marker comes before the begin marker".into());
-    }
-    Ok(format!("{}\n{}\n{}", &readme[..from], markdown(), &readme[end..]))
+/// `readme` with its integrator table, between [`TABLE_BEGIN`] and [`TABLE_END`], generated.
+pub fn with_generated_table(readme: &str) -> Result<String, String> {
+    replace_between(readme, TABLE_BEGIN, TABLE_END, &integrator_table(), "README.md")
 }
 
 #[cfg(test)]
@@ -160,6 +205,21 @@ mod tests {
             (Kind::Ints(n), _) => ParamValue::Int((0..n as i32).map(|i| i % 2).collect()),
             (kind, default) => panic!("{}: no test value for {kind:?} with default {default:?}", spec.name),
         }
+    }
+
+    /// Every natural reference is registered and is its own reference (a sweep's reference
+    /// must not itself need another).
+    #[test]
+    fn references_are_registered_fixed_points() {
+        for e in REGISTRY.iter().chain(HIDDEN) {
+            let r =
+                find(e.reference).unwrap_or_else(|| panic!("{}: reference {} is not registered", e.name, e.reference));
+            assert_eq!(r.reference, r.name, "{}: its reference {} has another reference", e.name, r.name);
+        }
+        let mut names = names();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), REGISTRY.len(), "a name registered twice");
     }
 
     #[test]

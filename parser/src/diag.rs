@@ -66,14 +66,6 @@ impl Diagnostic {
     pub fn warning(loc: Option<FileLoc>, message: impl Into<String>) -> Self {
         Diagnostic { severity: Severity::Warning, message: message.into(), loc, source_line: None, notes: vec![] }
     }
-    pub fn with_note(mut self, note: impl Into<String>) -> Self {
-        self.notes.push(note.into());
-        self
-    }
-    pub fn with_source_line(mut self, line: impl Into<String>) -> Self {
-        self.source_line = Some(line.into());
-        self
-    }
     pub fn is_error(&self) -> bool {
         self.severity == Severity::Error
     }

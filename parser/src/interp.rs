@@ -167,6 +167,8 @@ pub(crate) struct Interp {
     in_world: bool,
     /// An options-block directive has been seen (so the file is not a world fragment).
     saw_options: bool,
+    /// A `WorldBegin` was read (a world-block fragment parsed standalone has none).
+    saw_world_begin: bool,
     world_ended: bool,
     current_instance: Option<usize>,
     instance_names: HashMap<String, usize>,
@@ -207,6 +209,7 @@ impl Interp {
             tf_stack: vec![],
             in_world: false,
             saw_options: false,
+            saw_world_begin: false,
             world_ended: false,
             current_instance: None,
             instance_names: HashMap::new(),
@@ -763,7 +766,16 @@ impl Interp {
             let k = self.peek()?;
             let loc = self.here();
             match k {
-                Kind::Eof => break,
+                Kind::Eof => {
+                    if self.saw_world_begin && !self.world_ended {
+                        // pbrt-v3 reports an error and renders nothing (issue 41).
+                        self.warn(
+                            loc,
+                            "missing WorldEnd: the scene ends inside the world block; rendering what was read (pbrt-v3 renders nothing without it)",
+                        );
+                    }
+                    break;
+                }
                 Kind::Bare => {
                     let word = crate::diag::escape_lossy(self.lex().text());
                     self.lex().consume();
@@ -924,6 +936,7 @@ impl Interp {
             "WorldBegin" => {
                 self.need_options(&loc, word)?;
                 self.in_world = true;
+                self.saw_world_begin = true;
                 self.ctm = [Transform::IDENTITY; 2];
                 self.active = 3;
                 self.named_cs.insert("world".to_string(), self.ctm);

@@ -133,6 +133,11 @@ pub struct SceneDescription {
     pub files_read: Vec<PathBuf>,
 }
 
+/// pbrt-v3's parameters whose value names a file to read (`plymesh`'s `filename`, `imagemap`'s
+/// `filename`, an infinite, goniometric or projection light's `mapname`, `fourier`'s
+/// `bsdffile`, `realistic`'s `lensfile`).
+pub const ASSET_PARAMS: [&str; 4] = ["filename", "mapname", "bsdffile", "lensfile"];
+
 impl SceneDescription {
     /// Resolves an asset file name the way pbrt-v3 does: absolute paths as they are,
     /// relative ones against the directory of the top-level scene file.
@@ -143,6 +148,36 @@ impl SceneDescription {
         } else {
             self.base_dir.join(p)
         }
+    }
+
+    /// The asset files the scene's entities name (pbrt-v3's file-valued parameters
+    /// [`ASSET_PARAMS`]: PLY meshes, image textures and environment maps, measured BSDFs, lens
+    /// files), resolved as [`resolve_path`](Self::resolve_path) resolves them, each once, in
+    /// the order of the description. Whether they exist is not checked. Reading the parameters
+    /// does not mark them used.
+    pub fn asset_files(&self) -> Vec<PathBuf> {
+        let entities = std::iter::once(&self.camera.entity)
+            .chain(self.shapes.iter().map(|s| &s.entity))
+            .chain(self.instance_definitions.iter().flat_map(|d| d.shapes.iter().map(|s| &s.entity)))
+            .chain(self.lights.iter().map(|l| &l.entity))
+            .chain(&self.area_lights)
+            .chain(self.materials.iter().map(|m| &m.entity))
+            .chain(self.textures.iter().map(|t| &t.entity))
+            .chain(self.media.iter().map(|m| &m.entity));
+        let mut out: Vec<PathBuf> = Vec::new();
+        for e in entities {
+            for name in ASSET_PARAMS {
+                let Some(p) = e.params.find(name) else { continue };
+                let crate::ParamValue::String(v) = &p.value else { continue };
+                for f in v {
+                    let path = self.resolve_path(f);
+                    if !out.contains(&path) {
+                        out.push(path);
+                    }
+                }
+            }
+        }
+        out
     }
 
     /// Moves the whole scene by `world_from_world` (applied after every transform of the

@@ -614,3 +614,38 @@ fn transform_world_moves_everything_together() {
     // The instance definition's shapes stay in instance space.
     assert_eq!(o.instance_definitions, before.instance_definitions);
 }
+
+/// `asset_files` lists every file-valued parameter once, resolved against the scene's
+/// directory, in the description's order, without marking the parameters used.
+#[test]
+fn asset_files_are_every_file_valued_parameter_resolved() {
+    let text = r#"Film "image" "string filename" "out.exr"
+        WorldBegin
+        LightSource "infinite" "string mapname" "sky.exr"
+        Texture "t" "spectrum" "imagemap" "string filename" "tex/a.png"
+        Shape "plymesh" "string filename" "mesh.ply"
+        ObjectBegin "o"
+        Shape "plymesh" "string filename" "/abs/inst.ply"
+        ObjectEnd
+        Shape "plymesh" "string filename" "mesh.ply"
+        WorldEnd"#;
+    let s = crate::parse_str(text, "t.pbrt", Some(std::path::Path::new("/scenes"))).unwrap().scene;
+    let got = s.asset_files();
+    let want: Vec<std::path::PathBuf> =
+        ["/scenes/mesh.ply", "/abs/inst.ply", "/scenes/sky.exr", "/scenes/tex/a.png"].iter().map(Into::into).collect();
+    assert_eq!(got, want);
+    assert!(!s.shapes[0].entity.params.report_unused("shape").is_empty(), "reading them marks nothing used");
+}
+
+#[test]
+fn a_missing_world_end_is_a_warning_and_a_fragment_is_not() {
+    let out = parse("WorldBegin\nShape \"sphere\"\n");
+    let w: Vec<_> = out.warnings.iter().filter(|w| w.message.contains("missing WorldEnd")).collect();
+    assert_eq!(w.len(), 1, "{:?}", out.warnings);
+    assert_eq!(w[0].loc.as_ref().map(|l| l.line), Some(3));
+    assert_eq!(out.scene.shapes.len(), 1);
+    assert!(!parse("WorldBegin\nWorldEnd\n").warnings.iter().any(|w| w.message.contains("WorldEnd")));
+    // A world-block fragment (what an Include holds) warns that it is one, not about WorldEnd.
+    let frag = parse("Shape \"sphere\"\n");
+    assert!(!frag.warnings.iter().any(|w| w.message.contains("missing WorldEnd")), "{:?}", frag.warnings);
+}

@@ -3,8 +3,8 @@
 
 use super::variants::{self, Variant};
 use super::{fail, Failure};
-use crate::render::parse_resolution;
-use crate::sweep::print_new_warnings;
+use crate::cli::print_new_warnings;
+use crate::cli::{spp_parser, RenderFlags};
 use penumbra::cli_params;
 use penumbra::pipeline;
 use penumbra_core::integrator::Integrator;
@@ -41,14 +41,11 @@ pub struct StabilityArgs {
     /// The pbrt-v3 scene file.
     pub scene: PathBuf,
     /// Integrators to check, comma-separated.
-    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]")]
+    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]", value_parser = penumbra::cli_params::integrator_arg)]
     pub integrators: Vec<String>,
     /// Samples per pixel of every render.
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 4, value_parser = spp_parser())]
     pub spp: u32,
-    /// Film resolution `WxH` (default: the scene's aspect with its longer side 48 pixels).
-    #[arg(long)]
-    pub resolution: Option<String>,
     /// Variants or groups to run, comma-separated (default: all).
     #[arg(long, value_delimiter = ',', value_name = "NAME[,NAME...]")]
     pub variants: Option<Vec<String>>,
@@ -58,15 +55,8 @@ pub struct StabilityArgs {
     /// Translations in scene extents (default 1e2,1e4), comma-separated.
     #[arg(long, value_delimiter = ',', value_name = "K[,K...]")]
     pub translations: Option<Vec<f64>>,
-    /// Integrator parameter `key=value` for every integrator (repeatable; type inferred).
-    #[arg(long = "param", value_name = "KEY=VALUE")]
-    pub params: Vec<String>,
-    /// Worker threads (default: all cores).
-    #[arg(long, default_value_t = 0)]
-    pub threads: usize,
-    /// Sampler seed (the same for the base and every variant).
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub flags: RenderFlags,
     /// Output directory (stability.json, summary.md, contact.png).
     #[arg(short = 'o', long = "output", default_value = "stability-out")]
     pub output: PathBuf,
@@ -138,7 +128,7 @@ pub struct Setup {
 
 /// The default resolution: the scene's aspect ratio, its longer side 48 pixels.
 fn default_resolution(desc: &SceneDescription) -> (u32, u32) {
-    let (w, h) = crate::render::full_resolution(desc, None);
+    let (w, h) = crate::cli::full_resolution(desc, None);
     let (w, h) = (w.max(1) as f64, h.max(1) as f64);
     let s = 48.0 / w.max(h);
     (((w * s).round() as u32).max(1), ((h * s).round() as u32).max(1))
@@ -160,12 +150,9 @@ pub fn setup(args: &StabilityArgs) -> Result<Setup, Failure> {
         Some(list) => variants::select(&all, list).map_err(fail)?,
         None => all,
     };
-    let params = cli_params::parse_all(&args.params).map_err(|e| fail(e.message))?;
+    let params = cli_params::parse_all(&args.flags.params).map_err(|e| fail(e.message))?;
     let parsed = pipeline::load_scene(Some(&args.scene)).map_err(|d| fail(d.to_string()))?;
-    let resolution = match &args.resolution {
-        Some(r) => parse_resolution(r).map_err(fail)?,
-        None => default_resolution(&parsed.scene),
-    };
+    let resolution = args.flags.resolution.unwrap_or_else(|| default_resolution(&parsed.scene));
     let warnings = DiagSink::new();
     warnings.extend(parsed.warnings);
     let mut integrators = Vec::new();

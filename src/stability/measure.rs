@@ -39,8 +39,8 @@ impl Channels {
 /// What a variant must not exceed, per value.
 pub enum Bound {
     Constant(f32),
-    /// The bound render's R, G, B.
-    Image(Image),
+    /// The bound render's R, G, B, and the relative tolerance its integrator states.
+    Image(Image, f32),
 }
 
 /// The measures of one render against the base.
@@ -71,9 +71,9 @@ fn counts(img: &Image, bound: Option<&Bound>) -> ([u64; 3], [Option<usize>; 3]) 
     for (i, px) in img.data.chunks_exact(3).enumerate() {
         let over = |j: usize, v: f32| match bound {
             Some(Bound::Constant(b)) => v > b + BOUND_MARGIN * b.abs(),
-            Some(Bound::Image(b)) => {
+            Some(Bound::Image(b, tolerance)) => {
                 let bv = b.data[i * 3 + j];
-                v > bv + BOUND_MARGIN * bv.abs().max(1e-6)
+                v > bv + BOUND_MARGIN.max(*tolerance) * bv.abs().max(1e-6)
             }
             None => false,
         };

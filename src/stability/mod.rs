@@ -12,20 +12,20 @@
 
 mod args;
 mod measure;
-mod output;
+mod report;
 mod variants;
 
+use crate::cli::cancel_on_interrupt;
+use crate::cli::print_new_warnings;
 use crate::diff::{EXIT_FAIL, EXIT_FILE, EXIT_OK, EXIT_WARN};
-use crate::render::cancel_on_interrupt;
-use crate::sweep::print_new_warnings;
 pub use args::StabilityArgs;
 use args::{setup, Setup, Tolerances};
 use measure::{measure, Bound, Channels, Measures};
-use output::{ContactCell, Row};
 use penumbra::pipeline::{self, RenderOptions};
 use penumbra_core::integrator::{Integrator, RadianceBound};
 use penumbra_core::scene::BuildOptions;
 use penumbra_parser::{DiagSink, SceneDescription};
+use report::{ContactCell, Row};
 use std::collections::BTreeSet;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -51,7 +51,7 @@ fn fail(message: impl std::fmt::Display) -> Failure {
 }
 
 pub fn run(mut args: StabilityArgs) -> ExitCode {
-    args.threads = penumbra::cli_params::threads_or_warn(args.threads);
+    args.flags.threads = penumbra::cli_params::threads_or_warn(args.flags.threads);
     match run_inner(&args) {
         Ok(code) => ExitCode::from(code),
         Err(f) => penumbra::cli_params::exit_with_error(f.code, &f.message),
@@ -100,7 +100,7 @@ fn run_inner(args: &StabilityArgs) -> Result<u8, Failure> {
             eprintln!("{m}");
         }
     };
-    let build = BuildOptions { spp: Some(args.spp), seed: args.seed, crop: None, resolution: Some(s.resolution) };
+    let build = BuildOptions { spp: Some(args.spp), seed: args.flags.seed, crop: None, resolution: Some(s.resolution) };
     let geo = Geometry::of(&s.desc, &build).map_err(fail)?;
     let mut notes: Vec<String> = Vec::new();
     let mut scenes: Vec<(Variant, SceneDescription)> = Vec::new();
@@ -143,7 +143,7 @@ fn run_inner(args: &StabilityArgs) -> Result<u8, Failure> {
         }
     }
     let code = exit_code(&rows);
-    let out = output::Report { args, setup: &s, geo: &geo, rows: &rows, notes: &notes, exit_code: code };
+    let out = report::Report { args, setup: &s, geo: &geo, rows: &rows, notes: &notes, exit_code: code };
     out.write(&cells).map_err(fail)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out.json()).unwrap_or_default());
@@ -177,7 +177,7 @@ impl Study<'_> {
             integrator: None,
             params: &self.s.params,
             build: self.build.clone(),
-            threads: self.args.threads,
+            threads: self.args.flags.threads,
             with_variance: true,
             cancel: self.cancel,
             progress: None,
@@ -197,7 +197,7 @@ impl Study<'_> {
         let label = variant.map_or("base", |v| v.name.as_str());
         let warnings = DiagSink::new();
         let t0 = Instant::now();
-        let result = pipeline::render_with(integrator, desc, &self.opts(), &warnings);
+        let result = pipeline::render_with(name, integrator, desc, &self.opts(), &warnings);
         let seconds = t0.elapsed().as_secs_f64();
         print_new_warnings(&warnings, seen);
         let rendered = result.map_err(|e| self.failed(name, label, e))?;
@@ -212,11 +212,12 @@ impl Study<'_> {
         let bound = match integrator.radiance_bound().filter(|_| self.check_bounds) {
             None => None,
             Some(RadianceBound::Constant(c)) => Some(Bound::Constant(c)),
-            Some(RadianceBound::Image(b)) => {
-                let r = pipeline::render_with(b.as_ref(), desc, &self.opts(), &warnings)
-                    .map_err(|e| self.failed(name, &format!("{label} (its bound)"), e))?;
+            Some(RadianceBound::Image(b, tolerance)) => {
+                let r =
+                    pipeline::render_with(&format!("{name} (its bound)"), b.as_ref(), desc, &self.opts(), &warnings)
+                        .map_err(|e| self.failed(name, &format!("{label} (its bound)"), e))?;
                 print_new_warnings(&warnings, seen);
-                Some(Bound::Image(Channels::of(&r.image).map_err(fail)?.rgb))
+                Some(Bound::Image(Channels::of(&r.image).map_err(fail)?.rgb, tolerance))
             }
         };
         (self.say)(format!("{name:>16} {label:>14}: {seconds:.3} s"));

@@ -2,10 +2,12 @@
 //! every integrator is created once with its parameters before anything renders.
 
 use super::row::Metric;
-use super::{fail, print_new_warnings, Failure};
-use crate::render::{check_crop, full_resolution, parse_crop, parse_resolution};
+use super::{fail, Failure};
+use crate::cli::print_new_warnings;
+use crate::cli::{check_crop, full_resolution, spp_parser, RenderFlags};
 use penumbra::cli_params;
 use penumbra::pipeline;
+use penumbra::scene_identity::scene_identity;
 use penumbra_core::metrics;
 use penumbra_core::scene::Crop;
 use penumbra_integrators::common::params::Kind;
@@ -13,26 +15,13 @@ use penumbra_parser::{DiagSink, Param, SceneDescription};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 
-/// The integrator that renders `--reference-spp` references unless `--reference-integrator` names one.
-pub const REFERENCE_INTEGRATOR: &str = "directlighting";
-
-/// The estimator `integrator` converges to, rendered as the `--reference-spp` reference by
-/// default: AO images are not direct lighting, and `path`/`whitted` see more than it does.
-pub fn natural_reference(integrator: &str) -> &str {
-    match integrator {
-        "ambientocclusion" | "sheared-ao" => "ambientocclusion",
-        "path" => "path",
-        "whitted" => "whitted",
-        _ => REFERENCE_INTEGRATOR,
-    }
-}
-
 impl SweepArgs {
-    /// `--reference-integrator`, else the first `-i`'s [`natural_reference`].
+    /// `--reference-integrator`, else the first `-i`'s natural reference (the registry's
+    /// [`Entry::reference`](penumbra_integrators::Entry::reference)).
     pub fn reference_integrator(&self) -> &str {
         match &self.reference_integrator {
             Some(n) => n.trim(),
-            None => natural_reference(self.integrators.first().map(|n| n.trim()).unwrap_or(REFERENCE_INTEGRATOR)),
+            None => penumbra_integrators::natural_reference(self.integrators.first().map_or("", |n| n.trim())),
         }
     }
 }
@@ -46,7 +35,7 @@ pub struct SweepArgs {
     #[arg(long)]
     pub reference: Option<PathBuf>,
     /// Render the reference with --reference-integrator at N spp instead (cached under OUTDIR/cache/).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_name = "N", value_parser = spp_parser())]
     pub reference_spp: Option<u32>,
     /// The integrator of the `--reference-spp` render: the estimator the others should converge
     /// to (default: the first -i's natural reference — ambientocclusion for ambientocclusion,
@@ -59,7 +48,7 @@ pub struct SweepArgs {
     #[arg(long, value_name = "S")]
     pub reference_seed: Option<u64>,
     /// Integrators to compare, comma-separated.
-    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]")]
+    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]", value_parser = penumbra::cli_params::integrator_arg)]
     pub integrators: Vec<String>,
     /// Explicit budgets, comma-separated (default: 1, 2, 4, ... until --time-limit).
     #[arg(long, value_delimiter = ',', value_name = "B[,B...]", value_parser = clap::value_parser!(u32).range(1..))]
@@ -76,24 +65,13 @@ pub struct SweepArgs {
     #[arg(long, value_name = "NAME")]
     pub budget_param: Option<String>,
     /// Samples per pixel when the budget is a parameter (default: the scene's sampler).
-    #[arg(long, requires = "budget_param", value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, requires = "budget_param", value_parser = spp_parser())]
     pub spp: Option<u32>,
-    /// Integrator parameter `key=value` for every integrator (repeatable): each must declare it
-    /// (`penumbra render --help` lists them), its value of the declared type.
-    #[arg(long = "param", value_name = "KEY=VALUE")]
-    pub params: Vec<String>,
-    /// Worker threads (default: all cores).
-    #[arg(long, default_value_t = 0)]
-    pub threads: usize,
-    /// Sampler seed of the renders.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Override the film resolution `WxH`.
-    #[arg(long)]
-    pub resolution: Option<String>,
+    #[command(flatten)]
+    pub flags: RenderFlags,
     /// Crop `x0,x1,y0,y1` (as `penumbra render --crop`).
-    #[arg(long, allow_hyphen_values = true)]
-    pub crop: Option<String>,
+    #[arg(long, value_name = "x0,x1,y0,y1", allow_hyphen_values = true, value_parser = crate::cli::parse_crop)]
+    pub crop: Option<Crop>,
     /// Output directory.
     #[arg(short = 'o', long = "output", default_value = "sweep-out")]
     pub output: PathBuf,
@@ -127,7 +105,8 @@ pub struct SweepArgs {
 /// The validated command line and the parsed scene.
 pub struct Setup {
     pub desc: SceneDescription,
-    pub scene_bytes: Vec<u8>,
+    /// [`scene_identity`]: what the reference cache is keyed by.
+    pub scene_identity: String,
     pub params: Vec<Param>,
     pub crop: Option<Crop>,
     pub resolution: Option<(u32, u32)>,
@@ -173,18 +152,16 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
         }
     }
     let usage = |d: penumbra_parser::Diagnostic| Failure { code: penumbra::exit::USAGE, message: d.to_string() };
-    let params = cli_params::parse_all(&args.params).map_err(usage)?;
+    let params = cli_params::parse_all(&args.flags.params).map_err(usage)?;
     // Every `--param` applies to every integrator of the sweep: each must declare it, with its type.
     for n in &integrators {
         if let Some(entry) = penumbra_integrators::find(n) {
             cli_params::conform(entry, &params).map_err(usage)?;
         }
     }
-    let crop = args.crop.as_deref().map(parse_crop).transpose().map_err(fail)?;
-    let resolution = args.resolution.as_deref().map(parse_resolution).transpose().map_err(fail)?;
-    let scene_bytes =
-        std::fs::read(&args.scene).map_err(|e| fail(format!("cannot read scene {}: {e}", args.scene.display())))?;
+    let (crop, resolution) = (args.crop, args.flags.resolution);
     let parsed = pipeline::load_scene(Some(&args.scene)).map_err(|d| Failure { code: 1, message: d.to_string() })?;
+    let scene_identity = scene_identity(&parsed.scene).map_err(fail)?;
     if let Some(c) = crop {
         check_crop(c, full_resolution(&parsed.scene, resolution)).map_err(fail)?;
     }
@@ -210,7 +187,7 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
     }
     let mut seen = BTreeSet::new();
     print_new_warnings(&warnings, &mut seen);
-    Ok(Setup { desc: parsed.scene, scene_bytes, params, crop, resolution, integrators, seen })
+    Ok(Setup { desc: parsed.scene, scene_identity, params, crop, resolution, integrators, seen })
 }
 
 /// The `--budget-param NAME` parameter set to `budget`.

@@ -2,8 +2,10 @@
 //! under `OUTDIR/cache/` by a key of everything that determines it.
 
 use super::args::Setup;
-use super::{fail, print_new_warnings, rgb_only, Failure, SweepArgs, EXIT_CANCELLED};
+use super::{fail, rgb_only, Failure, SweepArgs, EXIT_CANCELLED};
+use crate::cli::print_new_warnings;
 use penumbra::pipeline::{self, RenderOptions};
+use penumbra_core::fnv::fnv1a64;
 use penumbra_core::image::{self, Image};
 use penumbra_core::scene::{BuildOptions, Crop};
 use penumbra_parser::DiagSink;
@@ -14,22 +16,18 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
-/// 64-bit FNV-1a.
-pub fn fnv1a64(bytes: &[u8]) -> u64 {
-    penumbra::shard::fnv1a64_from(penumbra::shard::FNV_START, bytes)
-}
-
-/// The cache key of a `--reference-spp` render.
+/// The cache key of a `--reference-spp` render of the scene whose
+/// [`scene_identity`](penumbra::scene_identity::scene_identity) is `scene`.
 pub fn reference_key(
-    scene_bytes: &[u8],
+    scene: &str,
     integrator: &str,
     resolution: Option<(u32, u32)>,
     crop: Option<Crop>,
     spp: u32,
     seed: u64,
 ) -> String {
-    let mut key = b"penumbra-sweep-reference-v1\0".to_vec();
-    key.extend_from_slice(scene_bytes);
+    let mut key = b"penumbra-sweep-reference-v2\0".to_vec();
+    key.extend_from_slice(scene.as_bytes());
     key.extend_from_slice(
         format!("\0integrator={integrator}\0resolution={resolution:?}\0crop={crop:?}\0spp={spp}\0seed={seed}")
             .as_bytes(),
@@ -39,13 +37,14 @@ pub fn reference_key(
 
 /// The seed of the `--reference-spp` render.
 fn reference_seed(args: &SweepArgs) -> u64 {
-    args.reference_seed.unwrap_or(args.seed.wrapping_add(1))
+    args.reference_seed.unwrap_or(args.flags.seed.wrapping_add(1))
 }
 
 /// Where the `--reference-spp` render is cached (`None` with `--reference`).
 pub(super) fn cached_reference_path(args: &SweepArgs, s: &Setup) -> Option<PathBuf> {
     let n = args.reference_spp.filter(|_| args.reference.is_none())?;
-    let key = reference_key(&s.scene_bytes, args.reference_integrator(), s.resolution, s.crop, n, reference_seed(args));
+    let key =
+        reference_key(&s.scene_identity, args.reference_integrator(), s.resolution, s.crop, n, reference_seed(args));
     Some(args.output.join("cache").join(format!("{key}.exr")))
 }
 
@@ -144,7 +143,7 @@ fn render_reference(
         integrator: Some(ri),
         params: &[],
         build: BuildOptions { spp: Some(n), seed: rseed, crop: s.crop, resolution: s.resolution },
-        threads: args.threads,
+        threads: args.flags.threads,
         with_variance: false,
         cancel,
         progress: None,

@@ -11,10 +11,10 @@
 //! writes the same `sweep.csv`/`sweep.json`/plot/summary; every row keeps its item's timings.
 
 use super::args::{Setup, SweepArgs};
-use super::output::Outputs;
+use super::report::Outputs;
 use super::row::Row;
 use super::{cache, compare_row, fail, render_one, taken_budget, Failure, Timed};
-use crate::render::cancel_on_interrupt;
+use crate::cli::cancel_on_interrupt;
 use penumbra_core::image::{self, Image};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
@@ -101,7 +101,7 @@ pub(super) fn plan(args: &SweepArgs, s: &Setup) -> Result<u8, Failure> {
     let doc = json!({
         "format": 1,
         "scene": args.scene.display().to_string(),
-        "scene_hash": format!("{:016x}", cache::fnv1a64(&s.scene_bytes)),
+        "scene_hash": s.scene_identity,
         "integrators": s.integrators,
         "items": items,
     });

@@ -13,23 +13,23 @@
 mod args;
 mod cache;
 mod fanout;
-mod output;
 pub(crate) mod plot;
+mod report;
 mod row;
 mod schedule;
 mod summary;
 #[cfg(test)]
 mod tests;
 
-use crate::render::cancel_on_interrupt;
+use crate::cli::{cancel_on_interrupt, print_new_warnings};
 pub use args::SweepArgs;
 use args::{budget_param, setup, Setup};
-use output::Outputs;
 use penumbra::pipeline::{self, RenderOptions};
 use penumbra_core::image::{self, Image};
 use penumbra_core::metrics;
 use penumbra_core::scene::BuildOptions;
 use penumbra_parser::DiagSink;
+use report::Outputs;
 use row::Row;
 use schedule::Schedule;
 use std::collections::BTreeSet;
@@ -53,16 +53,6 @@ fn fail(message: impl std::fmt::Display) -> Failure {
 
 fn rgb_only(img: &Image, what: &str) -> Result<Image, Failure> {
     img.select_channels(&["R", "G", "B"]).map_err(|e| fail(format!("{what}: {e}")))
-}
-
-/// Prints the warnings of `w` not printed before.
-pub(crate) fn print_new_warnings(w: &DiagSink, seen: &mut BTreeSet<String>) {
-    for d in w.take() {
-        let text = d.to_string();
-        if seen.insert(text.clone()) {
-            eprint!("{text}");
-        }
-    }
 }
 
 /// A reference of another size than the renders stops the sweep before any file is written.
@@ -140,7 +130,7 @@ fn flip_of(a: &Image, b: &Image) -> Option<f64> {
 }
 
 pub fn run(mut args: SweepArgs) -> ExitCode {
-    args.threads = penumbra::cli_params::threads_or_warn(args.threads);
+    args.flags.threads = penumbra::cli_params::threads_or_warn(args.flags.threads);
     match run_inner(&args) {
         Ok(code) => ExitCode::from(code),
         Err(f) => penumbra::cli_params::exit_with_error(f.code, &f.message),
@@ -300,8 +290,8 @@ fn render_one(
     let opts = RenderOptions {
         integrator: Some(name),
         params: &params,
-        build: BuildOptions { spp, seed: args.seed, crop: s.crop, resolution: s.resolution },
-        threads: args.threads,
+        build: BuildOptions { spp, seed: args.flags.seed, crop: s.crop, resolution: s.resolution },
+        threads: args.flags.threads,
         with_variance: false,
         cancel,
         progress: None,

@@ -1,8 +1,8 @@
 //! Log-log error-versus-time curves and the Markdown summary of a sweep (error at equal
 //! time, time to a target error, convergence slopes).
 
-use super::args::REFERENCE_INTEGRATOR;
 use super::row::{Metric, Row};
+use penumbra_integrators::DIRECT_LIGHTING as REFERENCE_INTEGRATOR;
 use std::fmt::Write as _;
 
 /// Points `(x, y)` with positive, finite coordinates, sorted by `x`.

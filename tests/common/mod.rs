@@ -285,45 +285,38 @@ pub fn assert_matches_reference(label: &str, ours: &Render, reference: &Image, r
 
 /// Asserts that the means of `block`×`block` pixel regions, per channel, agree with the
 /// reference's within 5σ of both images' noise (our per-pixel variances summed: pixels are
-/// independent; the reference's as `ref_var_ratio` of ours) plus 0.5 % of the region's mean. A
-/// bias confined to a dim region (a quarter of the image 8 % too bright) hides in the image
-/// mean and in per-value z-scores, not in its regions' means. Returns the largest |z|.
+/// independent; the reference's as `ref_var_ratio` of ours) beyond 0.5 % of the region's mean
+/// (`penumbra_core::agreement::test_regions`). A bias confined to a dim region (a quarter of the
+/// image 8 % too bright) hides in the image mean and in per-value z-scores, not in its regions'
+/// means. Returns the largest |z|.
 pub fn assert_regions_match(label: &str, ours: &Render, reference: &Image, ref_var_ratio: f64, block: usize) -> f64 {
+    use penumbra_core::agreement::{blocks, test_regions, worst, NoisyImage, RefNoise, Tolerance};
     let (w, h) = (reference.width as usize, reference.height as usize);
-    let mut worst = (0.0f64, 0, 0, 0, 0.0, 0.0);
-    for by in (0..h).step_by(block) {
-        for bx in (0..w).step_by(block) {
-            for c in 0..3 {
-                let (mut so, mut sr, mut var, mut n) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-                for y in by..(by + block).min(h) {
-                    for x in bx..(bx + block).min(w) {
-                        let i = (y * w + x) * 3 + c;
-                        so += ours.image.data[i] as f64;
-                        sr += reference.data[i] as f64;
-                        var += ours.variance.data[i] as f64 * (1.0 + ref_var_ratio);
-                        n += 1.0;
-                    }
-                }
-                let (mo, mr) = (so / n, sr / n);
-                let sigma = (var / (n * n) + (5e-3 * mr).powi(2)).sqrt();
-                let z = if sigma > 0.0 {
-                    (mo - mr) / sigma
-                } else if mo == mr {
-                    0.0
-                } else {
-                    f64::INFINITY
-                };
-                if !(z.abs() <= worst.0) {
-                    worst = (z.abs(), bx, by, c, mo, mr);
-                }
-            }
-        }
-    }
-    let (z, bx, by, c, mo, mr) = worst;
-    eprintln!(
-        "{label}: {block}x{block} regions, worst |z| {z:.2} at ({bx}, {by}) channel {c}: {mo:.5} vs pbrt-v3 {mr:.5}"
+    let test =
+        NoisyImage { width: w, height: h, channels: 3, mean: &ours.image.data, variance: Some(&ours.variance.data) };
+    let refi = NoisyImage { width: w, height: h, channels: 3, mean: &reference.data, variance: None };
+    let tests = test_regions(
+        &test,
+        &refi,
+        RefNoise::ScaledTest(ref_var_ratio),
+        Tolerance { rel: 5e-3, abs: 0.0 },
+        &blocks(w, h, 3, block),
     );
-    assert!(z < 5.0, "{label}: region at ({bx}, {by}) channel {c}: {mo} vs pbrt-v3 {mr} (|z| = {z:.1})");
+    let t = worst(&tests).expect("regions");
+    let (z, r) = (t.z.abs(), t.region);
+    eprintln!(
+        "{label}: {block}x{block} regions, worst |z| {z:.2} at ({}, {}) channel {:?}: {:.5} vs pbrt-v3 {:.5}",
+        r.x0, r.y0, r.channel, t.test, t.reference
+    );
+    assert!(
+        z < 5.0,
+        "{label}: region at ({}, {}) channel {:?}: {} vs pbrt-v3 {} (|z| = {z:.1})",
+        r.x0,
+        r.y0,
+        r.channel,
+        t.test,
+        t.reference
+    );
     z
 }
 

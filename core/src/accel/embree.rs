@@ -11,6 +11,10 @@
 //!   scene's extent) along: the rays penumbra spawns leave their surface through
 //!   `offset_ray_origin`, which puts their own triangle behind them or, on an axis-aligned
 //!   face, exactly on it.
+//!
+//! Triangles of cut-out meshes (`alpha`, `shadowalpha`) form a second geometry whose filter
+//! functions ask the query's alpha test ([`super::HitFilter`] through `Accel::accepts`) about
+//! each candidate hit; the test travels with the query in an extended intersect context.
 
 use glam::Vec3A;
 use std::ffi::{c_char, c_uint, c_void};
@@ -30,6 +34,8 @@ const RTC_FORMAT_FLOAT3: c_uint = 0x9003;
 const RTC_SCENE_FLAG_ROBUST: c_uint = 1 << 2;
 const RTC_BUILD_QUALITY_MEDIUM: c_uint = 1;
 const RTC_INVALID_GEOMETRY_ID: c_uint = u32::MAX;
+/// The geometry ids `build` attaches: the opaque triangles, then the cut-out ones.
+const OPAQUE: c_uint = 0;
 
 /// Where queries start, as a BVH-space distance (the scene's extent is about 1): 2⁻²⁰. A point on
 /// an axis-aligned face has no rounding error, so [`offset_ray_origin`] leaves it on the face
@@ -78,10 +84,61 @@ struct RtcIntersectContext {
     inst_id: [c_uint; 1],
 }
 
-impl RtcIntersectContext {
-    /// `rtcInitIntersectContext`: incoherent rays, no filter.
-    fn new() -> Self {
-        RtcIntersectContext { flags: 0, filter: std::ptr::null(), inst_id: [RTC_INVALID_GEOMETRY_ID] }
+/// A candidate hit's verdict: (slot, t, barycentrics) → whether it counts.
+pub(super) type Accept<'a> = &'a dyn Fn(u32, f32, [f32; 3]) -> bool;
+
+/// The context a query hands Embree: Embree's own, then what the filter functions need (Embree
+/// passes the context pointer through to them unchanged, so they may read past its own part).
+#[repr(C)]
+struct QueryContext<'a> {
+    rtc: RtcIntersectContext,
+    /// The cut-out geometry's first slot.
+    cutout_base: u32,
+    accept: Option<Accept<'a>>,
+}
+
+impl<'a> QueryContext<'a> {
+    /// `rtcInitIntersectContext`: incoherent rays, no context filter.
+    fn new(cutout_base: u32, accept: Option<Accept<'a>>) -> Self {
+        QueryContext {
+            rtc: RtcIntersectContext { flags: 0, filter: std::ptr::null(), inst_id: [RTC_INVALID_GEOMETRY_ID] },
+            cutout_base,
+            accept,
+        }
+    }
+}
+
+/// `RTCFilterFunctionNArguments`.
+#[repr(C)]
+struct RtcFilterArgs {
+    valid: *mut i32,
+    geometry_user_ptr: *mut c_void,
+    context: *mut RtcIntersectContext,
+    ray: *mut RtcRay,
+    hit: *mut RtcHit,
+    n: c_uint,
+}
+
+/// The filter function of the cut-out geometry, for closest-hit and occlusion queries alike
+/// (the query's `accept` knows which it answers): a rejected candidate is marked invalid and
+/// Embree carries on past it.
+unsafe extern "C" fn cutout_filter(args: *const RtcFilterArgs) {
+    // SAFETY: Embree calls this with valid arguments for a query made by `EmbreeScene`, whose
+    // context is always a `QueryContext` (its first field is Embree's context); single-ray
+    // queries (`rtcIntersect1`/`rtcOccluded1`) give N = 1, whose SOA ray and hit are laid out
+    // as `RTCRay`/`RTCHit`.
+    unsafe {
+        let a = &*args;
+        if a.n != 1 {
+            return;
+        }
+        let ctx = &*(a.context as *const QueryContext);
+        let Some(accept) = ctx.accept else { return };
+        let (ray, hit) = (&*a.ray, &*a.hit);
+        let slot = ctx.cutout_base + hit.prim_id;
+        if !accept(slot, ray.tfar, [1.0 - hit.u - hit.v, hit.u, hit.v]) {
+            *a.valid = 0;
+        }
     }
 }
 
@@ -109,6 +166,8 @@ extern "C" {
     fn rtcCommitGeometry(geometry: RTCGeometry);
     fn rtcAttachGeometry(scene: RTCScene, geometry: RTCGeometry) -> c_uint;
     fn rtcReleaseGeometry(geometry: RTCGeometry);
+    fn rtcSetGeometryIntersectFilterFunction(geometry: RTCGeometry, filter: unsafe extern "C" fn(*const RtcFilterArgs));
+    fn rtcSetGeometryOccludedFilterFunction(geometry: RTCGeometry, filter: unsafe extern "C" fn(*const RtcFilterArgs));
     fn rtcIntersect1(scene: RTCScene, context: *mut RtcIntersectContext, rayhit: *mut RtcRayHit);
     fn rtcOccluded1(scene: RTCScene, context: *mut RtcIntersectContext, ray: *mut RtcRay);
 }
@@ -119,6 +178,8 @@ pub(super) struct EmbreeScene {
     device: RTCDevice,
     scene: RTCScene,
     _indices: Box<[[u32; 3]]>,
+    /// The first slot of the cut-out triangles (geometry 1).
+    cutout_base: u32,
 }
 
 // Embree's committed scenes are safe to query from any number of threads at once, and
@@ -128,14 +189,16 @@ unsafe impl Sync for EmbreeScene {}
 
 impl EmbreeScene {
     /// `None` when Embree cannot make a device or the triangles do not fit its 32-bit ids.
+    /// `tris[..opaque]` are opaque, the rest belong to cut-out meshes (alpha-tested through the
+    /// query's `accept`).
     ///
     /// # Safety
     /// Embree reads `tris` in place for every query: the caller keeps that memory alive and
     /// unchanged until the returned scene is dropped (`Accel` holds both, the scene dropped
     /// first).
-    pub(super) unsafe fn build(tris: &[[Vec3A; 3]]) -> Option<EmbreeScene> {
+    pub(super) unsafe fn build(tris: &[[Vec3A; 3]], opaque: usize) -> Option<EmbreeScene> {
         let n = tris.len();
-        if n == 0 || 3 * n >= u32::MAX as usize {
+        if n == 0 || 3 * n >= u32::MAX as usize || opaque > n {
             return None;
         }
         // The triangles' vertices in a row, 16 bytes each (Vec3A, with 4 readable padding
@@ -150,37 +213,49 @@ impl EmbreeScene {
                 return None;
             }
             let scene = rtcNewScene(device);
-            let geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-            if scene.is_null() || geometry.is_null() {
-                if !scene.is_null() {
-                    rtcReleaseScene(scene);
-                }
+            if scene.is_null() {
                 rtcReleaseDevice(device);
                 return None;
             }
-            rtcSetSharedGeometryBuffer(
-                geometry,
-                RTC_BUFFER_TYPE_VERTEX,
-                0,
-                RTC_FORMAT_FLOAT3,
-                vertices.as_ptr().cast(),
-                0,
-                std::mem::size_of::<Vec3A>(),
-                vertices.len(),
-            );
-            rtcSetSharedGeometryBuffer(
-                geometry,
-                RTC_BUFFER_TYPE_INDEX,
-                0,
-                RTC_FORMAT_UINT3,
-                indices.as_ptr().cast(),
-                0,
-                std::mem::size_of::<[u32; 3]>(),
-                indices.len(),
-            );
-            rtcCommitGeometry(geometry);
-            rtcAttachGeometry(scene, geometry);
-            rtcReleaseGeometry(geometry);
+            // Geometry 0 (OPAQUE): the opaque triangles; geometry 1: the cut-out ones, filtered.
+            for (range, cutout) in [(0..opaque, false), (opaque..n, true)] {
+                if range.is_empty() && cutout {
+                    continue;
+                }
+                let geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+                if geometry.is_null() {
+                    rtcReleaseScene(scene);
+                    rtcReleaseDevice(device);
+                    return None;
+                }
+                rtcSetSharedGeometryBuffer(
+                    geometry,
+                    RTC_BUFFER_TYPE_VERTEX,
+                    0,
+                    RTC_FORMAT_FLOAT3,
+                    vertices.as_ptr().cast(),
+                    0,
+                    std::mem::size_of::<Vec3A>(),
+                    vertices.len(),
+                );
+                rtcSetSharedGeometryBuffer(
+                    geometry,
+                    RTC_BUFFER_TYPE_INDEX,
+                    0,
+                    RTC_FORMAT_UINT3,
+                    indices.as_ptr().cast(),
+                    range.start * std::mem::size_of::<[u32; 3]>(),
+                    std::mem::size_of::<[u32; 3]>(),
+                    range.len(),
+                );
+                if cutout {
+                    rtcSetGeometryIntersectFilterFunction(geometry, cutout_filter);
+                    rtcSetGeometryOccludedFilterFunction(geometry, cutout_filter);
+                }
+                rtcCommitGeometry(geometry);
+                rtcAttachGeometry(scene, geometry);
+                rtcReleaseGeometry(geometry);
+            }
             rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
             rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_MEDIUM);
             rtcCommitScene(scene);
@@ -189,7 +264,7 @@ impl EmbreeScene {
                 rtcReleaseDevice(device);
                 return None;
             }
-            Some(EmbreeScene { device, scene, _indices: indices })
+            Some(EmbreeScene { device, scene, _indices: indices, cutout_base: opaque as u32 })
         }
     }
 
@@ -206,9 +281,16 @@ impl EmbreeScene {
         }
     }
 
-    /// The closest hit with `0 < t < t_max` of the BVH-space ray `o + t d`: the slot, `t`
-    /// and the barycentrics of vertices 0, 1, 2.
-    pub(super) fn intersect(&self, o: Vec3A, d: Vec3A, t_max: f32) -> Option<(u32, f32, [f32; 3])> {
+    /// The closest hit with `0 < t < t_max` of the BVH-space ray `o + t d` that `accept`
+    /// takes (asked about cut-out triangles only; none: all count): the slot, `t` and the
+    /// barycentrics of vertices 0, 1, 2.
+    pub(super) fn intersect(
+        &self,
+        o: Vec3A,
+        d: Vec3A,
+        t_max: f32,
+        accept: Option<Accept>,
+    ) -> Option<(u32, f32, [f32; 3])> {
         let mut rh = RtcRayHit {
             ray: Self::ray(o, d, t_max),
             hit: RtcHit {
@@ -220,22 +302,25 @@ impl EmbreeScene {
                 inst_id: [RTC_INVALID_GEOMETRY_ID],
             },
         };
-        let mut context = RtcIntersectContext::new();
-        // SAFETY: a committed scene, a properly aligned ray/hit and context.
-        unsafe { rtcIntersect1(self.scene, &mut context, &mut rh) };
+        let mut context = QueryContext::new(self.cutout_base, accept);
+        // SAFETY: a committed scene, a properly aligned ray/hit and a context that starts with
+        // Embree's (`repr(C)`), which the filter function reads back as a `QueryContext`.
+        unsafe { rtcIntersect1(self.scene, &mut context.rtc, &mut rh) };
         if rh.hit.geom_id == RTC_INVALID_GEOMETRY_ID {
             return None;
         }
+        let base = if rh.hit.geom_id == OPAQUE { 0 } else { self.cutout_base };
         let (u, v) = (rh.hit.u, rh.hit.v);
-        Some((rh.hit.prim_id, rh.ray.tfar, [1.0 - u - v, u, v]))
+        Some((base + rh.hit.prim_id, rh.ray.tfar, [1.0 - u - v, u, v]))
     }
 
-    /// Whether anything lies on the BVH-space ray `o + t d` with `0 < t < t_max`.
-    pub(super) fn occluded(&self, o: Vec3A, d: Vec3A, t_max: f32) -> bool {
+    /// Whether anything `accept` takes lies on the BVH-space ray `o + t d` with
+    /// `0 < t < t_max`.
+    pub(super) fn occluded(&self, o: Vec3A, d: Vec3A, t_max: f32, accept: Option<Accept>) -> bool {
         let mut ray = Self::ray(o, d, t_max);
-        let mut context = RtcIntersectContext::new();
+        let mut context = QueryContext::new(self.cutout_base, accept);
         // SAFETY: as `intersect`.
-        unsafe { rtcOccluded1(self.scene, &mut context, &mut ray) };
+        unsafe { rtcOccluded1(self.scene, &mut context.rtc, &mut ray) };
         // Embree sets tfar to -inf on a hit.
         ray.tfar < 0.0
     }

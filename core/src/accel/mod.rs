@@ -55,6 +55,16 @@ impl Boundable for Tri {
     }
 }
 
+/// The alpha test of cut-out meshes (pbrt-v3's `alpha` and `shadowalpha` textures), asked by
+/// every query about each candidate hit on a mesh the hierarchy was built with as cut-out
+/// ([`Accel::set_filter`]).
+pub trait HitFilter: Send + Sync {
+    /// Whether the candidate `hit` (its `t` in world units) counts: pbrt-v3's
+    /// `Triangle::Intersect` discards a hit where `alpha` evaluates to 0, and its
+    /// `IntersectP` (`shadow`, occlusion queries) also where `shadowalpha` does.
+    fn accept(&self, hit: &Hit, shadow: bool) -> bool;
+}
+
 /// A triangle of the scene: (mesh index, triangle index within the mesh).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TriRef {
@@ -88,6 +98,10 @@ pub struct Accel {
     refs: Vec<TriRef>,
     scale: f32,
     bounds: Bounds3,
+    /// Per mesh: whether its hits go through `filter` (it has an `alpha` or `shadowalpha`).
+    cutout: Vec<bool>,
+    /// The alpha test of the `cutout` meshes (none: every hit counts).
+    filter: Option<std::sync::Arc<dyn HitFilter>>,
     pub build_seconds: f64,
 }
 
@@ -184,6 +198,8 @@ impl Accel {
 
     /// [`build`](Self::build) with the backend `kind`; Embree falls back to the BVH when this
     /// build lacks it or Embree cannot make a scene ([`kind`](Self::kind) tells which was built).
+    /// Meshes with an `alpha` or `shadowalpha` cut-out are asked about through the filter
+    /// given to [`set_filter`](Self::set_filter) (until then, every hit counts).
     pub fn build_with(meshes: &[TriangleMesh], kind: AccelKind) -> Accel {
         let start = std::time::Instant::now();
         let mut bounds = Bounds3::EMPTY;
@@ -194,15 +210,8 @@ impl Accel {
                 }
             }
         }
-        let extent = bounds
-            .diagonal()
-            .abs()
-            .max_element()
-            .max(bounds.min.abs().max_element())
-            .max(bounds.max.abs().max_element());
-        // s = 2^k with s * extent in [0.5, 1).
-        let scale =
-            if extent > 0.0 && extent.is_finite() { 2f32.powi(-(extent.log2().floor() as i32 + 1)) } else { 1.0 };
+        let scale = power_of_two_scale(&bounds);
+        let cutout: Vec<bool> = meshes.iter().map(|m| m.alpha.is_some() || m.shadow_alpha.is_some()).collect();
         let mut tris = Vec::new();
         let mut refs = Vec::new();
         for (mi, m) in meshes.iter().enumerate() {
@@ -217,17 +226,25 @@ impl Accel {
         }
         #[cfg(feature = "embree")]
         if kind == AccelKind::Embree {
-            let tris: Vec<[Vec3A; 3]> = tris.iter().map(|t| t.0).collect();
-            // SAFETY: `tris` moves into the returned `Accel` (its heap buffer stays where it
-            // is) and is never changed; `embree` is declared before it, so dropped first.
-            if let Some(scene) = unsafe { embree::EmbreeScene::build(&tris) } {
+            // Opaque triangles first, then the cut-out ones: Embree gets them as two geometries,
+            // the second with the alpha test as its filter.
+            let mut order: Vec<usize> = (0..tris.len()).collect();
+            order.sort_by_key(|&i| cutout[refs[i].mesh as usize]);
+            let opaque = order.iter().filter(|&&i| !cutout[refs[i].mesh as usize]).count();
+            let tris_ordered: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i].0).collect();
+            let refs_ordered: Vec<TriRef> = order.iter().map(|&i| refs[i]).collect();
+            // SAFETY: `tris_ordered` moves into the returned `Accel` (its heap buffer stays
+            // where it is) and is never changed; `embree` is declared before it, so dropped first.
+            if let Some(scene) = unsafe { embree::EmbreeScene::build(&tris_ordered, opaque) } {
                 return Accel {
                     bvh: CwBvh::default(),
                     embree: Some(scene),
-                    tris,
-                    refs,
+                    tris: tris_ordered,
+                    refs: refs_ordered,
                     scale,
                     bounds,
+                    cutout,
+                    filter: None,
                     build_seconds: start.elapsed().as_secs_f64(),
                 };
             }
@@ -249,8 +266,26 @@ impl Accel {
             refs: refs_ordered,
             scale,
             bounds,
+            cutout,
+            filter: None,
             build_seconds: start.elapsed().as_secs_f64(),
         }
+    }
+
+    /// The alpha test of the cut-out meshes (see [`HitFilter`]).
+    pub fn set_filter(&mut self, filter: std::sync::Arc<dyn HitFilter>) {
+        self.filter = Some(filter);
+    }
+
+    /// Whether a candidate hit in BVH slot `slot` (barycentrics `b`, world `t`) counts.
+    #[inline]
+    fn accepts(&self, slot: usize, t: f32, b: [f32; 3], shadow: bool) -> bool {
+        let Some(f) = &self.filter else { return true };
+        let r = self.refs[slot];
+        if !self.cutout.get(r.mesh as usize).copied().unwrap_or(false) {
+            return true;
+        }
+        f.accept(&Hit { t, mesh: r.mesh, tri: r.tri, b }, shadow)
     }
 
     pub fn bounds(&self) -> Bounds3 {
@@ -304,13 +339,15 @@ impl Accel {
             if !self.valid_query(ray) {
                 return None;
             }
-            let (slot, t, b) = e.intersect(o, d, t_max)?;
+            let accept = |slot: u32, t: f32, b: [f32; 3]| self.accepts(slot as usize, t, b, false);
+            let accept: Option<embree::Accept> = if self.filter.is_some() { Some(&accept) } else { None };
+            let (slot, t, b) = e.intersect(o, d, t_max, accept)?;
             let r = self.refs[slot as usize];
             return Some(Hit { t, mesh: r.mesh, tri: r.tri, b });
         }
         let (bray, pre, to_bvh) = self.prepare(ray)?;
         if !traversable(bray.direction) {
-            let (slot, t, b) = self.traverse_exact(&bray, &pre, false)?;
+            let (slot, t, b) = self.traverse_exact(&bray, &pre, to_bvh, false)?;
             let r = self.refs[slot as usize];
             return Some(Hit { t: (t - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b });
         }
@@ -318,11 +355,11 @@ impl Accel {
         let mut best_b = [0.0f32; 3];
         let found =
             self.bvh.ray_traverse(bray, &mut hit, |r, id| match pre.intersect(&self.tris[id], BACKUP, r.tmax) {
-                Some((t, b)) => {
+                Some((t, b)) if self.accepts(id, (t - BACKUP) / to_bvh, b, false) => {
                     best_b = b;
                     t
                 }
-                None => f32::INFINITY,
+                _ => f32::INFINITY,
             });
         if !found {
             return None;
@@ -337,8 +374,8 @@ impl Accel {
     /// traversal per ray. `None` when the rays do not share an origin, spread over more than
     /// ~75° from their mean, or more than `limit` triangles remain (the caller then traverses
     /// per ray). Use with [`intersect_among`](Self::intersect_among).
-    pub fn bundle_candidates(&self, rays: &[Ray], limit: usize) -> Option<Vec<u32>> {
-        let first = rays.first()?;
+    pub fn bundle_candidates<R: AsRef<Ray>>(&self, rays: &[R], limit: usize) -> Option<Vec<u32>> {
+        let first = rays.first()?.as_ref();
         if self.tris.is_empty() || !first.o.is_finite() || self.bvh.nodes.is_empty() {
             return None;
         }
@@ -348,7 +385,7 @@ impl Accel {
         let a = dir(first);
         let (u, v) = a.any_orthonormal_pair();
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for r in rays {
+        for r in rays.iter().map(AsRef::as_ref) {
             if r.o != first.o || !r.d.is_finite() || r.d == Vec3::ZERO {
                 return None;
             }
@@ -406,8 +443,10 @@ impl Accel {
         for &slot in slots {
             let Some(tri) = self.tris.get(slot as usize) else { continue };
             if let Some((t, b)) = pre.intersect(tri, BACKUP, t_max) {
-                t_max = t;
-                best = Some((slot, b));
+                if self.accepts(slot as usize, (t - BACKUP) / to_bvh, b, false) {
+                    t_max = t;
+                    best = Some((slot, b));
+                }
             }
         }
         let (slot, b) = best?;
@@ -424,7 +463,13 @@ impl Accel {
     /// whole line when the origin lies within the box's range (inclusive) and empty otherwise;
     /// the far slab distance is widened by pbrt-v3's 1 + 2γ(3). Returns the BVH slot, the
     /// BVH-space `t` and the barycentrics.
-    fn traverse_exact(&self, bray: &obvhs::ray::Ray, pre: &RayPrecomp, any: bool) -> Option<(u32, f32, [f32; 3])> {
+    fn traverse_exact(
+        &self,
+        bray: &obvhs::ray::Ray,
+        pre: &RayPrecomp,
+        to_bvh: f32,
+        any: bool,
+    ) -> Option<(u32, f32, [f32; 3])> {
         let (o, d) = (bray.origin, bray.direction);
         let widen = 1.0 + 2.0 * gamma(3);
         let mut t_max = bray.tmax;
@@ -457,6 +502,9 @@ impl Accel {
                     for slot in start..start + count {
                         let Some(tri) = self.tris.get(slot as usize) else { continue };
                         if let Some((t, bary)) = pre.intersect(tri, BACKUP, t_max) {
+                            if !self.accepts(slot as usize, (t - BACKUP) / to_bvh, bary, any) {
+                                continue;
+                            }
                             t_max = t;
                             best = Some((slot, t, bary));
                             if any {
@@ -476,16 +524,30 @@ impl Accel {
     pub fn occluded(&self, ray: &Ray) -> bool {
         #[cfg(feature = "embree")]
         if let Some((e, o, d, t_max)) = self.embree_ray(ray) {
-            return self.valid_query(ray) && e.occluded(o, d, t_max);
+            let accept = |slot: u32, t: f32, b: [f32; 3]| self.accepts(slot as usize, t, b, true);
+            let accept: Option<embree::Accept> = if self.filter.is_some() { Some(&accept) } else { None };
+            return self.valid_query(ray) && e.occluded(o, d, t_max, accept);
         }
-        let Some((bray, pre, _)) = self.prepare(ray) else { return false };
+        let Some((bray, pre, to_bvh)) = self.prepare(ray) else { return false };
         if !traversable(bray.direction) {
-            return self.traverse_exact(&bray, &pre, true).is_some();
+            return self.traverse_exact(&bray, &pre, to_bvh, true).is_some();
         }
         !self.bvh.ray_traverse_miss(bray, |r, id| match pre.intersect(&self.tris[id], BACKUP, r.tmax) {
-            Some((t, _)) => t,
-            None => f32::INFINITY,
+            Some((t, b)) if self.accepts(id, (t - BACKUP) / to_bvh, b, true) => t,
+            _ => f32::INFINITY,
         })
+    }
+}
+
+/// `2^k` with `k` chosen so the scene's extent (and its distance from the origin) times it lies
+/// in `[0.5, 1)`; 1 for an empty or non-finite box.
+fn power_of_two_scale(bounds: &Bounds3) -> f32 {
+    let extent =
+        bounds.diagonal().abs().max_element().max(bounds.min.abs().max_element()).max(bounds.max.abs().max_element());
+    if extent > 0.0 && extent.is_finite() {
+        2f32.powi(-(extent.log2().floor() as i32 + 1))
+    } else {
+        1.0
     }
 }
 
@@ -731,6 +793,105 @@ mod tests {
         }
         assert!(hits > 5000, "{hits} hits");
         assert!(differ <= hits / 1000, "{differ} of {hits} hits on another triangle");
+    }
+
+    /// A stand-in alpha test: holes where a pattern in the barycentrics says so, more of them
+    /// for shadow rays (as `shadowalpha`), and a count of the questions asked.
+    struct Holes(std::sync::atomic::AtomicUsize);
+
+    impl HitFilter for Holes {
+        fn accept(&self, hit: &Hit, shadow: bool) -> bool {
+            self.0.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let hole = |f: f32| (hit.b[1] * f).fract() < 0.3 && (hit.b[2] * f).fract() < 0.6;
+            !(hole(4.0) || (shadow && hole(7.0)))
+        }
+    }
+
+    /// A soup of random triangles, every other mesh cut out.
+    fn soup(seed: u64, n: u32, cutouts: bool) -> Vec<TriangleMesh> {
+        let mut rng = crate::rng::Rng::new(seed);
+        let mut u = || rng.uniform_f32();
+        (0..4)
+            .map(|k| {
+                let (mut positions, mut indices) = (Vec::new(), Vec::new());
+                for i in 0..n {
+                    let c = Vec3::new(u(), u(), u()) * 20.0 - 10.0;
+                    for _ in 0..3 {
+                        positions.push(c + (Vec3::new(u(), u(), u()) - 0.5) * 3.0);
+                    }
+                    indices.push([3 * i, 3 * i + 1, 3 * i + 2]);
+                }
+                let alpha = (cutouts && k % 2 == 1).then_some(crate::mesh::AlphaSpec::Constant(0.0));
+                TriangleMesh { positions, indices, alpha, ..Default::default() }
+            })
+            .collect()
+    }
+
+    /// Cut-outs: the closest hit is the closest hit the alpha test accepts (checked against a
+    /// brute-force loop over every triangle), occlusion also asks `shadowalpha`, opaque meshes
+    /// are never asked about; BVH and Embree answer alike, with the same questions asked.
+    #[test]
+    fn cutouts_in_bvh_and_embree() {
+        let meshes = soup(3, 400, true);
+        let brute = |ray: &Ray, shadow: bool, f: &Holes| {
+            let mut best: Option<Hit> = None;
+            for (mi, m) in meshes.iter().enumerate() {
+                for ti in 0..m.indices.len() {
+                    let one = Accel::build(&[TriangleMesh {
+                        positions: m.vertices(ti).to_vec(),
+                        indices: vec![[0, 1, 2]],
+                        ..Default::default()
+                    }]);
+                    let Some(h) = one.intersect(ray) else { continue };
+                    let h = Hit { mesh: mi as u32, tri: ti as u32, ..h };
+                    if (m.alpha.is_none() || f.accept(&h, shadow)) && best.is_none_or(|b| h.t < b.t) {
+                        best = Some(h);
+                    }
+                }
+            }
+            best
+        };
+        let mut rng = crate::rng::Rng::new(8);
+        let mut u = || rng.uniform_f32();
+        let rays: Vec<Ray> = (0..300)
+            .map(|_| {
+                Ray::new(Vec3::new(u(), u(), u()) * 24.0 - 12.0, Vec3::new(u(), u(), u()) * 2.0 - 1.0, f32::INFINITY)
+            })
+            .collect();
+        let oracle = Holes(Default::default());
+        let expected: Vec<(Option<Hit>, bool)> =
+            rays.iter().map(|r| (brute(r, false, &oracle), brute(r, true, &oracle).is_some())).collect();
+        let mut asked = Vec::new();
+        for kind in kinds() {
+            let mut accel = Accel::build_with(&meshes, kind);
+            let holes = std::sync::Arc::new(Holes(Default::default()));
+            accel.set_filter(holes.clone());
+            let (mut hits, mut cut) = (0, 0);
+            for (ray, (want, blocked)) in rays.iter().zip(&expected) {
+                let got = accel.intersect(ray);
+                assert_eq!(got.map(|h| (h.mesh, h.tri)), want.map(|h| (h.mesh, h.tri)), "{kind:?} ray {ray:?}");
+                if let (Some(g), Some(w)) = (got, want) {
+                    assert!((g.t - w.t).abs() <= 1e-5 * w.t, "{kind:?} {g:?} {w:?}");
+                    hits += 1;
+                }
+                assert_eq!(accel.occluded(ray), *blocked, "{kind:?} shadow ray {ray:?}");
+                cut += (accel.occluded(ray) != Accel::build_with(&meshes, kind).occluded(ray)) as usize;
+            }
+            assert!(hits > 100 && cut > 3, "{kind:?}: {hits} hits, {cut} rays through holes only");
+            asked.push(holes.0.load(std::sync::atomic::Ordering::Relaxed));
+        }
+        // Both backends ask about the same candidates (in their own order; counts agree within
+        // what traversal order changes).
+        assert!(asked.iter().all(|&a| a > 100), "{asked:?}");
+        // Without cut-out meshes the filter is never asked.
+        let mut opaque = Accel::build(&soup(3, 400, false));
+        let holes = std::sync::Arc::new(Holes(Default::default()));
+        opaque.set_filter(holes.clone());
+        for r in &rays {
+            opaque.intersect(r);
+            opaque.occluded(r);
+        }
+        assert_eq!(holes.0.load(std::sync::atomic::Ordering::Relaxed), 0);
     }
 
     #[test]

@@ -39,7 +39,7 @@ fn dir(theta: f32, phi: f32) -> Vec3 {
     Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
 }
 
-use crate::stats::regularized_gamma_q as gamma_q;
+use crate::goodness_of_fit::regularized_gamma_q as gamma_q;
 
 /// Chi-square test of observed counts against expected counts; cells with an
 /// expected count below 5 are pooled. Returns (statistic, degrees of freedom, p-value).
@@ -831,3 +831,9 @@ fn combined_evaluation_matches_separate_calls_bit_for_bit() {
     }
     assert!(checked > 5_000, "{checked}");
 }
+
+// --- the lobes of `disney`, `fourier` and `hair` ------------------------------------------------
+
+mod disney;
+mod fourier;
+mod hair;

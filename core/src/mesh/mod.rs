@@ -1,34 +1,35 @@
 //! World-space triangle meshes: every shape becomes one of these.
 //!
-//! # Orientation: how to get pbrt-v3's normals for a hit
+//! # Orientation: how to get pbrt-v3's normals
 //!
-//! pbrt-v3 computes, for a ray hit on a triangle of a mesh, a geometric normal
-//! `n` and a shading normal `ns` (`SurfaceInteraction::n` / `shading.n`).
-//! A [`TriangleMesh`] reproduces them as follows (see [`TriangleMesh::hit_normals`],
-//! which implements exactly this):
+//! pbrt-v3 computes, for a ray hit, a geometric normal `n` and a shading normal `ns`
+//! (`SurfaceInteraction::n` / `shading.n`), and for a point an area light samples
+//! (`Shape::Sample`) a normal whose side is the one that emits. Its rules differ between
+//! shapes, and between hits and samples; a [`TriangleMesh`] reproduces them with its
+//! [`NormalRule`] (see [`TriangleMesh::hit_normals`] and [`TriangleMesh::sample_normal`],
+//! which implement exactly this; `flip` is `ReverseOrientation` XOR the transform's
+//! handedness swap, `ro` is `ReverseOrientation` alone, `N` the interpolated per-vertex
+//! normal, world space, as stored):
 //!
-//! 1. `ng = normalize((p1 - p0) × (p2 - p0))` with the *stored* winding.
-//! 2. If `normals` is `None`: `n = ns = ng` — except for the pbrt-v3 quirk of a
-//!    mesh with tangents `S` but no `N` and `flip_normals` set, where pbrt-v3
-//!    flips twice and ends with `n = ns = -ng`.
-//! 3. If `normals` is `Some`: `ns = normalize(b0 n0 + b1 n1 + b2 n2)`, negated if
-//!    `flip_normals`; then `n = faceforward(ng, ns)` (i.e. `ng`, negated if `ng · ns < 0`).
+//! | mesh | hit `ns` | hit `n` | sample normal |
+//! |---|---|---|---|
+//! | triangles, no `N` | `ng` | `ng` | `ng` |
+//! | triangles with `N` | `N`, negated if `ro` | `faceforward(ng, ns)` | `faceforward(ng, N)` (`ro` ignored) |
+//! | quadrics | `N`, negated if `flip` | `faceforward(ng, ns)` | `N`, negated if `ro` |
 //!
-//! The builders (`crate::shapes`) choose the stored winding so that:
-//! * for meshes without per-vertex normals, `ng` *is* pbrt-v3's `n`
-//!   (the winding is reversed exactly when `ReverseOrientation XOR swaps_handedness`);
-//! * for meshes with normals (quadrics, `loopsubdiv`, meshes with `N`), the winding
-//!   agrees with the flipped shading normals on the (area-weighted) majority of
-//!   triangles — for tessellated quadrics that is all of them — so `ng` equals
-//!   pbrt-v3's `n` whenever the given normals agree with the geometry; step 3 is
-//!   still needed for exactness.
+//! where `ng = normalize((p1 - p0) × (p2 - p0))` with the *stored* winding. (A triangle mesh
+//! with tangents `S` but no `N` has `n = ns = ng`, negated if `ro`.) The builders
+//! (`crate::shapes`) choose the stored winding so that:
+//! * for meshes without per-vertex normals, `ng` *is* pbrt-v3's `n` (the winding is
+//!   reversed exactly when `flip`);
+//! * for meshes with normals, the winding agrees with `N` negated if `flip` on the
+//!   (area-weighted) majority of triangles — for tessellated quadrics all of them.
 //!
-//! Consequently a consumer that only needs the "outside" of a surface (one-sided
-//! area lights hit by rays, silhouettes, convexity) may use the winding directly.
-//!
-//! pbrt-v3's `Shape::Sample` uses a different rule (only `ReverseOrientation`,
-//! not the handedness of the transform): see [`TriangleMesh::sample_normal`].
-//! The two agree unless the object-to-world transform mirrors.
+//! So a consumer that only needs the "outside" of a surface (silhouettes, convexity) may use
+//! the winding directly. pbrt-v3 is not consistent: a quadric under a mirroring transform is
+//! hit on its inside but emits (is sampled) on its outside, and a triangle mesh with normals
+//! and `ReverseOrientation` is hit on one side and sampled on the other. penumbra reproduces
+//! both, so that its images are pbrt-v3's (`docs/real-scenes.md`).
 
 use glam::{Vec2, Vec3};
 
@@ -52,6 +53,63 @@ pub enum AlphaSpec {
     /// Index into `SceneDescription::textures` of the float texture to evaluate
     /// at the hit's (u, v) (the triangle's interpolated `uvs`, or pbrt-v3's default ones).
     Texture(usize),
+}
+
+/// Which of pbrt-v3's normal rules a mesh follows (module documentation).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum NormalRule {
+    /// pbrt-v3's `Triangle` (`trianglemesh`, `plymesh`, `loopsubdiv`, `heightfield`, `nurbs`).
+    #[default]
+    Triangle,
+    /// pbrt-v3's analytic quadrics (`sphere`, `disk`, `cylinder`, `cone`, `paraboloid`,
+    /// `hyperboloid`), tessellated, with their analytic normals as `normals`.
+    Quadric,
+}
+
+/// The parameters of a pbrt-v3 quadric that area lights sample analytically, as pbrt-v3's
+/// shape classes hold them (object space, after pbrt-v3's clamping; angles in radians).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum QuadricShape {
+    Sphere { radius: f64, z_min: f64, z_max: f64, phi_max: f64 },
+    Disk { height: f64, radius: f64, inner_radius: f64, phi_max: f64 },
+    Cylinder { radius: f64, z_min: f64, z_max: f64, phi_max: f64 },
+}
+
+impl QuadricShape {
+    /// pbrt-v3's `Shape::Area()`: in object space, whatever the transform.
+    pub fn area(&self) -> f64 {
+        match *self {
+            QuadricShape::Sphere { radius, z_min, z_max, phi_max } => phi_max * radius * (z_max - z_min),
+            QuadricShape::Disk { radius, inner_radius, phi_max, .. } => {
+                phi_max * 0.5 * (radius * radius - inner_radius * inner_radius)
+            }
+            QuadricShape::Cylinder { radius, z_min, z_max, phi_max } => (z_max - z_min) * radius * phi_max,
+        }
+    }
+
+    /// Whether pbrt-v3's `Shape::Sample(u)` covers exactly this surface (it samples a whole
+    /// sphere or a whole disk whatever `zmin`, `zmax`, `phimax` or `innerradius` cut away).
+    pub fn sampled_whole(&self) -> bool {
+        let full = |phi_max: f64| phi_max >= std::f64::consts::TAU;
+        match *self {
+            QuadricShape::Sphere { radius, z_min, z_max, phi_max } => {
+                full(phi_max) && z_min <= -radius && z_max >= radius
+            }
+            QuadricShape::Disk { inner_radius, phi_max, .. } => full(phi_max) && inner_radius <= 0.0,
+            QuadricShape::Cylinder { .. } => true,
+        }
+    }
+}
+
+/// A quadric's own description beside its tessellation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Quadric {
+    pub shape: QuadricShape,
+    /// The shape's object-to-world transform.
+    pub world_from_object: penumbra_parser::Transform,
+    /// How far (object space) the tessellation may lie from the analytic surface (see
+    /// `crate::shapes`): a point sampled on the analytic surface is this close to the mesh.
+    pub deviation: f64,
 }
 
 /// A triangle mesh in world (render) space.
@@ -83,6 +141,11 @@ pub struct TriangleMesh {
     pub alpha: Option<AlphaSpec>,
     /// `"shadowalpha"` cut-out: applies to shadow rays only.
     pub shadow_alpha: Option<AlphaSpec>,
+    /// Which pbrt-v3 shape the mesh stands for, as far as its normals go.
+    pub normal_rule: NormalRule,
+    /// For a sphere, disk or cylinder: its parameters, for what pbrt-v3 computes on the
+    /// analytic shape (area-light sampling).
+    pub quadric: Option<Quadric>,
 }
 
 impl TriangleMesh {
@@ -112,47 +175,61 @@ impl TriangleMesh {
         (b - a).cross(c - a).normalize_or_zero()
     }
 
-    /// pbrt-v3's geometric and shading normals `(n, ns)` of `Triangle::Intersect`
-    /// at barycentrics `b` (weights of the stored vertices 0, 1, 2).
+    /// The interpolated per-vertex normal at barycentrics `b` (unit; `None` without normals
+    /// or where it vanishes).
+    pub fn interpolated_normal(&self, tri: usize, b: [f32; 3]) -> Option<Vec3> {
+        let ns = self.normals.as_ref()?;
+        let [i0, i1, i2] = self.indices[tri].map(|i| i as usize);
+        let n = (b[0] * ns[i0] + b[1] * ns[i1] + b[2] * ns[i2]).normalize_or_zero();
+        (n != Vec3::ZERO && n.is_finite()).then_some(n)
+    }
+
+    /// The sign pbrt-v3 gives the per-vertex normals of a hit's shading normal: `-1` when
+    /// they are negated (`ReverseOrientation` for triangles, `ReverseOrientation` XOR the
+    /// handedness swap for quadrics).
+    pub fn hit_normal_sign(&self) -> f32 {
+        let negate = match self.normal_rule {
+            NormalRule::Triangle => self.reverse_orientation,
+            NormalRule::Quadric => self.flip_normals,
+        };
+        if negate {
+            -1.0
+        } else {
+            1.0
+        }
+    }
+
+    /// The sign pbrt-v3 gives the per-vertex normals of a sampled point's normal (`-1` for a
+    /// quadric with `ReverseOrientation`; triangles ignore it).
+    pub fn sample_normal_sign(&self) -> f32 {
+        if self.normal_rule == NormalRule::Quadric && self.reverse_orientation {
+            -1.0
+        } else {
+            1.0
+        }
+    }
+
+    /// pbrt-v3's geometric and shading normals `(n, ns)` of a hit at barycentrics `b`
+    /// (weights of the stored vertices 0, 1, 2); see the module documentation.
     pub fn hit_normals(&self, tri: usize, b: [f32; 3]) -> (Vec3, Vec3) {
         let ng = self.winding_normal(tri);
-        match &self.normals {
-            Some(ns_all) => {
-                let [i0, i1, i2] = self.indices[tri].map(|i| i as usize);
-                let mut ns = (b[0] * ns_all[i0] + b[1] * ns_all[i1] + b[2] * ns_all[i2]).normalize_or_zero();
-                if self.flip_normals {
-                    ns = -ns;
-                }
-                let n = if ng.dot(ns) < 0.0 { -ng } else { ng };
-                (n, ns)
+        match self.interpolated_normal(tri, b) {
+            Some(ns) => {
+                let ns = ns * self.hit_normal_sign();
+                (if ng.dot(ns) < 0.0 { -ng } else { ng }, ns)
             }
-            None if self.tangents.is_some() && self.flip_normals => (-ng, -ng),
+            None if self.normals.is_none() && self.tangents.is_some() && self.reverse_orientation => (-ng, -ng),
             None => (ng, ng),
         }
     }
 
-    /// pbrt-v3's `Triangle::Sample` normal at barycentrics `b`: the interpolated
-    /// normal (or the cross product in the shape's own vertex order), negated
-    /// when `ReverseOrientation` is set (the transform's handedness is ignored).
+    /// pbrt-v3's `Shape::Sample` normal at barycentrics `b`, flat (the triangle's own plane)
+    /// and on the side that emits; see the module documentation.
     pub fn sample_normal(&self, tri: usize, b: [f32; 3]) -> Vec3 {
-        let n = match &self.normals {
-            Some(ns) => {
-                let [i0, i1, i2] = self.indices[tri].map(|i| i as usize);
-                (b[0] * ns[i0] + b[1] * ns[i1] + b[2] * ns[i2]).normalize_or_zero()
-            }
-            None => {
-                let ng = self.winding_normal(tri);
-                if self.winding_reversed {
-                    -ng
-                } else {
-                    ng
-                }
-            }
-        };
-        if self.reverse_orientation {
-            -n
-        } else {
-            n
+        let ng = self.winding_normal(tri);
+        match self.interpolated_normal(tri, b) {
+            Some(ns) if ng.dot(ns * self.sample_normal_sign()) < 0.0 => -ng,
+            _ => ng,
         }
     }
 
@@ -262,20 +339,42 @@ mod tests {
         assert!(!t.is_closed_convex(1e-3));
     }
 
+    /// The table of the module documentation, for a triangle whose stored winding gives +z
+    /// and whose vertex normals are +z, under every flag: pbrt-v3's `Triangle::Intersect` /
+    /// `Triangle::Sample` and the quadrics' `Intersect` / `Sample` (checked against renders
+    /// of the real pbrt-v3 in `tests/real_scenes.rs`).
     #[test]
-    fn hit_normals_follow_pbrt_rules() {
-        let mut m = TriangleMesh {
-            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
-            indices: vec![[0, 1, 2]],
-            ..Default::default()
-        };
-        assert_eq!(m.hit_normals(0, [1.0 / 3.0; 3]), (Vec3::Z, Vec3::Z));
-        m.normals = Some(vec![-Vec3::Z; 3]);
-        assert_eq!(m.hit_normals(0, [1.0 / 3.0; 3]), (-Vec3::Z, -Vec3::Z));
-        m.flip_normals = true;
-        assert_eq!(m.hit_normals(0, [1.0 / 3.0; 3]), (Vec3::Z, Vec3::Z));
-        m.reverse_orientation = true;
-        assert_eq!(m.sample_normal(0, [1.0 / 3.0; 3]), Vec3::Z);
-        assert!(!m.swaps_handedness());
+    fn hit_and_sample_normals_follow_pbrt_rules() {
+        let b = [1.0 / 3.0; 3];
+        for rule in [NormalRule::Triangle, NormalRule::Quadric] {
+            for (ro, swaps) in [(false, false), (true, false), (false, true), (true, true)] {
+                let mut m = TriangleMesh {
+                    positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+                    indices: vec![[0, 1, 2]],
+                    flip_normals: ro ^ swaps,
+                    reverse_orientation: ro,
+                    normal_rule: rule,
+                    ..Default::default()
+                };
+                assert!(m.swaps_handedness() == swaps);
+                if rule == NormalRule::Triangle {
+                    assert_eq!(m.hit_normals(0, b), (Vec3::Z, Vec3::Z));
+                    assert_eq!(m.sample_normal(0, b), Vec3::Z);
+                    m.tangents = Some(vec![Vec3::X; 3]);
+                    let n = if ro { -Vec3::Z } else { Vec3::Z };
+                    assert_eq!(m.hit_normals(0, b), (n, n));
+                    m.tangents = None;
+                }
+                m.normals = Some(vec![Vec3::Z; 3]);
+                let hit_flip = match rule {
+                    NormalRule::Triangle => ro,
+                    NormalRule::Quadric => ro ^ swaps,
+                };
+                let hit = if hit_flip { -Vec3::Z } else { Vec3::Z };
+                assert_eq!(m.hit_normals(0, b), (hit, hit), "{rule:?} ro {ro} swaps {swaps}");
+                let sample_flip = rule == NormalRule::Quadric && ro;
+                assert_eq!(m.sample_normal(0, b), if sample_flip { -Vec3::Z } else { Vec3::Z });
+            }
+        }
     }
 }

@@ -3,7 +3,7 @@
 
 use super::lowdiscrepancy::sobol_sample_bits;
 use super::*;
-use crate::stats::chi2_test;
+use crate::goodness_of_fit::chi2_test;
 use penumbra_parser::{Param, ParamSet, ParamValue};
 
 fn entity(kind: &str, ints: &[(&str, i32)]) -> Entity {

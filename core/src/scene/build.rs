@@ -1,6 +1,7 @@
 //! [`Scene::build`]: the stages that turn a parsed scene into a renderable one, each timed
 //! into the [`BuildReport`], each built only when the [`Requirements`] ask for it.
 
+use super::cutout::{self, CutoutTest};
 use super::{BuildOptions, BuildReport, Crop, Requirements, Scene};
 use crate::accel::{Accel, AccelKind};
 use crate::camera::Camera;
@@ -16,6 +17,7 @@ use crate::shapes::{build_shape, ShapeContext, Tessellation};
 use crate::texture::Textures;
 use glam::IVec2;
 use penumbra_parser::{DiagSink, Diagnostic, SceneDescription, ShapeDesc};
+use std::sync::Arc;
 use std::time::Instant;
 
 impl Scene {
@@ -55,8 +57,33 @@ impl Scene {
                 bounds.extend(*p);
             }
         }
+        // Textures: those of the cut-outs (every query tests them) and, when asked, the
+        // materials' — one table, so a texture both use is built (and reported) once.
+        let mut textures = Textures::new(desc);
+        let t = Instant::now();
+        let cutouts = cutout::build_textures(&meshes, &mut textures, warnings)?;
+        if cutouts {
+            report.stages.push((
+                "cut-outs".into(),
+                t.elapsed().as_secs_f64(),
+                format!("{} textures", textures.built_count()),
+            ));
+        }
+        let materials = if req.materials {
+            let m = materials(desc, &objects, &mut textures, warnings, &mut report)?;
+            if !req.subsurface {
+                warn_interface_only(desc, &m, warnings);
+            }
+            Some(m)
+        } else {
+            None
+        };
+        let textures = (req.materials || cutouts).then(|| Arc::new(textures));
         let accel = if req.accel {
-            let a = Accel::build_with(&meshes, accel_kind(desc, warnings));
+            let mut a = Accel::build_with(&meshes, accel_kind(desc, warnings));
+            if let Some(test) = textures.as_ref().and_then(|t| CutoutTest::new(&meshes, t.clone())) {
+                a.set_filter(Arc::new(test));
+            }
             let by = if a.kind() == AccelKind::Embree { " (Embree)" } else { "" };
             report.stages.push(("bvh".into(), a.build_seconds, format!("{} triangles{by}", a.triangle_count())));
             Some(a)
@@ -71,12 +98,6 @@ impl Scene {
             Some(l)
         } else {
             None
-        };
-        let (materials, textures) = if req.materials {
-            let (m, t) = materials(desc, &objects, warnings, &mut report)?;
-            (Some(m), Some(t))
-        } else {
-            (None, None)
         };
         Ok(Scene {
             camera,
@@ -259,15 +280,6 @@ fn add_shape(
     objects: &mut Vec<SceneObject>,
 ) -> Result<(), Diagnostic> {
     if let Some(mesh) = build_shape(s, ctx)? {
-        if mesh.alpha.is_some() || mesh.shadow_alpha.is_some() {
-            ctx.warnings.warn(
-                Some(s.entity.loc.clone()),
-                format!(
-                    "\"alpha\"/\"shadowalpha\" cut-outs are not supported yet: shape \"{}\" renders opaque",
-                    s.entity.kind
-                ),
-            );
-        }
         meshes.push(mesh);
         objects.push(SceneObject {
             kind: s.entity.kind.clone(),
@@ -290,13 +302,15 @@ fn adjacency(meshes: &[TriangleMesh], report: &mut BuildReport) -> Vec<EdgeAdjac
     adjacency
 }
 
-/// The materials some object uses and the textures they reference (timed into `report`).
+/// The materials some object uses, with the textures they reference built in `textures`
+/// (timed into `report`).
 fn materials(
     desc: &SceneDescription,
     objects: &[SceneObject],
+    textures: &mut Textures,
     warnings: &DiagSink,
     report: &mut BuildReport,
-) -> Result<(Materials, Textures), Diagnostic> {
+) -> Result<Materials, Diagnostic> {
     let t2 = Instant::now();
     let mut used = vec![false; desc.materials.len()];
     for o in objects {
@@ -304,8 +318,7 @@ fn materials(
             *m = true;
         }
     }
-    let mut textures = Textures::new(desc);
-    let materials = Materials::build(desc, &used, &mut textures, warnings)?;
+    let materials = Materials::build(desc, &used, textures, warnings)?;
     report.stages.push((
         "materials".into(),
         t2.elapsed().as_secs_f64(),
@@ -316,7 +329,25 @@ fn materials(
             textures.image_count()
         ),
     ));
-    Ok((materials, textures))
+    Ok(materials)
+}
+
+/// One warning per material type with a BSSRDF, for an integrator that renders none.
+fn warn_interface_only(desc: &SceneDescription, materials: &Materials, warnings: &DiagSink) {
+    let mut warned = std::collections::HashSet::new();
+    for (i, md) in desc.materials.iter().enumerate() {
+        let Some(m) = materials.get(i).filter(|m| m.may_have_bssrdf()) else { continue };
+        if warned.insert(m.type_name()) {
+            warnings.warn(
+                Some(md.entity.loc.clone()),
+                format!(
+                    "material \"{}\": its subsurface scattering (BSSRDF) is rendered by \"path\" only; this \
+                     integrator renders its surface (BSDF) alone, as pbrt-v3's directlighting and whitted do",
+                    m.type_name()
+                ),
+            );
+        }
+    }
 }
 
 #[cfg(test)]

@@ -1,25 +1,26 @@
 //! The renderable scene, built from a `SceneDescription` according to what
 //! the chosen integrator says it needs ([`Requirements`]).
 
-use crate::accel::{Accel, Hit, DEFAULT_UV};
+use crate::accel::{Accel, Hit};
 use crate::bxdf::Bsdf;
 use crate::camera::Camera;
 use crate::film::FilmSpec;
 use crate::filter::Filter;
-use crate::geometry::{face_forward, gamma, interpolate, Bounds3, Frame, Ray};
-use crate::interaction::{SceneObject, SurfaceInteraction};
+use crate::geometry::{face_forward, gamma, interpolate, Bounds3, Frame, Ray, RayDifferential};
+use crate::interaction::{Differentials, SceneObject, SurfaceInteraction};
 use crate::light::{Light, Lights};
 use crate::material::{BsdfOptions, Material, Materials, ShadingGeometry};
-use crate::mesh::{EdgeAdjacency, TriangleMesh};
-use crate::phase::Phase;
+use crate::mesh::{EdgeAdjacency, NormalRule, TriangleMesh};
+use crate::profiling::Phase;
 use crate::sampler::Sampler;
 use crate::texture::{TextureEvalContext, Textures};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use penumbra_parser::Entity;
 use std::any::Any;
 use std::sync::Arc;
 
 mod build;
+pub mod cutout;
 pub use build::film_spec;
 
 /// What the scene build must provide for an integrator. Everything is off by
@@ -37,6 +38,9 @@ pub struct Requirements {
     /// At least this many camera samples per pixel, and the integrator's reason (said in the
     /// warning when the scene's or the command line's count is raised).
     pub min_pixel_samples: Option<(u32, &'static str)>,
+    /// The integrator renders BSSRDFs ([`Scene::bssrdf`]; `path`). Otherwise the build warns
+    /// once per material type that has one: only its interface is rendered.
+    pub subsurface: bool,
 }
 
 /// A crop given on the command line: fractions (pbrt-v3's `cropwindow`) or pixel bounds.
@@ -118,8 +122,9 @@ pub struct Scene {
     pub lights: Option<Lights>,
     /// Built when `Requirements::materials`: only materials some object uses.
     pub materials: Option<Materials>,
-    /// Built when `Requirements::materials`: only textures a built material references.
-    pub textures: Option<Textures>,
+    /// Built when `Requirements::materials` or a mesh has an alpha cut-out: only the textures a
+    /// built material or a cut-out references.
+    pub textures: Option<Arc<Textures>>,
     pub bounds: Bounds3,
     /// The scene's own `Integrator` directive.
     pub integrator: Entity,
@@ -147,7 +152,7 @@ impl Scene {
 
     /// Closest hit (requires `Requirements::accel`).
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        crate::phase::closest_hit(|| self.accel.as_ref().and_then(|a| a.intersect(ray)))
+        crate::profiling::closest_hit(|| self.accel.as_ref().and_then(|a| a.intersect(ray)))
     }
 
     /// The scene's lights (empty when they were not built).
@@ -159,7 +164,10 @@ impl Scene {
     /// through without counting depth, at most 64 of them) to the first surface with one.
     /// `Err` carries the radiance of the ray leaving the scene (the infinite lights'), or 0 after
     /// 64 pass-throughs. The second value is the number of intersection queries made.
-    pub fn first_surface(&self, ray: &Ray) -> (Result<SurfaceHit, crate::Rgb>, u64) {
+    /// The interaction has the ray's differentials when it has offset rays and reached the
+    /// surface directly (as in pbrt-v3, a ray passed through a surface loses them); pass a
+    /// plain [`Ray`] as `&ray.into()`.
+    pub fn first_surface(&self, ray: &RayDifferential) -> (Result<SurfaceHit, crate::Rgb>, u64) {
         let (first, queries) = self.first_point(ray);
         let first = first.and_then(|pt| pt.with_bsdf(self).ok_or(crate::Rgb::ZERO));
         (first, queries)
@@ -167,14 +175,14 @@ impl Scene {
 
     /// [`first_surface`](Self::first_surface) without building the BSDF (for a method that
     /// shades a pixel's surfaces once and may not need it for every sample).
-    pub fn first_point(&self, ray: &Ray) -> (Result<SurfacePoint, crate::Rgb>, u64) {
+    pub fn first_point(&self, ray: &RayDifferential) -> (Result<SurfacePoint, crate::Rgb>, u64) {
         self.first_point_among(ray, None, None)
     }
 
     /// The triangles that a bundle of rays from one origin (a pixel's camera rays) can hit,
     /// for [`first_point_among`](Self::first_point_among); `None` when a per-ray traversal is
     /// the better (or the only) way ([`Accel::bundle_candidates`](crate::accel::Accel::bundle_candidates)).
-    pub fn bundle_candidates(&self, rays: &[Ray]) -> Option<Vec<u32>> {
+    pub fn bundle_candidates<R: AsRef<Ray>>(&self, rays: &[R]) -> Option<Vec<u32>> {
         self.accel.as_ref()?.bundle_candidates(rays, BUNDLE_LIMIT)
     }
 
@@ -185,20 +193,23 @@ impl Scene {
     /// ([`interaction_after`](Self::interaction_after)).
     pub fn first_point_among(
         &self,
-        ray: &Ray,
+        ray_differential: &RayDifferential,
         candidates: Option<&[u32]>,
         prev: Option<&SurfaceInteraction>,
     ) -> (Result<SurfacePoint, crate::Rgb>, u64) {
-        let mut ray = *ray;
+        let mut ray = ray_differential.ray;
         for queries in 1..=65u64 {
             let hit = match (candidates, &self.accel) {
-                (Some(c), Some(a)) if queries == 1 => crate::phase::closest_hit(|| a.intersect_among(&ray, c)),
+                (Some(c), Some(a)) if queries == 1 => crate::profiling::closest_hit(|| a.intersect_among(&ray, c)),
                 _ => self.intersect(&ray),
             };
             let Some(hit) = hit else {
                 return (Err(self.light_list().iter().map(|l| l.le(&ray)).sum()), queries);
             };
-            let si = self.interaction_after(&ray, &hit, prev);
+            let mut si = self.interaction_after(&ray, &hit, prev);
+            if queries == 1 {
+                si.compute_differentials(ray_differential);
+            }
             if self.material_of(&si).is_some() {
                 let le = self.area_light_at(&hit).map_or(crate::Rgb::ZERO, |k| self.light_list()[k].l(si.n, si.wo));
                 return (Ok(SurfacePoint { hit, si, le }), queries);
@@ -215,7 +226,7 @@ impl Scene {
 
     /// Whether anything blocks `ray` before `ray.t_max`.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        crate::phase::timed(Phase::Shadow, || self.accel.as_ref().is_some_and(|a| a.occluded(ray)))
+        crate::profiling::timed(Phase::Shadow, || self.accel.as_ref().is_some_and(|a| a.occluded(ray)))
     }
 
     /// The BSDF at `si` (requires `Requirements::materials`); `None` when the object
@@ -227,12 +238,11 @@ impl Scene {
     /// [`bsdf`](Self::bsdf) with explicit options (`path` asks for pbrt-v3's multiple-lobe glass).
     pub fn bsdf_with(&self, si: &SurfaceInteraction, opts: BsdfOptions) -> Option<Bsdf> {
         let (mat, materials, textures) = self.material_of(si)?;
-        let normals = self.meshes.get(si.mesh as usize).is_some_and(|m| m.normals.is_some());
-        Some(crate::phase::timed(Phase::Shading, || {
+        Some(crate::profiling::timed(Phase::Shading, || {
             mat.compute_bsdf_ext(
                 si,
                 &TextureEvalContext::from_si(si),
-                &ShadingGeometry::of(si, normals),
+                &ShadingGeometry::of(si),
                 opts,
                 materials,
                 textures,
@@ -240,9 +250,44 @@ impl Scene {
         }))
     }
 
+    /// The first object with an `alpha` or `shadowalpha` cut-out that occludes (its
+    /// `"bool occluder"` is not false): every ray query honours the cut-out, but visibility
+    /// built from the meshes' outlines (`ltc`'s polygons, `silhouette`'s edges, `shexp`'s
+    /// spheres) cannot represent one.
+    pub fn cutout_occluder(&self) -> Option<&SceneObject> {
+        self.meshes
+            .iter()
+            .zip(&self.objects)
+            .find(|(m, o)| o.occluder && (m.alpha.is_some() || m.shadow_alpha.is_some()))
+            .map(|(_, o)| o)
+    }
+
+    /// The BSSRDF under `si`, whose BSDF (built with `opts`) is `bsdf`; `None` when its material
+    /// has none (see [`Material::bssrdf`]).
+    pub fn bssrdf(
+        &self,
+        si: &SurfaceInteraction,
+        bsdf: &Bsdf,
+        opts: BsdfOptions,
+    ) -> Option<crate::bssrdf::SeparableBssrdf<'_>> {
+        let mut index = self.objects.get(si.mesh as usize)?.material?;
+        let (mut mat, materials, textures) = self.material_of(si)?;
+        // pbrt-v3's `mix` keeps its first material's BSSRDF, whose probes then look for the
+        // surfaces of that material (not the mix's: a mixed BSSRDF finds no exit and ends the path).
+        for _ in 0..16 {
+            let Material::Mix { m1, .. } = mat else { break };
+            index = *m1;
+            mat = materials.get(index)?;
+        }
+        if !mat.may_have_bssrdf() {
+            return None;
+        }
+        mat.bssrdf(si, &TextureEvalContext::from_si(si), bsdf, opts, textures, index)
+    }
+
     /// The material at `si`, with the material and texture tables (`None` as for [`bsdf`](Self::bsdf)).
     pub fn material_of(&self, si: &SurfaceInteraction) -> Option<(&Material, &Materials, &Textures)> {
-        let (materials, textures) = (self.materials.as_ref()?, self.textures.as_ref()?);
+        let (materials, textures) = (self.materials.as_ref()?, self.textures.as_deref()?);
         Some((materials.get(self.objects.get(si.mesh as usize)?.material?)?, materials, textures))
     }
 
@@ -253,37 +298,33 @@ impl Scene {
 
     /// [`interaction`](Self::interaction), taking the per-triangle part (normal, ∂p/∂u, ∂p/∂v,
     /// shading frame) from `prev` when it is on the same triangle of a mesh without per-vertex
-    /// normals — where that part is the triangle's alone: the same result, for the samples of a
-    /// pixel that mostly see one triangle.
+    /// normals or tangents — where that part is the triangle's alone: the same result, for the
+    /// samples of a pixel that mostly see one triangle. The differentials are left zero (see
+    /// [`SurfaceInteraction::compute_differentials`]).
     pub fn interaction_after(&self, ray: &Ray, hit: &Hit, prev: Option<&SurfaceInteraction>) -> SurfaceInteraction {
         let mesh = &self.meshes[hit.mesh as usize];
         let tri = hit.tri as usize;
-        let idx = mesh.indices[tri];
         let pv = mesh.vertices(tri);
         let b = hit.b;
         let p = interpolate(pv, b);
         let p_abs = pv[0].abs() * b[0].abs() + pv[1].abs() * b[1].abs() + pv[2].abs() * b[2].abs();
         let p_error = gamma(7) * p_abs;
-        let uvv = match &mesh.uvs {
-            Some(uv) => idx.map(|i| uv[i as usize]),
-            None => DEFAULT_UV,
-        };
+        let uvv = mesh.default_uvs(tri);
         let uv = interpolate(uvv, b);
         let wo = -ray.d.normalize_or_zero();
-        if let Some(q) = prev.filter(|q| q.mesh == hit.mesh && q.tri == hit.tri && mesh.normals.is_none()) {
-            return SurfaceInteraction { p, p_error, uv, wo, ..*q };
+        let flat = mesh.normals.is_none() && mesh.tangents.is_none();
+        if let Some(q) = prev.filter(|q| q.mesh == hit.mesh && q.tri == hit.tri && flat) {
+            return SurfaceInteraction { p, p_error, uv, wo, diff: Differentials::default(), ..*q };
         }
         let duv02 = uvv[0] - uvv[2];
         let duv12 = uvv[1] - uvv[2];
         let dp02 = pv[0] - pv[2];
         let dp12 = pv[1] - pv[2];
         let det = duv02.x * duv12.y - duv02.y * duv12.x;
-        let mut ng = dp02.cross(dp12).normalize_or_zero();
-        if mesh.flip_normals {
-            ng = -ng;
-        }
+        // The stored winding is pbrt-v3's geometric normal (see `crate::mesh`).
+        let ng = dp02.cross(dp12).normalize_or_zero();
+        let degenerate = det.abs() < 1e-8;
         let (dpdu, dpdv) = {
-            let degenerate = det.abs() < 1e-8;
             let (u, v) = if degenerate {
                 (Vec3::ZERO, Vec3::ZERO)
             } else {
@@ -297,19 +338,87 @@ impl Scene {
                 (u, v)
             }
         };
-        let mut n = ng;
-        let ns = mesh.normals.as_ref().map(|ns| interpolate(idx.map(|i| ns[i as usize]), b).normalize_or_zero());
-        let shading = match ns {
-            Some(ns) if ns != Vec3::ZERO && ns.is_finite() => {
-                n = face_forward(n, ns);
-                let ss = match &mesh.tangents {
-                    Some(s) => interpolate(idx.map(|i| s[i as usize]), b),
-                    None => dpdu,
-                };
-                Frame::from_zx(ns, ss)
-            }
-            _ => Frame::from_zx(n, dpdu),
+        let base = SurfaceInteraction {
+            p,
+            p_error,
+            n: ng,
+            uv,
+            dpdu,
+            dpdv,
+            shading: Frame::from_zx(ng, dpdu),
+            shading_dpdu: dpdu,
+            shading_dpdv: dpdv,
+            dndu: Vec3::ZERO,
+            dndv: Vec3::ZERO,
+            diff: Differentials::default(),
+            wo,
+            mesh: hit.mesh,
+            tri: hit.tri,
         };
-        SurfaceInteraction { p, p_error, n, uv, dpdu, dpdv, shading, wo, mesh: hit.mesh, tri: hit.tri }
+        if flat {
+            return base;
+        }
+        let (dndu, dndv) = normal_derivatives(mesh, tri, uvv, degenerate);
+        let ns0 = mesh.interpolated_normal(tri, b);
+        let mut si = SurfaceInteraction { dndu, dndv, ..base };
+        match (mesh.normal_rule, ns0) {
+            (NormalRule::Quadric, Some(ns0)) => {
+                // The analytic shape's frame: its normal (flipped as pbrt-v3 flips it) and its
+                // own ∂p/∂u, ∂p/∂v, made tangent to that normal.
+                let ns = ns0 * mesh.hit_normal_sign();
+                si.n = face_forward(ng, ns);
+                si.shading = Frame::from_zx(ns, dpdu);
+                si.shading_dpdu = dpdu - ns * ns.dot(dpdu);
+                si.shading_dpdv = dpdv - ns * ns.dot(dpdv);
+            }
+            (_, ns0) => {
+                // pbrt-v3's `Triangle::Intersect` shading geometry: unit tangents around the
+                // interpolated normal (or the geometric one), the bitangent negated by
+                // `ReverseOrientation`, which flips the shading normal.
+                let ns0 = ns0.unwrap_or(ng);
+                let ss = mesh
+                    .tangents
+                    .as_ref()
+                    .map(|s| interpolate(mesh.indices[tri].map(|i| s[i as usize]), b).normalize_or_zero())
+                    .filter(|s| *s != Vec3::ZERO && s.is_finite())
+                    .unwrap_or_else(|| dpdu.normalize_or_zero());
+                let ts = ss.cross(ns0);
+                let (ss, ts) = if ts.length_squared() > 0.0 {
+                    let ts = ts.normalize();
+                    (ts.cross(ns0), ts)
+                } else {
+                    let f = Frame::from_z(ns0);
+                    (f.x, f.y)
+                };
+                let ts = if mesh.reverse_orientation { -ts } else { ts };
+                let ns = ss.cross(ts).normalize_or_zero();
+                si.n = face_forward(ng, ns);
+                let x = mesh.tangents.as_ref().map_or(dpdu, |_| ss);
+                si.shading = Frame::from_zx(ns, x);
+                si.shading_dpdu = ss;
+                si.shading_dpdv = ts;
+            }
+        }
+        si
     }
+}
+
+/// pbrt-v3's `Triangle::Intersect` ∂n/∂u, ∂n/∂v: the (unflipped) per-vertex normals
+/// differenced over the triangle's (u, v); for a degenerate (u, v), any two tangents of the
+/// plane the normal differences span. Zero without normals.
+fn normal_derivatives(mesh: &TriangleMesh, tri: usize, uvv: [Vec2; 3], degenerate_uv: bool) -> (Vec3, Vec3) {
+    let Some(ns) = &mesh.normals else { return (Vec3::ZERO, Vec3::ZERO) };
+    let [n0, n1, n2] = mesh.indices[tri].map(|i| ns[i as usize]);
+    if degenerate_uv {
+        let dn = (n2 - n0).cross(n1 - n0);
+        if dn.length_squared() == 0.0 {
+            return (Vec3::ZERO, Vec3::ZERO);
+        }
+        let f = Frame::from_z(dn.normalize());
+        return (f.x, f.y);
+    }
+    let (duv02, duv12) = (uvv[0] - uvv[2], uvv[1] - uvv[2]);
+    let (dn1, dn2) = (n0 - n2, n1 - n2);
+    let inv = 1.0 / (duv02.x * duv12.y - duv02.y * duv12.x);
+    ((duv12.y * dn1 - duv02.y * dn2) * inv, (duv02.x * dn2 - duv12.x * dn1) * inv)
 }

@@ -22,13 +22,15 @@
 //!
 //! So the tessellation deviates from the analytic surface by about `ε · R` at most.
 
+mod curve;
 mod heightfield;
 pub mod loopsubdiv;
+mod nurbs;
 pub mod ply;
 mod quadrics;
 mod trianglemesh;
 
-use crate::mesh::{AlphaSpec, TriangleMesh};
+use crate::mesh::{AlphaSpec, NormalRule, Quadric, QuadricShape, TriangleMesh};
 use crate::parser::{DiagSink, Diagnostic, FileLoc, SceneDescription, ShapeDesc};
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
@@ -90,11 +92,8 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
         "sphere" | "disk" | "cylinder" | "cone" | "paraboloid" | "hyperboloid" => quadrics::build(desc, ctx)?,
         "loopsubdiv" => loopsubdiv::build(desc, ctx)?,
         "heightfield" => heightfield::build(desc, ctx)?,
-        "curve" | "nurbs" => {
-            desc.entity.params.mark_all_used();
-            ctx.warnings.warn(Some(desc.entity.loc.clone()), format!("shape \"{kind}\" not supported; skipped"));
-            return Ok(None);
-        }
+        "nurbs" => nurbs::build(desc, ctx)?,
+        "curve" => curve::build(desc, ctx)?,
         _ => {
             desc.entity.params.mark_all_used();
             ctx.warnings.warn(Some(desc.entity.loc.clone()), format!("shape \"{kind}\" unknown; skipped"));
@@ -112,7 +111,11 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
             format!("shape \"{kind}\" has an animated transform; using its start transform"),
         );
     }
-    finish(obj, desc).map(Some)
+    let mut mesh = finish(obj, desc)?;
+    if matches!(kind, "sphere" | "disk" | "cylinder" | "cone" | "paraboloid" | "hyperboloid") {
+        mesh.normal_rule = NormalRule::Quadric;
+    }
+    Ok(Some(mesh))
 }
 
 /// Object-space mesh data before transformation.
@@ -126,6 +129,9 @@ pub(crate) struct ObjMesh {
     pub tris: Vec<[u32; 3]>,
     pub alpha: Option<AlphaSpec>,
     pub shadow_alpha: Option<AlphaSpec>,
+    /// A sphere's, disk's or cylinder's parameters (object space) and the tessellation's
+    /// largest distance from its surface.
+    pub quadric: Option<(QuadricShape, f64)>,
 }
 
 /// Reads pbrt-v3's `alpha`/`shadowalpha` parameters (meshes only, as pbrt-v3).
@@ -222,6 +228,8 @@ fn finish(obj: ObjMesh, desc: &ShapeDesc) -> Result<TriangleMesh, Diagnostic> {
         winding_reversed: reverse,
         alpha: obj.alpha,
         shadow_alpha: obj.shadow_alpha,
+        normal_rule: NormalRule::Triangle,
+        quadric: obj.quadric.map(|(shape, deviation)| Quadric { shape, world_from_object: *t, deviation }),
     })
 }
 
@@ -276,17 +284,59 @@ mod tests {
     use crate::parser::ParamValue;
 
     #[test]
-    fn curve_nurbs_and_unknown_are_skipped_with_a_warning() {
+    fn curve_and_unknown_are_skipped_with_a_warning() {
         let sink = DiagSink::new();
         let ctx = ShapeContext::new(Path::new("."), &sink);
-        for kind in ["curve", "nurbs", "blob"] {
+        for kind in ["curve", "blob"] {
             let d = shape(kind, vec![("P", ParamValue::Point3(vec![0.0; 12]))]);
             assert_eq!(build_shape(&d, &ctx).unwrap(), None);
             assert!(d.entity.params.report_unused("x").is_empty());
         }
         let w = sink.take();
-        assert_eq!(w.len(), 3);
-        assert!(w[0].message.contains("\"curve\" not supported"));
-        assert!(w[2].message.contains("\"blob\""));
+        assert_eq!(w.len(), 2);
+        assert!(w[0].message.contains("curve type \"flat\"") && w[0].message.contains("skipped"));
+        assert!(w[1].message.contains("\"blob\""));
+    }
+
+    /// A rational quadratic NURBS (a quarter of the unit circle in u, `Pw` with weight √½ on
+    /// the middle point) extruded linearly in v: every vertex of the 30 × 30 tessellation
+    /// lies on the unit cylinder with a radial normal and its (u, v); malformed knot vectors
+    /// and counts are errors at the parameter.
+    #[test]
+    fn nurbs_tessellates_a_rational_cylinder_exactly() {
+        let sink = DiagSink::new();
+        let ctx = ShapeContext::new(Path::new("."), &sink);
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        let params = |uknots: Vec<f32>| {
+            vec![
+                ("nu", ParamValue::Int(vec![3])),
+                ("uorder", ParamValue::Int(vec![3])),
+                ("uknots", ParamValue::Float(uknots)),
+                ("nv", ParamValue::Int(vec![2])),
+                ("vorder", ParamValue::Int(vec![2])),
+                ("vknots", ParamValue::Float(vec![0.0, 0.0, 2.0, 2.0])),
+                (
+                    "Pw",
+                    ParamValue::Float(vec![
+                        1.0, 0.0, 0.0, 1.0, h, h, 0.0, h, 0.0, 1.0, 0.0, 1.0, //
+                        1.0, 0.0, 1.0, 1.0, h, h, h, h, 0.0, 1.0, 1.0, 1.0,
+                    ]),
+                ),
+            ]
+        };
+        let m = build_shape(&shape("nurbs", params(vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0])), &ctx).unwrap().unwrap();
+        assert_eq!((m.positions.len(), m.triangle_count()), (900, 2 * 29 * 29));
+        let (normals, uvs) = (m.normals.as_ref().unwrap(), m.uvs.as_ref().unwrap());
+        for (i, p) in m.positions.iter().enumerate() {
+            assert!((p.x * p.x + p.y * p.y - 1.0).abs() < 1e-5 && (-1e-6..=1.0 + 1e-6).contains(&p.z), "{p}");
+            let radial = Vec3::new(p.x, p.y, 0.0);
+            assert!(normals[i].cross(radial).length() < 1e-4, "{} at {p}", normals[i]);
+            assert_eq!(uvs[i], Vec2::new((i % 30) as f32 / 29.0, 2.0 * (i / 30) as f32 / 29.0));
+        }
+        assert!(sink.take().is_empty());
+        let e = build_shape(&shape("nurbs", params(vec![0.0, 0.0, 1.0, 1.0, 1.0])), &ctx).unwrap_err();
+        assert!(e.message.contains("5 knots in \"uknots\""), "{}", e.message);
+        let e = build_shape(&shape("nurbs", params(vec![0.0, 0.0, 1.0, 0.5, 1.0, 1.0])), &ctx).unwrap_err();
+        assert!(e.message.contains("non-decreasing"), "{}", e.message);
     }
 }

@@ -426,6 +426,7 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
         tris: ply.tris,
         alpha,
         shadow_alpha,
+        quadric: None,
     }))
 }
 

@@ -8,6 +8,7 @@
 //! module for the error bound.
 
 use super::{loc_or_entity, ObjMesh, ShapeContext, MAX_SEGMENTS};
+use crate::mesh::QuadricShape;
 use crate::parser::{Diagnostic, ShapeDesc};
 
 type V3 = [f64; 3];
@@ -238,6 +239,7 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
         v as f64
     };
     let phi_max_of = |deg: f64| deg.clamp(0.0, 360.0).to_radians();
+    let mut quadric = None;
     let (m, phi_max, v_lo, r_ref) = match kind {
         "sphere" => {
             let r = f("radius", 1.0);
@@ -247,12 +249,15 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
             let (lo, hi) = (zmin.min(zmax), zmin.max(zmax));
             let th0 = (lo / r).clamp(-1.0, 1.0).acos();
             let th1 = (hi / r).clamp(-1.0, 1.0).acos();
+            let (z_min, z_max) = (lo.clamp(-r.abs(), r.abs()), hi.clamp(-r.abs(), r.abs()));
+            quadric = Some(QuadricShape::Sphere { radius: r, z_min, z_max, phi_max: phi });
             (Meridian::Sphere { r, th0, th1 }, phi, 0.0, r)
         }
         "cylinder" => {
             let r = f("radius", 1.0);
             let (a, b) = (f("zmin", -1.0), f("zmax", 1.0));
             let phi = phi_max_of(f("phimax", 360.0));
+            quadric = Some(QuadricShape::Cylinder { radius: r, z_min: a.min(b), z_max: a.max(b), phi_max: phi });
             (Meridian::Cylinder { r, z0: a.min(b), z1: a.max(b) }, phi, 0.0, r)
         }
         "disk" => {
@@ -260,6 +265,7 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
             let r = f("radius", 1.0);
             let ri = f("innerradius", 0.0);
             let phi = phi_max_of(f("phimax", 360.0));
+            quadric = Some(QuadricShape::Disk { height: h, radius: r, inner_radius: ri, phi_max: phi });
             (Meridian::Disk { h, r, ri }, phi, 0.0, r)
         }
         "cone" => {
@@ -310,7 +316,9 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
         ctx.warnings.warn(Some(desc.entity.loc.clone()), format!("{kind}: degenerate parameters (zero area); skipped"));
         return Ok(None);
     }
-    Ok(Some(surf.tessellate(ctx.tessellation.max_rel_error as f64)))
+    let eps = ctx.tessellation.max_rel_error as f64;
+    let quadric = quadric.map(|q| (q, eps * r_ref));
+    Ok(Some(ObjMesh { quadric, ..surf.tessellate(eps) }))
 }
 
 #[cfg(test)]

@@ -116,7 +116,7 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
     }
     let alpha = read_alpha(desc, ctx, "alpha");
     let shadow_alpha = read_alpha(desc, ctx, "shadowalpha");
-    Ok(Some(ObjMesh { p, n, s, uv, tris, alpha, shadow_alpha }))
+    Ok(Some(ObjMesh { p, n, s, uv, tris, alpha, shadow_alpha, quadric: None }))
 }
 
 #[cfg(test)]
@@ -223,8 +223,9 @@ mod tests {
                 assert_eq!(m.flip_normals, ro ^ swaps);
                 // Object-space +z is preserved unless ReverseOrientation.
                 assert_eq!(n.z, if ro { -1.0 } else { 1.0 });
-                // pbrt-v3's Sample: raw cross, flipped if ro only.
-                assert_eq!(m.sample_normal(0, [1.0 / 3.0; 3]), if ro { -raw } else { raw });
+                // pbrt-v3's `Triangle::Sample` without normals: the cross product of the shape's
+                // own vertex order, negated if `reverseOrientation ^ transformSwapsHandedness`.
+                assert_eq!(m.sample_normal(0, [1.0 / 3.0; 3]), expect);
                 // Default uvs stay attached to the original vertices.
                 let uv = m.default_uvs(0);
                 for (slot, orig) in uv.iter().zip(m.indices[0]) {

@@ -129,6 +129,31 @@ fn checkerboard_texture_point_and_filtered() {
     assert!((v - 3.5).abs() < 1e-5, "{v}");
 }
 
+/// pbrt-v3's `dots` shows its `"outside"` texture in the dots and `"inside"` between them
+/// (its constructor's parameters are swapped), as the real pbrt-v3 renders
+/// `textures/dots.pbrt` of the pbrt-v3 scene collection.
+#[test]
+fn dots_show_outside_in_the_dots_as_pbrt_v3() {
+    let p = params(vec![("inside", ParamValue::Float(vec![2.0])), ("outside", ParamValue::Float(vec![7.0]))]);
+    let desc = scene(vec![tex("d", TextureKind::Float, "dots", p)], vec![], PathBuf::new());
+    let mut t = Textures::new(&desc);
+    t.ensure(0, &DiagSink::new()).unwrap();
+    let n2 = |x: f32, y: f32| noise(Vec3::new(x, y, 0.5));
+    let (mut dots, mut between) = (0, 0);
+    for cell in 0..64 {
+        let (sc, tc) = ((cell % 8) as f32, (cell / 8) as f32);
+        // A dot's centre (its cell's noise decides whether it has one) and a cell corner.
+        let centre = Vec2::new(sc + 0.15 * n2(sc + 1.5, tc + 2.8), tc + 0.15 * n2(sc + 4.5, tc + 9.8));
+        if n2(sc + 0.5, tc + 0.5) > 0.0 {
+            assert_eq!(t.eval_float(FloatParam::Tex(0), &ctx_uv(centre.x, centre.y)), 7.0);
+            dots += 1;
+        }
+        assert_eq!(t.eval_float(FloatParam::Tex(0), &ctx_uv(sc + 0.5, tc + 0.5)), 2.0);
+        between += 1;
+    }
+    assert!(dots > 10 && between == 64);
+}
+
 #[test]
 fn checkerboard_3d_uses_point_parity() {
     let p = params(vec![("dimension", ParamValue::Int(vec![3]))]);
@@ -305,14 +330,18 @@ fn imagemap_gamma_scale_invert_and_float_luminance() {
     let r = red(x, 3 - j) / 16.0;
     let raw = Vec3::new(r, 2.0 * r, 0.25);
     let a = t.eval_spectrum(SpectrumParam::Tex(0), &c);
-    let expect = Vec3::new(srgb_to_linear(raw.x), srgb_to_linear(raw.y), srgb_to_linear(raw.z));
+    let expect = Vec3::new(
+        crate::spectrum::srgb_decode(raw.x),
+        crate::spectrum::srgb_decode(raw.y),
+        crate::spectrum::srgb_decode(raw.z),
+    );
     assert!((a - expect).length() < 1e-5, "{a} vs {expect}");
-    assert!((srgb_to_linear(0.5) - 0.214_041_14).abs() < 1e-6);
+    assert!((crate::spectrum::srgb_decode(0.5) - 0.214_041_14).abs() < 1e-6);
     let b = t.eval_float(FloatParam::Tex(1), &c);
     assert!((b - 2.0 * luminance(raw)).abs() < 1e-5);
     // pbrt-v3 decodes the luminance of the raw values for float image textures.
     let cc = t.eval_float(FloatParam::Tex(2), &c);
-    assert!((cc - (1.0 - srgb_to_linear(luminance(raw)))).abs() < 1e-5);
+    assert!((cc - (1.0 - crate::spectrum::srgb_decode(luminance(raw)))).abs() < 1e-5);
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -331,6 +360,10 @@ fn mipmap_filters_average_large_footprints_and_resample_keeps_constants() {
         let z = Vec2::ZERO;
         assert_eq!(m.lookup(st, z, z, true, 8.0), m.bilerp(0, st));
         assert_eq!(m.lookup(st, z, z, false, 8.0), m.bilerp(0, st));
+        // Trilinear: the level is log2 of the largest footprint component (pbrt-v3 after its
+        // aaa552a), here a half of the texture: level 1 of 3 exactly, bilinear there.
+        let half = (Vec2::new(0.5, 0.1), Vec2::new(-0.2, 0.3));
+        assert_eq!(m.lookup(st, half.0, half.1, true, 8.0), m.bilerp(1, st));
         // EWA with a small footprint stays close to the bilinear value.
         let e = m.lookup(Vec2::new(0.5, 0.5), Vec2::new(0.01, 0.0), Vec2::new(0.0, 0.01), false, 8.0);
         assert!((e - m.bilerp(0, Vec2::new(0.5, 0.5))).abs() < 0.6, "{e}");
@@ -513,31 +546,31 @@ fn perlin_noise_properties() {
 
 #[test]
 fn ray_differentials_give_uv_derivatives() {
-    use crate::geometry::Frame;
+    use crate::geometry::{Ray, RayDifferential, RayOffsets};
     // Plane z = 0 with u = x/2, v = y/4: ∂p/∂u = (2,0,0), ∂p/∂v = (0,4,0).
-    let si = SurfaceInteraction {
+    let mut si = SurfaceInteraction {
         p: Vec3::new(1.0, 1.0, 0.0),
-        p_error: Vec3::ZERO,
-        n: Vec3::Z,
         uv: Vec2::new(0.5, 0.25),
         dpdu: Vec3::new(2.0, 0.0, 0.0),
         dpdv: Vec3::new(0.0, 4.0, 0.0),
-        shading: Frame::from_z(Vec3::Z),
-        wo: Vec3::Z,
-        mesh: 0,
-        tri: 0,
+        ..Default::default()
     };
     let down = Vec3::new(0.0, 0.0, -1.0);
-    let c = TextureEvalContext::with_ray_differentials(
-        &si,
-        (Vec3::new(1.1, 1.0, 3.0), down),
-        (Vec3::new(1.0, 1.2, 3.0), down),
-    );
+    let ray = |rx: (Vec3, Vec3), ry: (Vec3, Vec3)| RayDifferential {
+        ray: Ray::new(Vec3::new(1.0, 1.0, 3.0), down, f32::INFINITY),
+        offsets: Some(RayOffsets { rx_o: rx.0, rx_d: rx.1, ry_o: ry.0, ry_d: ry.1 }),
+    };
+    si.compute_differentials(&ray((Vec3::new(1.1, 1.0, 3.0), down), (Vec3::new(1.0, 1.2, 3.0), down)));
+    let c = TextureEvalContext::from_si(&si);
     assert!((c.dpdx - Vec3::new(0.1, 0.0, 0.0)).length() < 1e-5);
     assert!((c.dudx - 0.05).abs() < 1e-5 && c.dvdx.abs() < 1e-6);
     assert!((c.dvdy - 0.05).abs() < 1e-5 && c.dudy.abs() < 1e-6);
     // Parallel offset rays: no differentials.
     let side = Vec3::X;
-    let c = TextureEvalContext::with_ray_differentials(&si, (Vec3::ONE, side), (Vec3::ONE, side));
+    si.compute_differentials(&ray((Vec3::ONE, side), (Vec3::ONE, side)));
+    let c = TextureEvalContext::from_si(&si);
     assert_eq!((c.dudx, c.dvdy, c.dpdx), (0.0, 0.0, Vec3::ZERO));
+    // No offset rays: no differentials.
+    si.compute_differentials(&RayDifferential::plain(Ray::new(Vec3::ZERO, down, 1.0)));
+    assert_eq!(si.diff, Default::default());
 }

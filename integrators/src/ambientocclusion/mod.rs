@@ -17,9 +17,9 @@
 use crate::common::params::{ParamSpec, Params, Range};
 use crate::common::{SH_ORDER, SH_TRANSFER};
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{face_forward, Frame, Ray};
+use penumbra_core::geometry::{face_forward, Frame, Ray, RayDifferential};
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, SampleContext,
 };
 use penumbra_core::sampler::Sampler;
 use penumbra_core::sampling::{cosine_sample_hemisphere, uniform_sample_hemisphere};
@@ -92,16 +92,21 @@ impl PixelEstimator for Estimator<'_> {
         sampler.request_2d_array(self.n);
     }
 
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
-        let mut ray = *ray;
+    fn li(&self, camera_ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
+        let mut ray = camera_ray.ray;
         // Pass through surfaces without a material, as pbrt-v3 does (bounded, in case of a degenerate loop).
-        for _ in 0..64 {
+        for pass in 0..64 {
             let Some(hit) = scene.intersect(&ray) else { return Rgb::ZERO };
-            let si = scene.interaction(&ray, &hit);
+            let mut si = scene.interaction(&ray, &hit);
             if scene.objects[hit.mesh as usize].material.is_none() {
                 ray = si.spawn_ray(ray.d);
                 stats.rays += 1;
                 continue;
+            }
+            // The camera ray's differentials, for the albedo channel's texture lookups.
+            if pass == 0 {
+                si.compute_differentials(camera_ray);
             }
             let n = face_forward(si.n, -ray.d);
             let frame = Frame::from_zx(n, si.dpdu);
@@ -147,13 +152,6 @@ impl PixelEstimator for Estimator<'_> {
 }
 
 impl Integrator for AmbientOcclusion {
-    fn name(&self) -> &str {
-        if self.fixed_epsilon.is_some() {
-            FIXED_EPSILON_NAME
-        } else {
-            "ambientocclusion"
-        }
-    }
     fn merges_sample_ranges(&self) -> bool {
         true
     }

@@ -153,7 +153,7 @@ impl SpatialLightDistribution {
             return None;
         }
         let one = |light: &Light, pt: &VoxelPoint| match light {
-            Light::Area(a) => Prepared::Area(a.sample_point(pt.u)),
+            Light::Area(a) if a.samples_by_area() => Prepared::Area(a.sample_point(pt.u)),
             _ => Prepared::Other,
         };
         Some(lights.iter().flat_map(|l| self.points.iter().map(move |pt| one(l, pt))).collect())
@@ -174,7 +174,7 @@ impl SpatialLightDistribution {
         // and sample record, the same numbers (a tenth of the instructions).
         for (k, (c, light)) in contrib.iter_mut().zip(lights).enumerate() {
             let kept = prepared.map(|v| &v[k * self.points.len()..(k + 1) * self.points.len()]);
-            if let (Light::Area(area), Some(kept)) = (light, kept) {
+            if let (Light::Area(area), Some(kept), true) = (light, kept, light.area_samples_by_area()) {
                 for (p, point) in at.iter().zip(kept) {
                     if let Prepared::Area(Some(point)) = point {
                         if let Some((_, pdf, li)) = area.li_from(*p, point) {

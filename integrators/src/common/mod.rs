@@ -71,9 +71,30 @@ pub fn pixel_bounds_param(params: &Params) -> Result<Option<Bounds2i>, Diagnosti
 /// `albedo.*` channels written beside SH transfer channels (`ambientocclusion`, `sheared-ao`,
 /// `silhouette`).
 pub fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Rgb {
-    let Some((material, _, textures)) = scene.material_of(si) else { return Rgb::ZERO };
+    let Some((material, materials, textures)) = scene.material_of(si) else { return Rgb::ZERO };
     match material {
         Material::Matte { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
-        m => m.ltc_diffuse(si, textures).unwrap_or(Rgb::ZERO),
+        // (substrate: its Kd, though its FresnelBlend is not Lambertian)
+        Material::Substrate { kd, .. } => textures.eval_spectrum(*kd, &TextureEvalContext::from_si(si)).max(Rgb::ZERO),
+        m => m.ltc_diffuse(si, materials, textures).unwrap_or(Rgb::ZERO),
+    }
+}
+
+/// `integrator`'s refusal of a scene with an occluding alpha cut-out, which its `visibility`
+/// (built from the meshes' geometry) cannot represent: an error naming the shape and what
+/// renders it instead.
+pub fn refuse_cutouts(
+    integrator: &str,
+    visibility: &str,
+    scene: &Scene,
+) -> Result<(), penumbra_core::integrator::RenderError> {
+    match scene.cutout_occluder() {
+        None => Ok(()),
+        Some(o) => Err(penumbra_core::integrator::RenderError::Failed(format!(
+            "{}: shape \"{}\" has an \"alpha\"/\"shadowalpha\" cut-out, which {integrator}'s {visibility} cannot \
+             represent: render the scene with directlighting, path or ambientocclusion (which honour cut-outs), or \
+             give the shape \"bool occluder\" false to leave it out of {integrator}'s visibility",
+            o.loc, o.kind
+        ))),
     }
 }

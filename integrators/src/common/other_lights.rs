@@ -4,7 +4,7 @@
 //! specular surface (mirror, smooth glass) receives nothing from any light directly: what it
 //! shows comes through its specular chain, which the integrators follow themselves.
 
-use crate::common::direct::estimate_direct;
+use crate::common::direct::{estimate_direct, estimate_direct_with};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::integrator::ThreadStats;
 use penumbra_core::interaction::SurfaceInteraction;
@@ -13,45 +13,82 @@ use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Scene, SurfaceHit};
 use penumbra_core::{Rgb, Vec2};
 use penumbra_parser::DiagSink;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::collections::HashSet;
+use std::sync::Mutex;
 
-/// The one warning an integrator gives when a material without an LTC form falls back to
-/// directlighting's estimator.
+/// The warnings an integrator gives when a material's lobes fall back to directlighting's
+/// estimator: one per material type (`"disney"`, `"translucent"`…), naming it.
 pub struct FallbackWarning<'a> {
     pub integrator: &'static str,
-    pub warned: AtomicBool,
+    warned: Mutex<HashSet<&'static str>>,
     pub warnings: &'a DiagSink,
+    /// No per-material warning: the integrator has already said every light falls back.
+    pub silent: bool,
 }
 
 impl<'a> FallbackWarning<'a> {
     pub fn new(integrator: &'static str, warnings: &'a DiagSink) -> FallbackWarning<'a> {
-        FallbackWarning { integrator, warned: AtomicBool::new(false), warnings }
+        FallbackWarning { integrator, warned: Mutex::new(HashSet::new()), warnings, silent: false }
     }
 
-    fn no_ltc_form(&self) {
-        if !self.warned.swap(true, Ordering::Relaxed) {
+    /// Warns, once per material type, that `material`'s lobes described by `lobes` are lit by
+    /// directlighting's estimator `under` the lights it names.
+    pub fn material(&self, material: &'static str, lobes: &str, under: &str) {
+        if self.silent {
+            return;
+        }
+        let first = self.warned.lock().map(|mut w| w.insert(material)).unwrap_or(false);
+        if first {
             self.warnings.warn(
                 None,
                 format!(
-                    "{}: a material that does not reduce to a Lambertian plus a GGX lobe (translucent, mix, \
-                     Oren–Nayar, anisotropic, rough glass…) is lit by directlighting's estimator (its perfectly \
-                     specular lobes, as mirror's and smooth glass's, are followed up to maxdepth)",
+                    "{}: material \"{material}\" ({lobes}) is lit by directlighting's estimator under {under} \
+                     (its perfectly specular lobes are followed up to maxdepth)",
                     self.integrator
                 ),
             );
+        }
+    }
+
+    fn no_ltc_form(&self, scene: &Scene, hit: &SurfaceHit) {
+        let name = scene.material_of(&hit.si).map_or("none", |(m, _, _)| m.type_name());
+        self.material(name, "no Lambertian-plus-GGX form", "area lights");
+    }
+}
+
+/// What the analytic shading covered of a point's area lights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Coverage {
+    /// Nothing: the material has no LTC form.
+    None,
+    /// The reflection: the material also transmits (translucent), and the transmission lobes
+    /// take the area lights by directlighting's estimator.
+    Reflection,
+    /// All of it.
+    Area,
+}
+
+impl Coverage {
+    /// From whether the material has an LTC form and whether that form leaves transmission out.
+    pub fn of(ltc_form: bool, transmits: bool) -> Coverage {
+        match (ltc_form, transmits) {
+            (false, _) => Coverage::None,
+            (true, true) => Coverage::Reflection,
+            (true, false) => Coverage::Area,
         }
     }
 }
 
 /// Adds to `l` every light `ltc` and `ratio` do not shade analytically, at `hit`: delta lights
 /// by [`delta_light`]; infinite lights, and area lights when the material has no LTC form
-/// (`ltc_form` false, with one warning), by directlighting's estimator (two 2D samples each).
-/// Nothing (no sample, no warning) when the BSDF has no lobe but perfectly specular ones: no
-/// light sample could reach it.
+/// (`Coverage::None`, with one warning), by directlighting's estimator (two 2D samples each);
+/// with `Coverage::Reflection`, the area lights through the transmission lobes only, by the
+/// same estimator restricted to them. Nothing (no sample, no warning) when the BSDF has no
+/// lobe but perfectly specular ones: no light sample could reach it.
 pub fn add_other_lights(
     l: &mut Rgb,
     hit: &SurfaceHit,
-    ltc_form: bool,
+    coverage: Coverage,
     scene: &Scene,
     sampler: &mut dyn Sampler,
     stats: &mut ThreadStats,
@@ -61,12 +98,17 @@ pub fn add_other_lights(
     if bsdf.num_components(BxdfFlags::NON_SPECULAR) == 0 {
         return;
     }
+    let transmission = BxdfFlags::TRANSMISSION | BxdfFlags::DIFFUSE | BxdfFlags::GLOSSY;
     for (k, light) in scene.light_list().iter().enumerate() {
-        match light {
-            Light::Area(_) if ltc_form => {} // shaded analytically
-            Light::Infinite(_) | Light::Area(_) => {
-                if !ltc_form {
-                    warning.no_ltc_form();
+        match (light, coverage) {
+            (Light::Area(_), Coverage::Area) => {} // shaded analytically
+            (Light::Area(_), Coverage::Reflection) => {
+                let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
+                *l += estimate_direct_with(si, bsdf, transmission, u_scatter, k, light, u_light, scene, stats);
+            }
+            (Light::Infinite(_) | Light::Area(_), _) => {
+                if coverage == Coverage::None && matches!(light, Light::Area(_)) {
+                    warning.no_ltc_form(scene, hit);
                 }
                 let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
                 *l += estimate_direct(si, bsdf, u_scatter, k, light, u_light, scene, stats);

@@ -4,7 +4,7 @@
 //! type, default, range, one-line doc) and reads its values through [`Params`], which checks
 //! ranges and parses enumerations with located errors and warnings. The same list checks
 //! `--param` on the command line ([`ParamSpec::conform`]), and writes the parameter lists of
-//! `render --help` and the README ([`help_text`], [`markdown`]).
+//! `render --help` and the integrators' pages in docs/integrators/ ([`help_text`], [`markdown`]).
 //!
 //! Scene-file parameters keep pbrt-v3's semantics: one of another type is not seen (and is
 //! reported unused), an unknown enumeration word warns and uses the default unless the
@@ -388,7 +388,7 @@ pub fn help_text(specs: &[ParamSpec]) -> String {
     o
 }
 
-/// One integrator's parameters as the README lists them: a table.
+/// One integrator's parameters as its page (docs/integrators/NAME.md) lists them: a table.
 pub fn markdown(specs: &[ParamSpec]) -> String {
     let mut o = String::new();
     if specs.is_empty() {

@@ -8,7 +8,7 @@
 use super::params::{ParamSpec, Params};
 use glam::{DVec2, DVec3};
 use penumbra_core::camera::CameraSample;
-use penumbra_core::geometry::Ray;
+use penumbra_core::geometry::RayDifferential;
 use penumbra_core::integrator::ThreadStats;
 use penumbra_core::scene::{Scene, SurfaceHit, SurfacePoint};
 use penumbra_core::{Rgb, Vec3};
@@ -79,6 +79,13 @@ impl<A: Blend, B: Blend> Blend for (A, B) {
 /// member's own value stands.
 impl<A: Blend> Blend for Option<A> {
     fn blend(&self, other: &Self, w: f32) -> Self {
+        // The ends exactly (the shared value or the member's own, bit for bit).
+        if w >= 1.0 {
+            return *other;
+        }
+        if w <= 0.0 {
+            return *self;
+        }
         match (self, other) {
             (Some(a), Some(b)) => Some(a.blend(b, w)),
             _ => *other,
@@ -90,6 +97,48 @@ impl<A: Blend> Blend for Option<A> {
 pub fn parse_shading(params: &Params) -> Result<bool, Diagnostic> {
     params.choice("shading", [true, false])
 }
+
+/// How finely a cluster is shaded (a shader's answer for its representative point and
+/// extent), as two weights in [0, 1] that vary continuously with the scene: `every`, the
+/// weight of each member's own value whatever the values (a light grazing the floor, a
+/// sharp highlight); `compare`, how far the cluster is also shaded at its farthest member and
+/// compared ([`shade_clusters`]). A shader that decided by thresholds let a pixel jump when
+/// rounding put the scene scaled or turned on the other side; ramps over a band do not.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Refine {
+    pub every: f32,
+    pub compare: f32,
+}
+
+impl Refine {
+    /// Once, at the representative member.
+    pub const ONCE: Refine = Refine { every: 0.0, compare: 0.0 };
+    /// At the representative and the farthest member, which keeps its own value, and at every
+    /// member as far as the two values differ ([`refine_weight`]).
+    pub const COMPARE: Refine = Refine { every: 0.0, compare: 1.0 };
+    /// At every member, each taking its own value.
+    pub const EVERY: Refine = Refine { every: 1.0, compare: 0.0 };
+
+    /// `every` and `compare` each rising linearly from 0 where `x_every` resp. `x_compare`
+    /// reaches 1 to 1 where it reaches 2 (the thresholds of a hard switch at 1 become the start
+    /// of a band: below them the cost and the values are the switch's).
+    pub fn ramps(x_every: f64, x_compare: f64) -> Refine {
+        Refine { every: ramp(x_every as f32, 1.0, 2.0), compare: ramp(x_compare as f32, 1.0, 2.0) }
+    }
+}
+
+/// The size of a pixel cluster: the largest distance of a member's point from the
+/// representative's (world units) and the largest angle between their camera rays (radians).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClusterExtent {
+    pub world: f64,
+    pub angle: f64,
+}
+
+/// A pixel cluster whose extent exceeds this fraction of its distance to the nearest light
+/// starts to take each member's own value (the lighting varies across it); from twice this
+/// fraction it takes the members' own values alone ([`Refine::ramps`]).
+pub const NEAR_FIELD: f64 = 0.05;
 
 /// A camera ray's first surface (its BSDF not built), or the radiance it escaped with
 /// ([`Scene::first_point`]).
@@ -105,14 +154,14 @@ pub struct SharedPixel<T> {
 impl<T: Blend> SharedPixel<T> {
     /// Traces the pixel's camera `rays` (one traversal for the bundle when it meets few
     /// triangles) and shades each cluster once with `shade` ([`shade_clusters`]), which is
-    /// given `stats` to count its own rays; `samples` are the rays' camera samples;
-    /// `difference` as [`shade_clusters`]'.
+    /// given `stats` to count its own rays; `samples` are the rays' camera samples; `refine`
+    /// and `difference` as [`shade_clusters`]'.
     pub fn trace(
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
-        light_distance: impl Fn(DVec3) -> f64,
+        refine: impl Fn(&SurfacePoint, ClusterExtent) -> Refine,
         difference: Option<fn(&T, &T) -> f32>,
         mut shade: impl FnMut(&SurfacePoint, &mut ThreadStats) -> Option<T>,
     ) -> SharedPixel<T> {
@@ -125,7 +174,7 @@ impl<T: Blend> SharedPixel<T> {
             stats.add_continued(queries);
             hits.push(first);
         }
-        let shaded = shade_clusters(rays, samples, &hits, light_distance, difference, |p| shade(p, stats));
+        let shaded = shade_clusters(rays, samples, &hits, refine, difference, |p| shade(p, stats));
         SharedPixel { hits, shaded }
     }
 
@@ -146,11 +195,6 @@ impl<T: Blend> SharedPixel<T> {
     }
 }
 
-/// A pixel cluster whose extent exceeds this fraction of its distance to the nearest light
-/// starts to take each member's own value (the lighting varies across the pixel); from twice
-/// this fraction it takes the members' own values alone (a blend between, as [`REFINE`]'s).
-const NEAR_FIELD: f64 = 0.05;
-
 /// Samples of a pixel that see the same smooth piece of surface (its members are the samples
 /// whose `cluster` entry is its index).
 struct Cluster {
@@ -163,7 +207,11 @@ struct Cluster {
 
 /// Each hit's cluster (same mesh, shading normals within ~11°, depths within 5 %;
 /// `usize::MAX`: none, the ray escaped) and the clusters.
-fn clusters_of(rays: &[Ray], samples: &[CameraSample], hits: &[FirstSurface]) -> (Vec<usize>, Vec<Cluster>) {
+fn clusters_of(
+    rays: &[RayDifferential],
+    samples: &[CameraSample],
+    hits: &[FirstSurface],
+) -> (Vec<usize>, Vec<Cluster>) {
     let mut clusters: Vec<Cluster> = Vec::new();
     let mut cluster = vec![usize::MAX; hits.len()];
     for (i, h) in hits.iter().enumerate() {
@@ -189,24 +237,24 @@ fn clusters_of(rays: &[Ray], samples: &[CameraSample], hits: &[FirstSurface]) ->
 
 /// Groups the pixel's hits into clusters and shades each cluster once, at the member whose
 /// camera sample lies closest to the members' mean film position (the first such member on a
-/// tie). The choice is made on the film, not on the rays' world directions, so that it is the
-/// same for the scene rotated, scaled or moved (`penumbra stability`): near-ties between
-/// world-space dot products fell either way with rounding and picked another shading point.
+/// tie) — or more finely as `refine` asks for that point and the cluster's extent. The choice
+/// is made on the film, not on the rays' world directions, so that it is the same for the
+/// scene rotated, scaled or moved (`penumbra stability`): near-ties between world-space dot
+/// products fell either way with rounding and picked another shading point.
 ///
-/// With `difference`, a cluster is also shaded at its member farthest from that one on the film
-/// (the first on a tie), which keeps its own value, and `difference` of the two values (a
-/// fraction; infinite for values that cannot be compared) gives the weight [`refine_weight`]
-/// of each member's own value: a shadow edge or a highlight crossing the pixel. The extent of
-/// the cluster against `light_distance` of the shading point gives another weight (a light
-/// grazing the floor, [`NEAR_FIELD`]); the larger counts. With a weight `w > 0` every member is
-/// shaded and takes `(1 − w)` of the shared value plus `w` of its own ([`Blend`]), so that
-/// the pixel varies continuously with the scene: a weight that jumped from 0 to 1 at a
-/// threshold let rounding pick either value.
+/// With `difference` and `refine`'s `compare > 0`, a cluster is also shaded at its member
+/// farthest from that one on the film (the first on a tie), which takes `compare` of its own
+/// value, and `difference` of the two values (a fraction; infinite for values that cannot be
+/// compared) times `compare` gives the weight [`refine_weight`] of each member's own value: a
+/// shadow edge or a highlight crossing the pixel. `refine`'s `every` is another such weight;
+/// the larger counts. With a weight `w > 0` every member is shaded and takes `(1 − w)` of the
+/// shared value plus `w` of its own ([`Blend`]), so that the pixel varies continuously with
+/// the scene: a weight that jumped from 0 to 1 at a threshold let rounding pick either value.
 pub fn shade_clusters<T: Blend>(
-    rays: &[Ray],
+    rays: &[RayDifferential],
     samples: &[CameraSample],
     hits: &[FirstSurface],
-    light_distance: impl Fn(DVec3) -> f64,
+    refine: impl Fn(&SurfacePoint, ClusterExtent) -> Refine,
     difference: Option<fn(&T, &T) -> f32>,
     mut shade: impl FnMut(&SurfacePoint) -> Option<T>,
 ) -> Vec<Option<T>> {
@@ -226,11 +274,14 @@ pub fn shade_clusters<T: Blend>(
             continue;
         };
         let extent = members().map(|m| (pos(m) - pos(rep)).length()).fold(0.0, f64::max);
-        let near = if extent > 0.0 { extent / (NEAR_FIELD * light_distance(pos(rep))) } else { 0.0 };
-        let mut w = ramp(near as f32, 1.0, 2.0);
+        let dir = |i: usize| rays[i].d.as_dvec3().normalize_or_zero();
+        let angle = members().map(|m| dir(m).dot(dir(rep)).clamp(-1.0, 1.0).acos()).fold(0.0, f64::max);
+        let Ok(rep_point) = &hits[rep] else { continue };
+        let how = refine(rep_point, ClusterExtent { world: extent, angle });
+        let mut w = how.every.clamp(0.0, 1.0);
         let v = shade_one(rep);
         let mut far = None;
-        if let Some(difference) = difference {
+        if let Some(difference) = difference.filter(|_| how.compare > 0.0 && w < 1.0) {
             let by_distance = |a: &usize, b: &usize| {
                 let (da, db) = ((film(*a) - film(rep)).length_squared(), (film(*b) - film(rep)).length_squared());
                 da.total_cmp(&db).then(b.cmp(a))
@@ -242,13 +293,13 @@ pub fn shade_clusters<T: Blend>(
                     (None, None) => 0.0,
                     _ => 1.0,
                 };
-                w = w.max(d);
-                far = Some((f, fv));
+                w = w.max(how.compare.min(1.0) * d);
+                far = Some((f, fv, how.compare.min(1.0).max(w)));
             }
         }
         for m in members() {
             shaded[m] = match far {
-                Some((f, fv)) if f == m => fv,
+                Some((f, fv, wf)) if f == m => v.blend(&fv, wf),
                 _ if m == rep || w <= 0.0 => v,
                 _ => v.blend(&shade_one(m), w),
             };

@@ -16,9 +16,9 @@ use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS
 use glam::Vec2;
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{Bounds2i, Ray};
+use penumbra_core::geometry::{Bounds2i, RayDifferential};
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::sampler::Sampler;
@@ -67,7 +67,14 @@ struct Estimator<'a> {
 }
 
 impl Estimator<'_> {
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
+    fn li(
+        &self,
+        ray: &RayDifferential,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        depth: u32,
+    ) -> Rgb {
         let lights = scene.light_list();
         // Surfaces without a material are passed through without counting depth, as pbrt-v3 does.
         // (`first_point` and the BSDF built here rather than `first_surface`: the same surface,
@@ -88,7 +95,7 @@ impl Estimator<'_> {
         }
         if depth + 1 < self.dl.max_depth {
             for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-                l += specular(&si, &bsdf, sampler, stats, kind, |r, sampler, stats| {
+                l += specular(&si, &bsdf, ray, sampler, stats, kind, |r, sampler, stats| {
                     self.li(r, scene, sampler, stats, depth + 1)
                 });
             }
@@ -156,14 +163,8 @@ impl PixelEstimator for Estimator<'_> {
             }
         }
     }
-    fn li(
-        &self,
-        ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         self.li(ray, scene, sampler, stats, 0)
     }
     fn pixel_bounds(&self) -> Option<Bounds2i> {
@@ -172,9 +173,6 @@ impl PixelEstimator for Estimator<'_> {
 }
 
 impl Integrator for DirectLighting {
-    fn name(&self) -> &str {
-        "directlighting"
-    }
     fn merges_sample_ranges(&self) -> bool {
         true
     }

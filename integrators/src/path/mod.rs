@@ -14,9 +14,15 @@
 //! vertices with a non-specular lobe —, the continuation (2D), and the roulette (1D) when it
 //! is played.
 //!
+//! Under a surface with a BSSRDF (`subsurface`, `kdsubsurface`, `disney` with a scatter
+//! distance), a sampled transmission continues from where the BSSRDF lets the light out, as
+//! pbrt-v3's path tracer does ([`subsurface`]).
+//!
 //! Parameters (pbrt-v3's): `"integer maxdepth"` (5), `"float rrthreshold"` (1),
 //! `"string lightsamplestrategy"` `"spatial"` (default), `"uniform"` or `"power"`,
 //! `"integer pixelbounds"` (pixels outside are not sampled).
+
+mod subsurface;
 
 use crate::common::direct::sample_one_light;
 use crate::common::light_distribution::{LightDistribution, LightSampleStrategy};
@@ -24,12 +30,11 @@ use crate::common::params::{ParamSpec, Params, Range};
 use crate::common::{max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{Bounds2i, Ray};
+use penumbra_core::geometry::{Bounds2i, RayDifferential};
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext,
 };
 use penumbra_core::material::BsdfOptions;
-use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Requirements, Scene};
 use penumbra_core::Rgb;
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
@@ -80,7 +85,8 @@ const BSDF_OPTIONS: BsdfOptions =
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = ();
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, _: &mut [f32]) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         let (mut l, mut beta) = (Rgb::ZERO, Rgb::ONE);
         let mut ray = *ray;
         let mut specular_bounce = false;
@@ -126,7 +132,16 @@ impl PixelEstimator for Estimator<'_> {
                 let eta2 = bsdf.eta * bsdf.eta;
                 eta_scale *= if si.wo.dot(si.n) > 0.0 { eta2 } else { 1.0 / eta2 };
             }
-            ray = si.spawn_ray(s.wi);
+            // pbrt-v3's `path` spawns bounce rays without differentials.
+            ray = si.spawn_ray(s.wi).into();
+            if s.flags.contains(BxdfFlags::TRANSMISSION) {
+                if let Some(bssrdf) = scene.bssrdf(si, &bsdf, BSDF_OPTIONS) {
+                    let exit = subsurface::exit(&bssrdf, scene, sampler, stats, &self.lights, &mut beta, &mut l);
+                    let Some(exit) = exit else { break };
+                    ray = exit.ray.into();
+                    specular_bounce = exit.specular;
+                }
+            }
             let rr_beta = (beta * eta_scale).max_element();
             if rr_beta < self.path.rr_threshold && bounces > 3 {
                 let q = (1.0 - rr_beta).max(0.05);
@@ -145,14 +160,11 @@ impl PixelEstimator for Estimator<'_> {
 }
 
 impl Integrator for PathIntegrator {
-    fn name(&self) -> &str {
-        "path"
-    }
     fn merges_sample_ranges(&self) -> bool {
         true
     }
     fn requirements(&self) -> Requirements {
-        Requirements { accel: true, lights: true, materials: true, ..Default::default() }
+        Requirements { accel: true, lights: true, materials: true, subsurface: true, ..Default::default() }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         let lights = LightDistribution::new(self.strategy, scene);

@@ -7,16 +7,16 @@ use super::{ChainTerms, RatioSample};
 use crate::common::direct::{has_specular, specular_ray};
 use crate::common::ltc::{Ltc, LtcCoeffs};
 use crate::common::ltc_shading::{fresnel_at, AreaLighting, LtcShader};
-use crate::common::other_lights::{add_other_lights, FallbackWarning};
+use crate::common::other_lights::{add_other_lights, Coverage, FallbackWarning};
 use crate::common::pixel_shading::SharedPixel;
 use glam::{DVec2, DVec3};
 use penumbra_core::bxdf::{Bsdf, BxdfFlags};
 use penumbra_core::camera::CameraSample;
-use penumbra_core::geometry::{gamma, Frame, Ray};
-use penumbra_core::integrator::{PixelEstimator, ThreadStats};
+use penumbra_core::geometry::{gamma, Frame, Ray, RayDifferential};
+use penumbra_core::integrator::{PixelEstimator, SampleContext, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::{emitting_normal, DiffuseAreaLight, Light, LightContext};
-use penumbra_core::material::{LtcDescription, LtcSpecular};
+use penumbra_core::material::{LtcDescription, LtcLobe};
 use penumbra_core::sampler::Sampler;
 use penumbra_core::scene::{Scene, SurfaceHit};
 use penumbra_core::spectrum::luminance;
@@ -109,14 +109,16 @@ struct LightPoint {
     n: Vec3,
 }
 
-/// The point's BRDF as `ratio` samples it: the shading frame (normal on ωo's side), the
-/// glossy lobe's LTC and the normalised luminance weights of the two lobes (both 0: no BRDF
-/// sampling).
+/// The point's BRDF as `ratio` samples it: the shading frame (normal on ωo's side), each
+/// glossy lobe's LTC (the cosine for one without a GGX warp) and the normalised luminance
+/// weights of the Lambertian lobe and of the glossy ones (all 0: no BRDF sampling). `flags`:
+/// the BSDF lobes the stochastic estimates take (the reflection ones only when the LTC form
+/// leaves the transmission out, which `directlighting`'s estimator then shades).
 struct Lobes {
     frame: Frame<DVec3>,
-    spec: Option<(LtcSpecular, LtcCoeffs)>,
+    glossy: Vec<(LtcLobe, LtcCoeffs, f64)>,
     w_d: f64,
-    w_s: f64,
+    flags: BxdfFlags,
 }
 
 impl Lobes {
@@ -125,15 +127,42 @@ impl Lobes {
         let n = if n0.dot(si.wo) < 0.0 { -n0 } else { n0 };
         let frame = Frame::toward(d3(n), d3(si.wo));
         let cos_o = frame.to_local(d3(si.wo)).z.clamp(0.0, 1.0) as f32;
-        let spec = desc.specular.map(|sp| (sp, Ltc::lookup(cos_o, sp.alpha)));
-        let w_d = luminance(desc.diffuse).max(0.0) as f64;
-        let w_s = spec
-            .map(|(sp, c)| luminance(sp.scale * fresnel_at(&sp.fresnel, cos_o) * c.magnitude).max(0.0) as f64)
-            .unwrap_or(0.0);
-        let w_sum = w_d + w_s;
-        let (w_d, w_s) =
-            if w_sum > 0.0 && w_sum.is_finite() && n != Vec3::ZERO { (w_d / w_sum, w_s / w_sum) } else { (0.0, 0.0) };
-        Lobes { frame, spec, w_d, w_s }
+        let mut w_d = luminance(desc.diffuse).max(0.0) as f64;
+        let mut glossy: Vec<(LtcLobe, LtcCoeffs, f64)> = desc
+            .lobes
+            .iter()
+            .map(|l| {
+                let c = match l.ggx_alpha() {
+                    Some(a) => Ltc::lookup(cos_o, a),
+                    None => LtcCoeffs { minv: glam::DMat3::IDENTITY, magnitude: 1.0, fresnel: 0.0 },
+                };
+                let w = luminance(l.ltc_scale() * fresnel_at(&l.fresnel(), cos_o) * c.magnitude).max(0.0) as f64;
+                (*l, c, w)
+            })
+            .collect();
+        let w_sum = w_d + glossy.iter().map(|g| g.2).sum::<f64>();
+        if w_sum > 0.0 && w_sum.is_finite() && n != Vec3::ZERO {
+            w_d /= w_sum;
+            for g in &mut glossy {
+                g.2 /= w_sum;
+            }
+        } else {
+            w_d = 0.0;
+            for g in &mut glossy {
+                g.2 = 0.0;
+            }
+        }
+        let flags = if desc.transmits {
+            BxdfFlags::REFLECTION | BxdfFlags::DIFFUSE | BxdfFlags::GLOSSY
+        } else {
+            BxdfFlags::NON_SPECULAR
+        };
+        Lobes { frame, glossy, w_d, flags }
+    }
+
+    /// Whether there is anything to sample.
+    fn samples_brdf(&self) -> bool {
+        self.w_d + self.glossy.iter().map(|g| g.2).sum::<f64>() > 0.0
     }
 
     /// The density of direction `w` under the lobe mixture (0 without BRDF samples).
@@ -143,8 +172,10 @@ impl Lobes {
         }
         let l = self.frame.to_local(d3(w));
         let mut p = self.w_d * l.z.max(0.0) * std::f64::consts::FRAC_1_PI;
-        if let Some((_, c)) = &self.spec {
-            p += self.w_s * c.pdf(l);
+        for (_, c, wk) in &self.glossy {
+            if *wk > 0.0 {
+                p += wk * c.pdf(l);
+            }
         }
         if p.is_finite() {
             p
@@ -156,12 +187,21 @@ impl Lobes {
     /// A direction (world space, unit or zero) from the lobe mixture for the 2D sample `uv`.
     fn sample(&self, uv: Vec2) -> DVec3 {
         let (x, y) = (uv.x as f64, uv.y as f64);
-        let local = if x < self.w_d || self.spec.is_none() {
-            let x = (x / self.w_d.max(1e-300)).min(1.0 - f64::EPSILON / 2.0);
-            crate::common::ltc::cosine_sample(DVec2::new(x, y))
+        let remap = |x: f64, lo: f64, w: f64| ((x - lo) / w.max(1e-300)).clamp(0.0, 1.0 - f64::EPSILON / 2.0);
+        let mut lo = self.w_d;
+        let local = if x < self.w_d || self.glossy.is_empty() {
+            crate::common::ltc::cosine_sample(DVec2::new(remap(x, 0.0, self.w_d), y))
         } else {
-            let x = ((x - self.w_d) / self.w_s.max(1e-300)).clamp(0.0, 1.0 - f64::EPSILON / 2.0);
-            self.spec.as_ref().map(|(_, c)| c.sample(DVec2::new(x, y))).unwrap_or(DVec3::ZERO)
+            let last = self.glossy.len() - 1;
+            let mut out = DVec3::ZERO;
+            for (k, (_, c, wk)) in self.glossy.iter().enumerate() {
+                if x < lo + wk || k == last {
+                    out = c.sample(DVec2::new(remap(x, lo, *wk), y));
+                    break;
+                }
+                lo += wk;
+            }
+            out
         };
         self.frame.from_local(local).normalize_or_zero()
     }
@@ -225,7 +265,7 @@ impl Sampling<'_> {
             if !(ls.pdf > 0.0) || ls.li == Rgb::ZERO {
                 continue;
             }
-            let f = self.bsdf.f(si.wo, ls.wi, BxdfFlags::NON_SPECULAR) * ls.wi.dot(si.shading.z).abs();
+            let f = self.bsdf.f(si.wo, ls.wi, self.lobes.flags) * ls.wi.dot(si.shading.z).abs();
             if f == Rgb::ZERO {
                 continue;
             }
@@ -260,7 +300,7 @@ impl Sampling<'_> {
             if !(p_b > 0.0) {
                 continue;
             }
-            let f = self.bsdf.f(si.wo, w, BxdfFlags::NON_SPECULAR) * w.dot(si.shading.z).abs();
+            let f = self.bsdf.f(si.wo, w, self.lobes.flags) * w.dot(si.shading.z).abs();
             if f == Rgb::ZERO || !self.group.bound.may_hit(o, wd) {
                 continue;
             }
@@ -317,7 +357,7 @@ fn stochastic(
         return (tally.s, tally.u);
     }
     let total = us.len();
-    let n_b = if lobes.w_d + lobes.w_s > 0.0 { total / 2 } else { 0 };
+    let n_b = if lobes.samples_brdf() { total / 2 } else { 0 };
     let n_l = total - n_b;
     let sampling = Sampling { scene, si: &hit.si, bsdf: &hit.bsdf, group, lobes, n_l, n_b };
     sampling.light_samples(&us[..n_l], &mut tally, stats);
@@ -332,7 +372,7 @@ impl Estimator<'_> {
     /// its specular chains reach ([`follow_specular`](Self::follow_specular)).
     fn shade(
         &self,
-        ray: &Ray,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         area: Option<AreaLighting>,
         scene: &Scene,
@@ -342,7 +382,7 @@ impl Estimator<'_> {
         let (mut rest, mut sample) = self.shade_surface(ray, hit, area, scene, sampler, stats);
         if has_specular(&hit.bsdf) {
             let mut chain = Chain::default();
-            self.follow_specular(hit, Rgb::ONE, 0, scene, sampler, stats, &mut chain);
+            self.follow_specular(ray, hit, Rgb::ONE, 0, scene, sampler, stats, &mut chain);
             rest += chain.rest;
             sample.chain = chain.terms;
         }
@@ -356,6 +396,7 @@ impl Estimator<'_> {
     #[allow(clippy::too_many_arguments)]
     fn follow_specular(
         &self,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         beta: Rgb,
         depth: u32,
@@ -368,7 +409,7 @@ impl Estimator<'_> {
             return;
         }
         for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-            let Some(sr) = specular_ray(&hit.si, &hit.bsdf, sampler, stats, kind) else { continue };
+            let Some(sr) = specular_ray(&hit.si, &hit.bsdf, ray, sampler, stats, kind) else { continue };
             let beta = beta * sr.f * sr.scale;
             let (next, queries) = scene.first_surface(&sr.ray);
             stats.add_continued(queries);
@@ -376,7 +417,7 @@ impl Estimator<'_> {
                 Ok(h) => {
                     let (rest, t) = self.shade_surface(&sr.ray, &h, None, scene, sampler, stats);
                     chain.add(beta, rest, &t);
-                    self.follow_specular(&h, beta, depth + 1, scene, sampler, stats, chain);
+                    self.follow_specular(&sr.ray, &h, beta, depth + 1, scene, sampler, stats, chain);
                 }
                 Err(escaped) => chain.rest += beta * escaped,
             }
@@ -398,7 +439,7 @@ impl Estimator<'_> {
     ) -> (Rgb, RatioSample) {
         let SurfaceHit { si, le, .. } = hit;
         let mut rest = *le;
-        let desc = LtcShader::lobes(scene, si);
+        let desc = self.shader.lobes(scene, si);
         let nf = if si.n.dot(si.wo) < 0.0 { -si.n } else { si.n };
         let (mut u, mut s, mut un) = (Rgb::ZERO, Rgb::ZERO, Rgb::ZERO);
         let mut us = Vec::new();
@@ -425,7 +466,8 @@ impl Estimator<'_> {
                 un += uk;
             }
         }
-        add_other_lights(&mut rest, hit, desc.is_some(), scene, sampler, stats, &self.fallback);
+        let coverage = Coverage::of(desc.is_some(), desc.as_ref().is_some_and(|d| d.transmits));
+        add_other_lights(&mut rest, hit, coverage, scene, sampler, stats, &self.fallback);
         let finite = |c: Rgb| if c.is_finite() { c.max(Rgb::ZERO) } else { Rgb::ZERO };
         let (ss, uu, su) = moments(&per_sample);
         let sample = RatioSample {
@@ -487,7 +529,8 @@ impl PixelEstimator for Estimator<'_> {
         }
     }
 
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         let (first, queries) = scene.first_surface(ray);
         stats.add_continued(queries);
         match first {
@@ -508,7 +551,7 @@ impl PixelEstimator for Estimator<'_> {
     /// stochastic `S_N`, `U_N` stay per camera sample.
     fn begin_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
@@ -516,16 +559,8 @@ impl PixelEstimator for Estimator<'_> {
         Some(self.shader.trace_pixel(rays, samples, scene, false, stats))
     }
 
-    fn li_shared(
-        &self,
-        ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         match shared.sample(index) {
             (Ok(pt), area) => match pt.with_bsdf(scene) {
                 Some(h) => {

@@ -30,7 +30,7 @@
 //! image is `rest + U · D(S_N) / D(U_N)` per channel, where `rest` is everything else
 //! (emission seen directly, delta lights with one shadow ray, infinite lights and
 //! materials without LTC form through `directlighting`'s estimator, as in `ltc`) and `D`
-//! is [`filter::cross_bilateral`] with the same weights for both. The kernel radius per pixel
+//! is [`denoise::cross_bilateral`] with the same weights for both. The kernel radius per pixel
 //! comes from the delta-method standard deviation `σ_r` of the pixel's ratio estimate:
 //! the smallest `R ≤ maxradius` with `σ_r / (2R + 1) ≤ noisetarget`, dilated by one pixel.
 //!
@@ -54,17 +54,17 @@
 //! fully lit the term is the analytic `chain.U` exactly. The variance written for a pixel does
 //! not include the chains' term.
 //!
-//! Files: `estimator.rs` (the per-pixel estimator writing [`RatioSample`]s), `filter.rs` (the
+//! Files: `estimator.rs` (the per-pixel estimator writing [`RatioSample`]s), `denoise.rs` (the
 //! denoiser: a plain function over [`ImageBuffer`]s), this file (parameters, channels and the
 //! whole-image pass).
 
+pub mod denoise;
 mod estimator;
-pub mod filter;
 
-pub use filter::{cross_bilateral, guarded_ratio, noise_radius, FilterParams, Guide};
+pub use denoise::{cross_bilateral, guarded_ratio, noise_radius, FilterParams, Guide};
 
 use crate::common::image_pass::ImageBuffer;
-use crate::common::ltc_shading::{FresnelMode, LtcShader, Mode, ShaderSettings};
+use crate::common::ltc_shading::{FresnelMode, Glossy, LtcShader, Mode, ShaderSettings};
 use crate::common::other_lights::{warn_infinite_lights, FallbackWarning};
 use crate::common::params::{ParamSpec, Params, Range};
 use crate::common::pixel_shading::{parse_shading, SHADING};
@@ -117,6 +117,7 @@ pub const PARAMS: &[ParamSpec] = &[
         .within(Range::NonNegativeFinite),
     ParamSpec::float("ratiofloor", D.ratio_floor, "added to the ratio edge stop's noise scale")
         .within(Range::PositiveFinite),
+    Glossy::PARAM,
     FresnelMode::PARAM,
     SHADING,
     max_depth(1024),
@@ -140,6 +141,7 @@ impl RatioIntegrator {
             shading: ShaderSettings {
                 mode: Mode::Auto, // shadows off: only the lights' shapes (one polygon where possible)
                 shadows: false,
+                glossy: Glossy::from_params(&p)?,
                 fresnel: FresnelMode::from_params(&p)?,
                 merge_occluders: true,
             },
@@ -275,9 +277,6 @@ struct FilmPixel {
 }
 
 impl Integrator for RatioIntegrator {
-    fn name(&self) -> &str {
-        "ratio"
-    }
     fn requirements(&self) -> Requirements {
         Requirements { accel: true, lights: true, materials: true, ..Default::default() }
     }
@@ -286,7 +285,7 @@ impl Integrator for RatioIntegrator {
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ratio", scene, ctx.warnings);
-        let shader = LtcShader::new(self.shading, scene);
+        let shader = LtcShader::new(self.shading, scene, "ratio");
         let groups = SampleGroup::of(&shader, scene);
         let est = Estimator {
             shader,
@@ -304,6 +303,7 @@ impl Integrator for RatioIntegrator {
             })?;
         stats.counters.insert("denoise_seconds".into(), seconds);
         stats.counters.insert("mean_radius".into(), filtered);
+        est.shader.finish(&mut stats, ctx.warnings);
         stats.render_seconds += seconds;
         Ok(stats)
     }

@@ -91,13 +91,12 @@
 //! * neighbours: normal within ~26° and within a slope of 0.25 (+ one footprint) of the
 //!   receiver's tangent plane; grazing warps (cos < 1e-3) are rejected.
 
-pub mod filter;
+pub mod sheared_filter;
 
 use crate::common::image_pass::ImageBuffer;
 use crate::common::params::{ParamSpec, Params, Range};
 use crate::common::pixel_shading::{parse_shading, SHADING};
 use crate::common::{SH_ORDER, SH_TRANSFER};
-use filter::{CachePoint, CachedRay, CellValue, FilterParams, Receiver, Scratch, Warp};
 use glam::{IVec2, Vec2};
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
@@ -113,6 +112,7 @@ use penumbra_core::sh::{rotation::ShRotation, transfer::TransferChannels, ShOrde
 use penumbra_core::{Rgb, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
 use rayon::prelude::*;
+use sheared_filter::{CachePoint, CachedRay, CellValue, FilterParams, Receiver, Scratch, Warp};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -252,15 +252,20 @@ fn camera_sample(scene: &Scene, sampler: &mut dyn Sampler, p: IVec2) -> CameraSa
 impl ShearedAo {
     /// Pass 1 for one camera sample: the first surface with a material and its cached rays
     /// (`None`: the ray escaped). `us` are the occlusion rays' 2D samples.
-    fn shade(&self, scene: &Scene, cs: &CameraSample, us: &[Vec2], rays: &mut RayCount) -> Option<Shading> {
-        let mut ray = scene.camera.generate_ray(cs);
-        for _ in 0..64 {
+    fn shade(&self, scene: &Scene, cs: &CameraSample, spp: u32, us: &[Vec2], rays: &mut RayCount) -> Option<Shading> {
+        let camera_ray = scene.camera.sample_ray(cs, spp);
+        let mut ray = camera_ray.ray;
+        for pass in 0..64 {
             rays.camera += 1;
             let hit = scene.intersect(&ray)?;
-            let si = scene.interaction(&ray, &hit);
+            let mut si = scene.interaction(&ray, &hit);
             if scene.objects[hit.mesh as usize].material.is_none() {
                 ray = si.spawn_ray(ray.d);
                 continue;
+            }
+            // The camera ray's differentials, for the albedo's texture lookups.
+            if pass == 0 {
+                si.compute_differentials(&camera_ray);
             }
             let n = face_forward(si.n, -ray.d);
             let frame = Frame::from_zx(n, si.dpdu);
@@ -300,7 +305,7 @@ impl ShearedAo {
         let frame = Frame { x: recv.frame.x.as_dvec3(), y: recv.frame.y.as_dvec3(), z: f.n };
         let receiver = Receiver { p: f.p, frame, footprint: f.footprint };
         let PassScratch { filter: fs, cells, .. } = scratch;
-        filter::filter_receiver(&receiver, neighbours.iter().copied(), &self.filter, fs, cells);
+        sheared_filter::filter_receiver(&receiver, neighbours.iter().copied(), &self.filter, fs, cells);
     }
 
     /// The mean visibility of every cell at shading point `at` into `scratch.vbar`: the
@@ -521,7 +526,7 @@ fn sample_pass(
                             p.x as u32 as u64 | ((p.y as u32 as u64) << 32),
                             s as u64,
                         ]);
-                        let shading = ao.shade(scene, &cs, &us, &mut count);
+                        let shading = ao.shade(scene, &cs, spp, &us, &mut count);
                         CacheSample { p_film: cs.p_film, brute_seed, shading }
                     })
                     .collect()
@@ -533,9 +538,6 @@ fn sample_pass(
 }
 
 impl Integrator for ShearedAo {
-    fn name(&self) -> &str {
-        "sheared-ao"
-    }
     fn requirements(&self) -> Requirements {
         Requirements { accel: true, materials: self.sh.is_some(), ..Default::default() }
     }
@@ -565,7 +567,7 @@ impl Integrator for ShearedAo {
         let region = Bounds2i::new(sample_bounds.min - margin, sample_bounds.max + margin).intersect(&full);
         let pass1_rays = Mutex::new(RayCount::default());
         let pass2_rays = Mutex::new(RayCount::default());
-        let table = self.sh.map(|o| filter::cell_transfer(self.filter.cells, o)).unwrap_or_default();
+        let table = self.sh.map(|o| sheared_filter::cell_transfer(self.filter.cells, o)).unwrap_or_default();
         let n_aov = self.extra_channels().len();
         let proto_ref = &*proto;
         let cache = with_threads(ctx.threads, || sample_pass(self, scene, proto_ref, region, spp, n, &pass1_rays))?;

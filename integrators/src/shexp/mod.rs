@@ -61,18 +61,19 @@ pub mod sphereset;
 pub mod visibility;
 
 use crate::common::direct::{estimate_direct, specular};
+use crate::common::other_lights::FallbackWarning;
 use crate::common::params::{ParamSpec, Params, Range};
-use crate::common::pixel_shading::{parse_shading, rgb_difference, Blend, SharedPixel, SHADING};
+use crate::common::pixel_shading::{parse_shading, rgb_difference, Blend, Refine, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use glam::DVec3;
 use lighting::EnvLighting;
 use penumbra_core::bxdf::{Bsdf, Bxdf, BxdfFlags};
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{Bounds2i, Ray};
+use penumbra_core::geometry::{Bounds2i, Ray, RayDifferential};
 use penumbra_core::integrator::{
     render_pixels, with_threads, Integrator, PixelEstimator, Preparation, RenderContext, RenderError, RenderStats,
-    ThreadStats,
+    SampleContext, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
@@ -260,9 +261,10 @@ struct Estimator<'a> {
     /// The open meshes whose shadows are traced, and the directions drawn for them ([`open`]).
     traced: Option<open::TracedObjects>,
     proposal: Option<open::EnvProposal>,
-    warn_lobes: AtomicBool,
     warn_behind: AtomicBool,
     warnings: &'a DiagSink,
+    /// Names the materials whose non-Lambertian lobes take the environment through the estimator.
+    fallback: FallbackWarning<'a>,
     /// Evaluations of the smooth environment term ([`Estimator::lambertian_irradiance`]).
     receivers: AtomicU64,
 }
@@ -475,11 +477,18 @@ impl Estimator<'_> {
         e.map(|v| v * std::f64::consts::FRAC_1_PI)
     }
 
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
+    fn li(
+        &self,
+        ray: &RayDifferential,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        depth: u32,
+    ) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
         stats.rays += queries.saturating_sub(1);
         match first {
-            Ok(hit) => self.shade_hit(&hit, None, scene, sampler, stats, depth),
+            Ok(hit) => self.shade_hit(ray, &hit, None, scene, sampler, stats, depth),
             Err(escaped) => escaped,
         }
     }
@@ -604,8 +613,10 @@ impl Estimator<'_> {
     /// Radiance from `hit`, the `depth`-th surface of a camera ray's specular chain;
     /// `irradiance` is its pixel cluster's [`Self::lambertian_irradiance`] when pixel shading
     /// computed it already.
+    #[allow(clippy::too_many_arguments)]
     fn shade_hit(
         &self,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         irradiance: Option<EnvValue>,
         scene: &Scene,
@@ -628,7 +639,7 @@ impl Estimator<'_> {
                 let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
                 l += estimate_direct(si, bsdf, u_scatter, i, &lights[i], u_light, scene, stats);
             }
-            return l + self.others_and_specular(hit, scene, sampler, stats, depth);
+            return l + self.others_and_specular(ray, hit, scene, sampler, stats, depth);
         }
         let (kd, rest) = split_lambertian(bsdf);
         if kd != Rgb::ZERO && self.env.is_some() {
@@ -640,26 +651,23 @@ impl Estimator<'_> {
         }
         if let Some(rest) = &rest {
             if rest.num_components(BxdfFlags::NON_SPECULAR) > 0 && !self.infinite.is_empty() {
-                if !self.warn_lobes.swap(true, Ordering::Relaxed) {
-                    self.warnings.warn(
-                        None,
-                        "shexp: non-Lambertian lobes (glossy, Oren–Nayar, transmission) under the environment are \
-                         shaded with directlighting's estimator",
-                    );
-                }
+                let name = scene.material_of(si).map_or("none", |(m, _, _)| m.type_name());
+                self.fallback.material(name, "non-Lambertian lobes", "the environment");
                 for &i in &self.infinite {
                     let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
                     l += estimate_direct(si, rest, u_scatter, i, &lights[i], u_light, scene, stats);
                 }
             }
         }
-        l + self.others_and_specular(hit, scene, sampler, stats, depth)
+        l + self.others_and_specular(ray, hit, scene, sampler, stats, depth)
     }
 
     /// The lights other than the infinite ones (`directlighting`'s estimator) and the perfectly
     /// specular lobes, recursively.
+    #[allow(clippy::too_many_arguments)]
     fn others_and_specular(
         &self,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         scene: &Scene,
         sampler: &mut dyn Sampler,
@@ -675,7 +683,7 @@ impl Estimator<'_> {
         }
         if depth + 1 < self.shexp.max_depth {
             for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-                l += specular(si, bsdf, sampler, stats, kind, |r, sampler, stats| {
+                l += specular(si, bsdf, ray, sampler, stats, kind, |r, sampler, stats| {
                     self.li(r, scene, sampler, stats, depth + 1)
                 });
             }
@@ -706,14 +714,8 @@ impl Estimator<'_> {
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<EnvValue>;
-    fn li(
-        &self,
-        ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-    ) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         self.li(ray, scene, sampler, stats, 0)
     }
 
@@ -724,7 +726,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn begin_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
@@ -735,20 +737,12 @@ impl PixelEstimator for Estimator<'_> {
             (split_lambertian(&hit.bsdf).0 != Rgb::ZERO).then(|| self.lambertian_irradiance(&hit, scene, stats))?
         };
         let difference = |a: &EnvValue, b: &EnvValue| rgb_difference(a.open + a.rest, b.open + b.rest);
-        Some(SharedPixel::trace(rays, samples, scene, stats, |_| f64::INFINITY, Some(difference), shade))
+        Some(SharedPixel::trace(rays, samples, scene, stats, |_, _| Refine::COMPARE, Some(difference), shade))
     }
 
-    fn li_shared(
-        &self,
-        _ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        _aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
-        shared.shade_sample(index, scene, |hit, e| self.shade_hit(hit, e, scene, sampler, stats, 0))
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
+        shared.shade_sample(index, scene, |hit, e| self.shade_hit(ray, hit, e, scene, sampler, stats, 0))
     }
     fn pixel_bounds(&self) -> Option<Bounds2i> {
         self.shexp.pixel_bounds
@@ -766,9 +760,6 @@ impl Shexp {
 }
 
 impl Integrator for Shexp {
-    fn name(&self) -> &str {
-        "shexp"
-    }
     /// Sample shading (pixel shading shares the environment's term between a pixel's samples;
     /// without an environment it shares nothing, but that is known only at render time).
     fn merges_sample_ranges(&self) -> bool {
@@ -788,16 +779,17 @@ impl Integrator for Shexp {
         })
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+        crate::common::refuse_cutouts("shexp", "visibility (sphere sets fitted to the meshes)", scene)?;
         // Prepared with the scene (`build_scene`), or built here for a scene built without it.
         let built;
-        let sets = match scene.prepared::<SphereSets>().filter(|s| s.spheres == self.spheres && s.open == self.open_meshes)
-        {
-            Some(s) => s,
-            None => {
-                built = self.sphere_sets(scene);
-                &built
-            }
-        };
+        let sets =
+            match scene.prepared::<SphereSets>().filter(|s| s.spheres == self.spheres && s.open == self.open_meshes) {
+                Some(s) => s,
+                None => {
+                    built = self.sphere_sets(scene);
+                    &built
+                }
+            };
         for s in sets.sets.iter().filter(|s| s.source == Source::Shell) {
             ctx.warnings.warn(
                 scene.objects.get(s.object).map(|o| o.loc.clone()),
@@ -874,9 +866,9 @@ impl Integrator for Shexp {
             ground: None,
             traced,
             proposal,
-            warn_lobes: AtomicBool::new(false),
             warn_behind: AtomicBool::new(false),
             warnings: ctx.warnings,
+            fallback: FallbackWarning::new("shexp", ctx.warnings),
             receivers: AtomicU64::new(0),
         };
         let mut pass = (0, 0);

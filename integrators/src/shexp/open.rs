@@ -175,11 +175,13 @@ impl EnvProposal {
         }
         let cdf: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
             let mut acc = 0.0;
-            power.iter().map(|p| {
-                acc += p[c];
-                acc
-            })
-            .collect()
+            power
+                .iter()
+                .map(|p| {
+                    acc += p[c];
+                    acc
+                })
+                .collect()
         });
         let normalised = |c: usize, i: usize| cdf[c][i] / cdf[c].last().copied().unwrap_or(1.0);
         let same = [0, 1, 2].map(|c| {
@@ -292,9 +294,7 @@ impl EnvProposal {
         }
         [0, 1, 2].map(|c| match draws[c] {
             Draw::Kept { blocked } => f64::from(u8::from(!blocked)),
-            Draw::Fallback { weight, blocked } if !blocked && model[c] > 0.0 => {
-                weight * self.total(c) / model[c]
-            }
+            Draw::Fallback { weight, blocked } if !blocked && model[c] > 0.0 => weight * self.total(c) / model[c],
             Draw::Fallback { .. } => 0.0,
             Draw::Dark => 1.0,
         })
@@ -395,7 +395,10 @@ mod tests {
         assert!((up - 2.0 / 3.0).abs() < 5e-3, "{up}");
         assert!((0..1000).all(|i| p.sample(1, r2(i).map(|x| x as f64)).unwrap().z > 0.0));
         // A constant map is one block: uniform over the sphere; proportional channels share.
-        let flat = EnvProposal::build(&[EnvSource { map: RgbMap::constant(Rgb::new(0.8, 0.9, 1.0)), world_from_light: Mat3::IDENTITY }]);
+        let flat = EnvProposal::build(&[EnvSource {
+            map: RgbMap::constant(Rgb::new(0.8, 0.9, 1.0)),
+            world_from_light: Mat3::IDENTITY,
+        }]);
         assert_eq!(flat.same, [0, 0, 0]);
         let mean_z = (0..n).map(|i| flat.sample(0, r2(i).map(|x| x as f64)).unwrap().z).sum::<f64>() / n as f64;
         assert!(mean_z.abs() < 5e-3, "{mean_z}");
@@ -408,7 +411,9 @@ mod tests {
     #[test]
     fn the_factor_is_the_unblocked_share() {
         let cases: [(DVec3, f64, fn(DVec3) -> [f32; 3]); 2] = [
-            (DVec3::new(0.3, -0.2, 0.9).normalize(), 0.3, |d: DVec3| [1.0 + 0.8 * d.x as f32, 0.5, 0.2 + d.z.max(0.0) as f32]),
+            (DVec3::new(0.3, -0.2, 0.9).normalize(), 0.3, |d: DVec3| {
+                [1.0 + 0.8 * d.x as f32, 0.5, 0.2 + d.z.max(0.0) as f32]
+            }),
             (DVec3::Z, -0.5, |d: DVec3| if d.z < -0.2 { [50.0, 50.0, 50.0] } else { [0.02, 0.02, 0.02] }),
         ];
         for (n, cut, f) in cases {

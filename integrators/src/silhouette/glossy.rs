@@ -17,7 +17,7 @@
 //! estimate with `s ≈ 2/α²`), so `N = ⌈C/α⌉ + 1` bands keep the same fraction of it for any
 //! `α`, capped at `"integer glossyorder"`; Oren–Nayar is smooth (order 3).
 
-use penumbra_core::bxdf::{Bsdf, Bxdf};
+use penumbra_core::bxdf::{Bsdf, Bxdf, DisneyLobe};
 use penumbra_core::geometry::Frame;
 use penumbra_core::sh::{basis, quadrature::gauss_legendre, ShOrder};
 use penumbra_core::{Rgb, Vec3};
@@ -33,6 +33,9 @@ pub const TABLE_CELLS: usize = 128;
 /// falls 0.0163, 0.0134, 0.0084, 0.0066, 0.0057, 0.0054, 0.0053 at orders 2, 4, 6, 8, 10, 12,
 /// 16; C = 3 gives order 11 there.
 pub const ORDER_PER_INVERSE_ALPHA: f32 = 3.0;
+
+/// The SH order of `disney`'s diffuse, fake-subsurface, retro-reflection and sheen lobes.
+pub const DISNEY_DIFFUSE_ORDER: usize = 8;
 
 /// How one surface's non-specular reflection splits: its Lambertian albedo (integrated
 /// exactly by the caller), the other lobes (by SH), and the order they need.
@@ -65,8 +68,16 @@ impl Split {
                 Bxdf::SpecularReflection { .. } | Bxdf::SpecularTransmission { .. } | Bxdf::FresnelSpecular { .. } => {
                     continue
                 }
-                Bxdf::LambertianTransmission { .. } | Bxdf::MicrofacetTransmission { .. } => return None,
+                Bxdf::LambertianTransmission { .. }
+                | Bxdf::MicrofacetTransmission { .. }
+                | Bxdf::Hair(_)
+                | Bxdf::Fourier(_)
+                | Bxdf::SubsurfaceExit { .. } => return None,
                 Bxdf::OrenNayar { .. } => 3.min(max.n()),
+                // Polynomials of degree ≤ 8 in the directions' components (Schlick's fifth
+                // powers times cosines), but for the sheen's `(1 − cos θ_d)^5`.
+                Bxdf::Disney(DisneyLobe::Clearcoat { gloss, .. }) => order_for_alpha(*gloss, max),
+                Bxdf::Disney(_) => DISNEY_DIFFUSE_ORDER.min(max.n()),
                 Bxdf::MicrofacetReflection { distribution, .. } | Bxdf::FresnelBlend { distribution, .. } => {
                     let (ax, ay) = distribution.alphas();
                     order_for_alpha(ax.min(ay), max)
@@ -151,4 +162,32 @@ pub fn shade(split: &Split, bsdf: &Bsdf, wo: Vec3, ng: Vec3, lsh: &[f64]) -> Rgb
     project_lobes(split, bsdf, wo, ng, &mut g);
     let dot = |c: usize| lsh[c * k..(c + 1) * k].iter().zip(&g[c * k..(c + 1) * k]).map(|(a, b)| a * b).sum::<f64>();
     Rgb::new(dot(0) as f32, dot(1) as f32, dot(2) as f32).max(Rgb::ZERO)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use penumbra_core::bxdf::{Fresnel, HairBxdf};
+    use penumbra_core::microfacet::MicrofacetDistribution;
+
+    /// Disney's lobes are all reflection: the diffuse family at [`DISNEY_DIFFUSE_ORDER`], the
+    /// clearcoat and specular by their roughness; a lobe that transmits (hair, and so fourier)
+    /// leaves the whole BSDF to the estimator.
+    #[test]
+    fn disney_lobes_are_projected_and_hair_falls_back() {
+        let max = ShOrder::new(12).unwrap();
+        let mut b = Bsdf::new(Vec3::Z, Vec3::X, Vec3::Z, 1.0);
+        b.add(Bxdf::Disney(DisneyLobe::Diffuse { r: Rgb::splat(0.5) })).unwrap();
+        b.add(Bxdf::Disney(DisneyLobe::Sheen { r: Rgb::splat(0.5) })).unwrap();
+        let split = Split::of(&b, max).unwrap();
+        assert_eq!((split.order.n(), split.lobes, split.diffuse), (DISNEY_DIFFUSE_ORDER, 0b11, Rgb::ZERO));
+        let fresnel = Fresnel::Disney { r0: Rgb::splat(0.04), metallic: 0.0, eta: 1.5 };
+        b.add(Bxdf::microfacet_reflection(Rgb::ONE, MicrofacetDistribution::disney(0.5, 0.5), fresnel)).unwrap();
+        b.add(Bxdf::Disney(DisneyLobe::Clearcoat { weight: Rgb::ONE, gloss: 0.1 })).unwrap();
+        let split = Split::of(&b, max).unwrap();
+        assert_eq!((split.order.n(), split.lobes), (order_for_alpha(0.1, max), 0b1111));
+        let mut h = Bsdf::new(Vec3::Z, Vec3::X, Vec3::Z, 1.55);
+        h.add(Bxdf::Hair(HairBxdf::new(0.0, 1.55, Rgb::splat(0.2), 0.3, 0.3, 2.0))).unwrap();
+        assert!(Split::of(&h, max).is_none());
+    }
 }

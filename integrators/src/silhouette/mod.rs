@@ -16,10 +16,10 @@
 //!   `"integer shorder"`, 3): `∫_{V·H} max(0, n_s·ω) Y_i(ω) dω` over the same visible
 //!   intervals (Gauss–Legendre in θ along each), `n_s` the face-forwarded shading normal, and
 //!   `albedo.*`; `penumbra relight` of them under the scene's sky reproduces `shade`.
-//! - `ao` (default without an infinite light): pbrt-v3's `ambientocclusion` value, the
+//! - `ao` (default only for a scene without lights, with a warning): pbrt-v3's `ambientocclusion` value, the
 //!   integral of `V·cos θ` over the hemisphere of the face-forwarded geometric normal
 //!   (π for an open hemisphere), from the analytic moment `∫ ω dω` of the visible intervals.
-//! - `shade` (default with an infinite light): Lambertian materials under infinite lights by
+//! - `shade` (default when the scene has a light): Lambertian materials under infinite lights by
 //!   the vector irradiance `v = ∫ L V H ω dω` (the band-1 formulation: 3 tables per colour),
 //!   radiance `ρ/π · n_s·v`; the visible set is the hemisphere of the face-forwarded
 //!   geometric normal (pbrt-v3's reflection test), the cosine that of the shading normal
@@ -58,18 +58,19 @@
 //! parameters and the estimator.
 
 use crate::common::direct::{estimate_direct, specular};
+use crate::common::other_lights::FallbackWarning;
 use crate::common::params::{ParamSpec, Params};
-use crate::common::pixel_shading::{parse_shading, rgb_difference, SharedPixel, SHADING};
+use crate::common::pixel_shading::{parse_shading, rgb_difference, Refine, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, SH_ORDER};
 use dual::{Contour, DualEdges};
 use param::{moment, Meridians, PoleFrame};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray};
+use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray, RayDifferential};
 use penumbra_core::integrator::Preparation;
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext, ThreadStats,
 };
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
@@ -111,7 +112,7 @@ pub enum Mode {
 const CULL_TOL: f64 = 1e-6;
 
 pub struct Silhouette {
-    /// `None`: `shade` when the scene has an infinite light, else `ao`.
+    /// `None`: `shade` when the scene has a light, else `ao` ([`default_mode`]).
     pub mode: Option<Mode>,
     /// `"integer resolution"` (√k): meridians, and table cells per meridian.
     pub resolution: usize,
@@ -133,7 +134,7 @@ pub const PARAMS: &[ParamSpec] = &[
         &["ao", "shade", "prt"],
         "ambient occlusion, shading under the scene's lights, or AO plus SH transfer channels for penumbra relight",
     )
-    .unset("ao without an infinite light, shade with one")
+    .unset("shade when the scene has lights, else ao")
     .strict(),
     ParamSpec::int("resolution", 128, "meridians of the (φ, cos θ) parameterisation").range(4, 4096),
     SH_ORDER,
@@ -159,6 +160,22 @@ impl Silhouette {
         let max_depth = max_depth_param(&p)?;
         let pixel_shading = parse_shading(&p)?;
         Ok(Box::new(Silhouette { mode, resolution, max_depth, sh_order, glossy_order, pixel_shading }))
+    }
+}
+
+/// The mode when `"string mode"` is not given: `shade` (the scene's own lighting) whenever the
+/// scene has a light, `ao` only for a scene without lights (which pbrt-v3 renders black), with a
+/// warning saying so. Never ambient occlusion in place of the scene's lights.
+fn default_mode(scene: &Scene, warnings: &DiagSink) -> Mode {
+    if scene.light_list().is_empty() {
+        warnings.warn(
+            None,
+            "silhouette: the scene has no lights: rendering ambient occlusion (\"mode\" \"ao\"), not the black image \
+             of its lighting",
+        );
+        Mode::Ao
+    } else {
+        Mode::Shade
     }
 }
 
@@ -227,6 +244,8 @@ struct Estimator<'a> {
     sh_table: OnceLock<ShTable>,
     counters: Counters,
     pixel_shading: bool,
+    /// Names the materials whose lobes take the infinite lights through the estimator.
+    fallback: FallbackWarning<'a>,
 }
 
 impl Estimator<'_> {
@@ -333,13 +352,22 @@ impl Estimator<'_> {
         l / (k * k) as f32
     }
 
-    /// The first surface with a material along `ray` (pbrt-v3's AO passes through the others).
-    fn first_surface(scene: &Scene, ray: &Ray, stats: &mut ThreadStats) -> Option<SurfaceInteraction> {
-        let mut ray = *ray;
-        for _ in 0..64 {
+    /// The first surface with a material along `ray` (pbrt-v3's AO passes through the others),
+    /// with the camera ray's differentials when it reached it directly (for the albedo's
+    /// texture lookups).
+    fn first_surface(
+        scene: &Scene,
+        camera_ray: &RayDifferential,
+        stats: &mut ThreadStats,
+    ) -> Option<SurfaceInteraction> {
+        let mut ray = camera_ray.ray;
+        for pass in 0..64 {
             let hit = scene.intersect(&ray)?;
-            let si = scene.interaction(&ray, &hit);
+            let mut si = scene.interaction(&ray, &hit);
             if scene.objects[hit.mesh as usize].material.is_some() {
+                if pass == 0 {
+                    si.compute_differentials(camera_ray);
+                }
                 return Some(si);
             }
             ray = si.spawn_ray(ray.d);
@@ -348,7 +376,7 @@ impl Estimator<'_> {
         None
     }
 
-    fn ao(&self, ray: &Ray, scene: &Scene, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+    fn ao(&self, ray: &RayDifferential, scene: &Scene, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
         match Self::first_surface(scene, ray, stats) {
             Some(si) => self.ao_at(&si, -ray.d, scene, stats, aov),
             None => Rgb::ZERO,
@@ -365,7 +393,9 @@ impl Estimator<'_> {
         // The transfer's cosine is the shading normal's (bumped; face-forwarded), as `shade`
         // and pbrt-v3's BSDFs use it, so that relighting reproduces `shade`.
         let ns = match (&self.sh, scene.material_of(&si)) {
-            (Some(_), Some((material, _, textures))) => material.ltc_lobes(&si, textures).map_or(si.shading.z, |d| d.n),
+            (Some(_), Some((material, materials, textures))) => {
+                material.ltc_lobes(&si, materials, textures).map_or(si.shading.z, |d| d.n)
+            }
             _ => si.shading.z,
         };
         let ns = face_forward(ns, n).as_dvec3();
@@ -402,11 +432,18 @@ impl Estimator<'_> {
         Rgb::splat((nd.dot(sum * m.dphi + sum_mc)).max(0.0) as f32)
     }
 
-    fn shade(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
+    fn shade(
+        &self,
+        ray: &RayDifferential,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        depth: u32,
+    ) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
         stats.add_continued(queries);
         match first {
-            Ok(hit) => self.shade_hit(&hit, None, scene, sampler, stats, depth),
+            Ok(hit) => self.shade_hit(ray, &hit, None, scene, sampler, stats, depth),
             Err(escaped) => escaped,
         }
     }
@@ -416,11 +453,18 @@ impl Estimator<'_> {
         self.table.as_ref()?;
         let lambertian = scene
             .material_of(&hit.si)
-            .and_then(|(material, _, textures)| material.ltc_lobes(&hit.si, textures))
-            .filter(|d| d.specular.is_none());
+            .and_then(|(material, materials, textures)| material.ltc_lobes(&hit.si, materials, textures))
+            .filter(|d| d.lobes.is_empty() && !d.transmits);
         match lambertian {
             Some(d) => Some(EnvKind::Lambertian { albedo: d.diffuse, n: d.n }),
-            None => glossy::Split::of(&hit.bsdf, self.glossy_order).map(EnvKind::Split),
+            None => {
+                let split = glossy::Split::of(&hit.bsdf, self.glossy_order).map(EnvKind::Split);
+                if split.is_none() && hit.bsdf.num_components(BxdfFlags::NON_SPECULAR) > 0 {
+                    let name = scene.material_of(&hit.si).map_or("none", |(m, _, _)| m.type_name());
+                    self.fallback.material(name, "non-specular transmission", "the infinite lights");
+                }
+                split
+            }
         }
     }
 
@@ -450,8 +494,10 @@ impl Estimator<'_> {
     /// Radiance from `hit`, the `depth`-th surface of a camera ray's specular chain; `env` is
     /// its pixel cluster's [`Self::env_terms`] when pixel shading computed them already
     /// (`Some(None)`: the cluster's traversal failed).
+    #[allow(clippy::too_many_arguments)]
     fn shade_hit(
         &self,
+        ray: &RayDifferential,
         hit: &SurfaceHit,
         env: Option<Option<EnvTerms>>,
         scene: &Scene,
@@ -484,7 +530,7 @@ impl Estimator<'_> {
         }
         if depth + 1 < self.max_depth {
             for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-                l += specular(si, bsdf, sampler, stats, kind, |r, sampler, stats| {
+                l += specular(si, bsdf, ray, sampler, stats, kind, |r, sampler, stats| {
                     self.shade(r, scene, sampler, stats, depth + 1)
                 });
             }
@@ -589,7 +635,8 @@ impl Estimator<'_> {
 
 impl PixelEstimator for Estimator<'_> {
     type Shared = SharedPixel<ClusterValue>;
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, aov: &mut [f32]) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         match self.mode {
             Mode::Ao | Mode::Prt => self.ao(ray, scene, stats, aov),
             Mode::Shade => self.shade(ray, scene, sampler, stats, 0),
@@ -603,7 +650,7 @@ impl PixelEstimator for Estimator<'_> {
 
     fn begin_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
@@ -614,7 +661,7 @@ impl PixelEstimator for Estimator<'_> {
             samples,
             scene,
             stats,
-            |_| f64::INFINITY,
+            |_, _| Refine::COMPARE,
             Some(difference),
             |p: &SurfacePoint, stats: &mut ThreadStats| match self.mode {
                 Mode::Shade => {
@@ -627,18 +674,11 @@ impl PixelEstimator for Estimator<'_> {
         ))
     }
 
-    fn li_shared(
-        &self,
-        ray: &Ray,
-        scene: &Scene,
-        sampler: &mut dyn Sampler,
-        stats: &mut ThreadStats,
-        aov: &mut [f32],
-        shared: &Self::Shared,
-        index: usize,
-    ) -> Rgb {
+    fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov } = cx;
         if self.mode == Mode::Shade {
-            return shared.shade_sample(index, scene, |hit, env| self.shade_hit(hit, env, scene, sampler, stats, 0));
+            return shared
+                .shade_sample(index, scene, |hit, env| self.shade_hit(ray, hit, env, scene, sampler, stats, 0));
         }
         match shared.sample(index) {
             (Ok(_), Some(Some((ao, _)))) => ao,
@@ -655,9 +695,6 @@ fn dual_edges(scene: &Scene) -> DualEdges {
 }
 
 impl Integrator for Silhouette {
-    fn name(&self) -> &str {
-        "silhouette"
-    }
     /// Sample shading, or `prt` (whose samples never share).
     fn merges_sample_ranges(&self) -> bool {
         !self.pixel_shading || self.mode == Some(Mode::Prt)
@@ -688,6 +725,7 @@ impl Integrator for Silhouette {
         }
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
+        crate::common::refuse_cutouts("silhouette", "visibility silhouettes (the meshes' dual edges)", scene)?;
         // Prepared with the scene (`build_scene`), or built here for a scene built without it.
         let built;
         let dual = match scene.prepared::<DualEdges>() {
@@ -698,7 +736,19 @@ impl Integrator for Silhouette {
             }
         };
         let infinite: Vec<&Light> = scene.light_list().iter().filter(|l| l.is_infinite()).collect();
-        let mode = self.mode.unwrap_or(if infinite.is_empty() { Mode::Ao } else { Mode::Shade });
+        let mode = self.mode.unwrap_or_else(|| default_mode(scene, ctx.warnings));
+        if mode == Mode::Shade && infinite.len() < scene.light_list().len() {
+            ctx.warnings.warn(
+                None,
+                if infinite.is_empty() {
+                    "silhouette: the scene has no \"infinite\" light, the only kind silhouette integrates: its lights \
+                     (area, point, spot, distant…) are all shaded with directlighting's estimator"
+                } else {
+                    "silhouette: lights other than \"infinite\" (area, point, spot, distant…) are shaded with \
+                     directlighting's estimator"
+                },
+            );
+        }
         let meridians = Meridians::new(self.resolution);
         let table_spacing = table_spacing(&infinite);
         let table = (mode == Mode::Shade && !infinite.is_empty()).then(|| {
@@ -728,6 +778,7 @@ impl Integrator for Silhouette {
             sh_table: OnceLock::new(),
             counters: Counters::default(),
             pixel_shading: self.pixel_shading,
+            fallback: FallbackWarning::new("silhouette", ctx.warnings),
         };
         let mut stats = render_pixels(&est, scene, ctx, film)?;
         let c = &est.counters;

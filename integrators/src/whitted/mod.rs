@@ -15,9 +15,9 @@ use crate::common::params::{ParamSpec, Params};
 use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{Bounds2i, Ray};
+use penumbra_core::geometry::{Bounds2i, RayDifferential};
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, ThreadStats,
+    render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext, ThreadStats,
 };
 use penumbra_core::light::LightContext;
 use penumbra_core::sampler::Sampler;
@@ -42,7 +42,14 @@ impl Whitted {
         Ok(Box::new(Whitted { max_depth, pixel_bounds }))
     }
 
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, depth: u32) -> Rgb {
+    fn li(
+        &self,
+        ray: &RayDifferential,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        depth: u32,
+    ) -> Rgb {
         let (first, queries) = scene.first_surface(ray);
         stats.add_continued(queries);
         let SurfaceHit { si, bsdf, le, .. } = match first {
@@ -68,7 +75,7 @@ impl Whitted {
         }
         if depth + 1 < self.max_depth {
             for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
-                l += specular(&si, &bsdf, sampler, stats, kind, |r, sampler, stats| {
+                l += specular(&si, &bsdf, ray, sampler, stats, kind, |r, sampler, stats| {
                     self.li(r, scene, sampler, stats, depth + 1)
                 });
             }
@@ -79,7 +86,8 @@ impl Whitted {
 
 impl PixelEstimator for Whitted {
     type Shared = ();
-    fn li(&self, ray: &Ray, scene: &Scene, sampler: &mut dyn Sampler, stats: &mut ThreadStats, _: &mut [f32]) -> Rgb {
+    fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
+        let SampleContext { scene, sampler, stats, aov: _ } = cx;
         Whitted::li(self, ray, scene, sampler, stats, 0)
     }
 
@@ -89,9 +97,6 @@ impl PixelEstimator for Whitted {
 }
 
 impl Integrator for Whitted {
-    fn name(&self) -> &str {
-        "whitted"
-    }
     fn merges_sample_ranges(&self) -> bool {
         true
     }

@@ -1,15 +1,23 @@
 //! Fitting LTCs to core's Trowbridge–Reitz reflection (used by the `ltc-fit`
 //! tool and by the tests).
 //!
-//! Per cell `(α, θo)`: `M = [[a, 0, b], [0, 1, 0], [d, 0, e]]` (4 free
-//! parameters; the `y` scale is fixed to 1 because any scale of `M` gives the
-//! same distribution) is found by Nelder–Mead minimising Heitz et al.'s
+//! Per cell `(α, θo)`, as Heitz et al.'s fitting code: the lobe's average direction `Z`
+//! (its normalised first moment) and `X = Y × Z` (`Y` the normal to the plane of incidence)
+//! frame `M = [X Y Z] · [[m11, 0, m13], [0, m22, 0], [0, 0, 1]]` (3 free parameters; any
+//! scale of `M` gives the same distribution), so that even a lobe far narrower than its
+//! offset from the normal starts where it is; the parameters are found by Nelder–Mead
+//! minimising Heitz et al.'s
 //! multiple-importance-sampled L3 error
 //! `Σ |D_M(ω) − f̂(ω)|³ / (p_M(ω) + p_f(ω))` over a stratified set of samples of
 //! both the LTC and the normalised BRDF·cos `f̂` (VNDF sampling). Rows go from
-//! `α = 1` down to `α_min`, columns from normal to grazing incidence, each cell
-//! starting from its neighbour's fit; the `θo = 0` column is constrained to be
-//! isotropic (`a = 1, b = d = 0`, one parameter).
+//! the one nearest `α = 1` up to `α_max`, then down to `α_min`; columns from normal to
+//! grazing incidence, each cell starting from its neighbour's fit; the `θo = 0` column is
+//! constrained to be isotropic (`m11 = m22`, `m13 = 0`, one parameter). The table stores
+//! the shape and the average direction's angle (see [`super::m_from_shape`]).
+//!
+//! [`cell_error`] measures a table against the BRDF it approximates: the magnitude against a
+//! finer quadrature and the lobe's shape as the L1 distance `∫ |D − f̂| dω` (twice the largest
+//! error of the normalised integral over any region), at any `(α, θo)`, nodes or between them.
 
 use glam::{DMat3, DVec2, DVec3, Vec2};
 
@@ -22,6 +30,7 @@ pub struct FitOptions {
     pub n_theta: usize,
     pub n_alpha: usize,
     pub alpha_min: f32,
+    pub alpha_max: f32,
     /// Samples per axis of the stratified error estimate (`n²` of each kind).
     pub error_samples: usize,
     /// Samples per axis for the magnitude and Fresnel integrals.
@@ -32,7 +41,15 @@ pub struct FitOptions {
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { n_theta: 64, n_alpha: 64, alpha_min: 1e-3, error_samples: 24, moment_samples: 64, max_iter: 400 }
+        FitOptions {
+            n_theta: 64,
+            n_alpha: 64,
+            alpha_min: 1e-3,
+            alpha_max: 3.0,
+            error_samples: 24,
+            moment_samples: 64,
+            max_iter: 400,
+        }
     }
 }
 
@@ -101,19 +118,27 @@ pub fn view_dir(cos_theta: f64) -> DVec3 {
 /// `(magnitude, fresnel)`: `∫ f cos` and `∫ f cos (1 − ωo·ωh)⁵ / magnitude`,
 /// estimated with `n²` stratified VNDF samples (weights `G / G1`).
 pub fn moments(alpha: f64, cos_theta: f64, n: usize) -> (f64, f64) {
+    let (m, fr, _) = moments_and_direction(alpha, cos_theta, n);
+    (m, fr)
+}
+
+/// [`moments`] and the lobe's average direction (`∫ f cos ω dω`, normalised; `+z` if zero).
+pub fn moments_and_direction(alpha: f64, cos_theta: f64, n: usize) -> (f64, f64, DVec3) {
     let dist = MicrofacetDistribution::trowbridge_reitz(alpha as f32, alpha as f32);
     let wo = view_dir(cos_theta);
-    let (mut m, mut fr) = (0.0, 0.0);
-    for (_, f, p, oh) in brdf_samples(&dist, wo, n) {
+    let (mut m, mut fr, mut dir) = (0.0, 0.0, DVec3::ZERO);
+    for (wi, f, p, oh) in brdf_samples(&dist, wo, n) {
         if p > 0.0 {
             let w = f / p;
             m += w;
             fr += w * (1.0 - oh).clamp(0.0, 1.0).powi(5);
+            dir += wi * w;
         }
     }
     let total = (n * n) as f64;
     let (m, fr) = (m / total, fr / total);
-    (m, if m > 0.0 { fr / m } else { 0.0 })
+    let dir = DVec3::new(dir.x, 0.0, dir.z).normalize_or_zero();
+    (m, if m > 0.0 { fr / m } else { 0.0 }, if dir == DVec3::ZERO { DVec3::Z } else { dir })
 }
 
 /// `M` from the fit parameters `[a, b, d, e]`.
@@ -233,24 +258,44 @@ pub fn nelder_mead<const N: usize>(
 pub struct CellFit {
     pub alpha: f64,
     pub cos_theta: f64,
-    /// `M` parameters `[a, b, d, e]`.
+    /// `M` parameters `[a, b, d, e]` (middle entry 1, see [`m_from_params`]).
     pub params: [f64; 4],
+    /// The shape parameters `[m11, m22, m13]` in the frame of the average direction.
+    pub shape: [f64; 3],
+    /// The angle of the average direction from the normal (towards `−x`, away from `ωo`).
+    pub theta_z: f64,
     pub error: f64,
 }
 
-/// Fits one cell starting from `init`.
-pub fn fit_cell(alpha: f64, cos_theta: f64, init: [f64; 4], opts: &FitOptions) -> (CellFit, f64, f64) {
-    let (mag, fres) = moments(alpha, cos_theta, opts.moment_samples);
+/// `M = [X Y Z] · [[m11, 0, m13], [0, m22, 0], [0, 0, 1]]` for the average direction `z`
+/// (in the xz-plane), as `[a, b, d, e]` with the middle entry scaled to 1.
+pub fn params_from_shape(z: DVec3, shape: [f64; 3]) -> [f64; 4] {
+    let [m11, m22, m13] = shape;
+    let x = DVec3::Y.cross(z);
+    let s = 1.0 / m22;
+    [x.x * m11 * s, (x.x * m13 + z.x) * s, x.z * m11 * s, (x.z * m13 + z.z) * s]
+}
+
+/// Fits one cell starting from the shape `init` (`[m11, m22, m13]`).
+pub fn fit_cell(alpha: f64, cos_theta: f64, init: [f64; 3], opts: &FitOptions) -> (CellFit, f64, f64) {
+    let (mag, fres, z) = moments_and_direction(alpha, cos_theta, opts.moment_samples);
     let prob = Problem::new(alpha, cos_theta, mag, opts.error_samples);
-    let step = |v: f64| 0.1 * v.abs().max(0.05);
-    let (params, error) = if cos_theta >= 1.0 {
-        let (x, e) =
-            nelder_mead(|x: [f64; 1]| prob.error([1.0, 0.0, 0.0, x[0]]), [init[3]], [step(init[3])], opts.max_iter);
-        ([1.0, 0.0, 0.0, x[0]], e)
-    } else {
-        nelder_mead(|x: [f64; 4]| prob.error(x), init, init.map(step), opts.max_iter)
+    let err = |shape: [f64; 3]| {
+        if !(shape[0] > 0.0 && shape[1] > 0.0) {
+            return 1e30;
+        }
+        prob.error(params_from_shape(z, shape))
     };
-    (CellFit { alpha, cos_theta, params, error }, mag, fres)
+    let step = |v: f64| 0.1 * v.abs().max(0.05 * alpha.min(1.0));
+    let (shape, error) = if cos_theta >= 1.0 {
+        let (x, e) = nelder_mead(|x: [f64; 1]| err([x[0], x[0], 0.0]), [init[0]], [step(init[0])], opts.max_iter);
+        ([x[0], x[0], 0.0], e)
+    } else {
+        let steps = [step(init[0]), step(init[1]), 0.1 * init[0].abs().max(0.05 * alpha.min(1.0))];
+        nelder_mead(err, init, steps, opts.max_iter)
+    };
+    let theta_z = z.x.atan2(z.z);
+    (CellFit { alpha, cos_theta, params: params_from_shape(z, shape), shape, theta_z, error }, mag, fres)
 }
 
 /// Fits the whole table; `progress(row_done, rows)` is called after each row.
@@ -259,26 +304,93 @@ pub fn fit_table(opts: &FitOptions, mut progress: impl FnMut(usize, usize)) -> (
         n_theta: opts.n_theta,
         n_alpha: opts.n_alpha,
         alpha_min: opts.alpha_min,
+        alpha_max: opts.alpha_max,
         cells: vec![[0.0; 6]; opts.n_theta * opts.n_alpha],
     };
     let mut fits = Vec::with_capacity(table.cells.len());
-    let mut first_col = [1.0, 0.0, 0.0, 1.0];
-    for (done, j) in (0..opts.n_alpha).rev().enumerate() {
+    // From the row nearest α = 1 (where the identity is a fair start) up, then down.
+    let start = (0..opts.n_alpha)
+        .min_by(|&a, &b| (table.row_alpha(a).ln().abs()).total_cmp(&table.row_alpha(b).ln().abs()))
+        .unwrap_or(0);
+    let order: Vec<usize> = (start..opts.n_alpha).chain((0..start).rev()).collect();
+    let mut first_col: Vec<Option<[f64; 3]>> = vec![None; opts.n_alpha];
+    for (done, &j) in order.iter().enumerate() {
         let alpha = table.row_alpha(j);
-        let mut prev = first_col;
+        let neighbour = if j >= start { j.checked_sub(1) } else { Some(j + 1) };
+        // The neighbouring row's normal-incidence shape, scaled by the ratio of the alphas.
+        let mut prev = neighbour
+            .and_then(|k| first_col.get(k).copied().flatten().map(|s| s.map(|v| v * alpha / table.row_alpha(k))))
+            .unwrap_or([alpha, alpha, 0.0]);
         for i in 0..opts.n_theta {
             let cos_theta = table.column_cos_theta(i);
             let (fit, mag, fres) = fit_cell(alpha, cos_theta, prev, opts);
-            prev = fit.params;
+            prev = fit.shape;
             if i == 0 {
-                first_col = fit.params;
+                first_col[j] = Some(fit.shape);
             }
-            let mi = minv_params(fit.params);
+            let [m11, m22, m13] = fit.shape;
             table.cells[j * opts.n_theta + i] =
-                [mi[0] as f32, mi[1] as f32, mi[2] as f32, mi[3] as f32, mag as f32, fres as f32];
+                [m11 as f32, m22 as f32, m13 as f32, fit.theta_z as f32, mag as f32, fres as f32];
             fits.push(fit);
         }
         progress(done + 1, opts.n_alpha);
     }
     (table, fits)
+}
+
+/// A table's error against the BRDF at one `(α, cos θo)`: see [`cell_error`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CellError {
+    /// `∫ f cos` by a 256² VNDF quadrature.
+    pub magnitude: f64,
+    /// The table's magnitude (interpolated) relative to it, minus 1.
+    pub magnitude_error: f64,
+    /// `∫ |D_LTC − f̂| dω` (0: the same lobe; 2: disjoint lobes).
+    pub l1: f64,
+}
+
+/// The error of `table`'s (interpolated) LTC at `(alpha, cos_theta)` against core's
+/// Trowbridge–Reitz reflection: the magnitude against `moments` at 256² samples and the lobe's
+/// shape as `∫ |D_LTC − f̂| dω`, estimated from `n²` stratified samples of each distribution
+/// combined by the balance heuristic (the VNDF density stands in for `f̂`'s).
+pub fn cell_error(table: &Ltc, alpha: f64, cos_theta: f64, n: usize) -> CellError {
+    let (magnitude, _) = moments(alpha, cos_theta, 256);
+    let c = table.eval(view_dir(cos_theta).z as f32, alpha as f32);
+    let dist = MicrofacetDistribution::trowbridge_reitz(alpha as f32, alpha as f32);
+    let wo = view_dir(cos_theta);
+    let inv_mag = if magnitude > 0.0 { 1.0 / magnitude } else { 0.0 };
+    let m = c.m();
+    // The VNDF sampler's density, also where the reflected direction is below the horizon
+    // (its samples there carry the LTC's mass below the horizon, all of it error).
+    let vndf = |w: DVec3| {
+        let h = (wo + w).normalize_or_zero();
+        let v = dist.d(h.as_vec3()) as f64 * dist.g1(wo.as_vec3()) as f64 / (4.0 * wo.z);
+        if h == DVec3::ZERO || !v.is_finite() {
+            0.0
+        } else {
+            v
+        }
+    };
+    let term = |w: DVec3| {
+        let pl = ltc_pdf(&c.minv, w);
+        let pf = vndf(w);
+        let f = brdf_cos(&dist, wo, w) * inv_mag;
+        if pl + pf > 0.0 {
+            (pl - f).abs() / (pl + pf)
+        } else {
+            0.0
+        }
+    };
+    let mut sum = 0.0;
+    for j in 0..n {
+        for i in 0..n {
+            let u = DVec2::new((i as f64 + 0.5) / n as f64, (j as f64 + 0.5) / n as f64);
+            sum += term((m * cosine_sample(u)).normalize_or_zero());
+        }
+    }
+    for (w, _, _, _) in brdf_samples(&dist, wo, n) {
+        sum += term(w);
+    }
+    let l1 = sum / (n * n) as f64;
+    CellError { magnitude, magnitude_error: c.magnitude as f64 / magnitude - 1.0, l1 }
 }

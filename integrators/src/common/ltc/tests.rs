@@ -39,8 +39,9 @@ fn embedded_table_is_valid() {
         assert!(c.iter().all(|v| v.is_finite()));
         assert!(c[4] > 0.0 && c[4] <= 1.0 + 1e-3, "magnitude {}", c[4]);
         assert!((0.0..=1.0).contains(&c[5]), "fresnel {}", c[5]);
-        let m = minv_from_params([c[0] as f64, c[1] as f64, c[2] as f64, c[3] as f64]);
-        assert!(m.determinant() > 0.0);
+        // a cell is the shape [m11, m22, m13, θz] of M (see `m_from_shape`)
+        let m = m_from_shape([c[0] as f64, c[1] as f64, c[2] as f64, c[3] as f64]);
+        assert!(m.determinant() > 0.0, "{c:?}");
     }
     // round trip of the format
     assert_eq!(Ltc::from_bytes(&t.to_bytes()).as_ref(), Ok(t));
@@ -174,23 +175,31 @@ fn ltc_integral_of_random_polygons_matches_the_brdf() {
     assert!(rms_abs < 0.03, "{rms_abs}");
 }
 
+/// `sample` against `pdf`: the samples are binned by their preimage `u = M⁻¹ω/|M⁻¹ω|` in the
+/// LTC's cosine space (bins of `u_z` and `φ` over the upper hemisphere, the LTC's exact support,
+/// so no bin straddles the edge of the support where a midpoint rule would miss mass), and each
+/// bin's expected count is `pdf` integrated over the bin's image `ω = Mu/|Mu|`, with the
+/// Jacobian `|det M| / |Mu|³` of that map computed from `M` (not from `pdf`'s formula).
 #[test]
 fn sample_and_pdf_agree_by_chi_square() {
     let t = table();
-    for &(cos, alpha) in &[(0.9f32, 0.5f32), (0.5, 0.3), (0.2, 0.8)] {
+    for &(cos, alpha) in &[(0.9f32, 0.5f32), (0.5, 0.3), (0.2, 0.8), (0.7, 2.5), (0.3, 0.01)] {
         let c = t.eval(cos, alpha);
+        let m = c.m();
+        let det_m = m.determinant().abs();
         let (nt, np) = (16usize, 32usize);
         let n = 200_000usize;
         let mut rng = Rng::new(31);
         let mut obs = vec![0.0; nt * np];
         for _ in 0..n {
             let w = c.sample(DVec2::new(rng.uniform_f64(), rng.uniform_f64()));
-            let ti = (((1.0 - w.z) * 0.5 * nt as f64) as usize).min(nt - 1);
-            let phi = w.y.atan2(w.x).rem_euclid(2.0 * PI);
+            let u = (c.minv * w).normalize_or_zero();
+            let ti = ((u.z * nt as f64) as usize).min(nt - 1);
+            let phi = u.y.atan2(u.x).rem_euclid(2.0 * PI);
             let pi = ((phi / (2.0 * PI) * np as f64) as usize).min(np - 1);
             obs[ti * np + pi] += 1.0;
         }
-        // expected: integrate the pdf over each (z, φ) bin with a 12×12 midpoint rule
+        // expected: the pdf over each bin's image, a 12×12 midpoint rule in (u_z, φ)
         let sub = 12;
         let mut exp = vec![0.0; nt * np];
         let mut total = 0.0;
@@ -199,19 +208,21 @@ fn sample_and_pdf_agree_by_chi_square() {
                 let mut s = 0.0;
                 for a in 0..sub {
                     for b in 0..sub {
-                        let z = 1.0 - 2.0 * (ti as f64 + (a as f64 + 0.5) / sub as f64) / nt as f64;
+                        let z = (ti as f64 + (a as f64 + 0.5) / sub as f64) / nt as f64;
                         let phi = 2.0 * PI * (pi as f64 + (b as f64 + 0.5) / sub as f64) / np as f64;
                         let r = (1.0 - z * z).max(0.0).sqrt();
-                        s += c.pdf(DVec3::new(r * phi.cos(), r * phi.sin(), z));
+                        let mu = m * DVec3::new(r * phi.cos(), r * phi.sin(), z);
+                        let l = mu.length();
+                        s += c.pdf(mu / l) * det_m / (l * l * l);
                     }
                 }
-                let area = (2.0 / nt as f64) * (2.0 * PI / np as f64);
+                let area = (1.0 / nt as f64) * (2.0 * PI / np as f64);
                 exp[ti * np + pi] = s / (sub * sub) as f64 * area * n as f64;
                 total += s / (sub * sub) as f64 * area;
             }
         }
-        assert!((total - 1.0).abs() < 5e-3, "pdf integrates to {total}");
-        let (chi2, dof, p) = penumbra_core::stats::chi2_test(&obs, &exp, 5.0);
+        assert!((total - 1.0).abs() < 5e-3, "cos {cos} alpha {alpha}: pdf integrates to {total}");
+        let (chi2, dof, p) = penumbra_core::goodness_of_fit::chi2_test(&obs, &exp, 5.0);
         assert!(p > 1e-3, "cos {cos} alpha {alpha}: chi2 {chi2} dof {dof} p {p}");
     }
 }

@@ -8,7 +8,6 @@ use crate::common::ltc::{ltc_integrate_vector, LtcCoeffs};
 use crate::common::params::{ParamSpec, Params};
 use crate::common::spherical_polygon::{self, cone::BoundingCone};
 use glam::DVec3;
-use penumbra_core::bxdf::Fresnel;
 use penumbra_core::geometry::Frame;
 use penumbra_core::material::LtcFresnel;
 use penumbra_core::spectrum::luminance;
@@ -213,7 +212,7 @@ enum TirSplit {
 /// For a dielectric Fresnel seen from the dense side (`eta_i > eta_t`), the value `t_c` of
 /// `ωo·ωi` below which reflection is total: `cos θd = √((1 + ωo·ωi)/2)` reaches the critical
 /// `√(1 − (η_t/η_i)²)` at `t_c = 1 − 2 (η_t/η_i)²`.
-fn tir_threshold(f: &LtcFresnel) -> Option<f64> {
+pub(super) fn tir_threshold(f: &LtcFresnel) -> Option<f64> {
     match *f {
         LtcFresnel::Dielectric { eta_i, eta_t } if eta_i > eta_t && eta_t > 0.0 => {
             let r = (eta_t / eta_i) as f64;
@@ -276,7 +275,7 @@ fn fresnel_circle(f: &LtcFresnel, y: f32) -> Option<f64> {
 /// polygon's `n` great-circle half-spaces, exact in every additive integral and far cheaper
 /// than a general overlay. Caps of a hemisphere or more (t ≤ 0.02: not convex enough) go
 /// through [`spherical_polygon::intersection`].
-fn clip_to_cap(region: &[Vec<DVec3>], axis: DVec3, t: f64, n: usize) -> Vec<Vec<DVec3>> {
+pub(super) fn clip_to_cap(region: &[Vec<DVec3>], axis: DVec3, t: f64, n: usize) -> Vec<Vec<DVec3>> {
     let cap = cap_loop(axis, t, n);
     if t <= 0.02 {
         return spherical_polygon::intersection(region, &[cap]);
@@ -318,11 +317,7 @@ fn cap_loop(axis: DVec3, t: f64, n: usize) -> Vec<DVec3> {
 
 /// The material's own Fresnel reflectance at `cos_d` (pbrt-v3's definitions).
 pub fn fresnel_at(f: &LtcFresnel, cos_d: f32) -> Rgb {
-    match *f {
-        LtcFresnel::Dielectric { eta_i, eta_t } => Fresnel::Dielectric { eta_i, eta_t }.evaluate(cos_d),
-        LtcFresnel::Conductor { eta, k } => Fresnel::Conductor { eta_i: Rgb::ONE, eta_t: eta, k }.evaluate(cos_d),
-        LtcFresnel::Schlick { f0 } => f0 + (Rgb::ONE - f0) * (1.0 - cos_d).powi(5),
-    }
+    f.evaluate(cos_d)
 }
 
 /// The BRDF's integral over the visible region is `magnitude · (F0 + (1 − F0) · fresnel)` times
@@ -340,6 +335,7 @@ pub(super) fn fresnel_weight(f: &LtcFresnel, magnitude: f32, fresnel: f32) -> Rg
             ((eta - one) * (eta - one) + k * k) / ((eta + one) * (eta + one) + k * k)
         }
         LtcFresnel::Schlick { f0 } => f0,
+        LtcFresnel::NoOp => Rgb::ONE,
     };
     magnitude * (f0 + (Rgb::ONE - f0) * fresnel)
 }

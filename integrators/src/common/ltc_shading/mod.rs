@@ -24,5 +24,5 @@ mod settings;
 mod shader;
 
 pub use fresnel::{fresnel_at, FresnelMode};
-pub use settings::{Mode, ShaderSettings};
+pub use settings::{Glossy, Mode, ShaderSettings};
 pub use shader::{AreaLighting, LightGroup, LtcShader};

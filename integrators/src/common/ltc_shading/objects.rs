@@ -48,6 +48,8 @@ pub(super) struct ConvexShape {
     pub(super) faces: Vec<(DVec3, DVec3)>,
     pub(super) vertices: Vec<DVec3>,
     pub(super) center: DVec3,
+    /// The largest distance of a vertex from `center`.
+    pub(super) radius: f64,
 }
 
 impl ConvexShape {
@@ -62,7 +64,8 @@ impl ConvexShape {
         let vertices: Vec<DVec3> = mesh.positions.iter().map(|q| q.as_dvec3()).collect();
         let center = vertices.iter().copied().sum::<DVec3>() / vertices.len().max(1) as f64;
         let sil = SilhouetteMesh::new(mesh, adj);
-        ConvexShape { sil, eps: 1e-9 * mesh.extent(), faces, vertices, center }
+        let radius = vertices.iter().map(|v| (*v - center).length()).fold(0.0, f64::max);
+        ConvexShape { sil, eps: 1e-9 * mesh.extent(), faces, vertices, center, radius }
     }
 }
 

@@ -81,7 +81,9 @@ impl Objects {
                 continue;
             }
             if let Some(cl) = q.separate {
-                if !cl.separated(&info.bounds, &scene.meshes[o].positions, q.p) {
+                if !cl.separated(&info.bounds, &scene.meshes[o].positions, q.p)
+                    && !self.triangles_separated(scene, &reach, o, cl, q.p)
+                {
                     return None;
                 }
             }
@@ -99,6 +101,35 @@ impl Objects {
             self.triangle_occluders(scene, q, &reach, o, straddles, &mut g);
         }
         Some(g.occ)
+    }
+
+    /// Whether every triangle of object `o` in the query's cone either cannot occlude the convex
+    /// light `cl` from `p` (the light wholly on `p`'s side of its plane) or lies in front of it
+    /// (its plane, or another plane, separates it from the light with `p` on its side): an
+    /// object that is not separated from the light as a whole (a floor-and-wall mesh whose box
+    /// holds the lights) whose triangles are.
+    fn triangles_separated(&self, scene: &Scene, reach: &Reach, o: usize, cl: &ConvexLight, p: DVec3) -> bool {
+        let mesh = &scene.meshes[o];
+        let mut candidates = Vec::new();
+        self.info[o].tris.query(&reach.cone, &mut candidates);
+        candidates.iter().all(|&t| {
+            let pv = mesh.vertices(t).map(|v| v.as_dvec3());
+            let n = (pv[1] - pv[0]).cross(pv[2] - pv[0]);
+            let len = n.length();
+            if !(len > 0.0) {
+                return true; // no area
+            }
+            let n = n / len;
+            let side = n.dot(p - pv[0]);
+            let light = n.dot(cl.center - pv[0]) * side.signum();
+            if side == 0.0 || light.abs() > cl.radius {
+                // Through p (subtends nothing), or the light wholly on one side: on p's (the
+                // triangle cannot be crossed on the way to it) or beyond (it is in front).
+                return true;
+            }
+            let c = (pv[0] + pv[1] + pv[2]) / 3.0;
+            cl.separated_points(&pv, c, p)
+        })
     }
 
     /// The occluders of object `o` taken by its triangles (`straddles`: its bounds reach
@@ -259,12 +290,32 @@ pub(super) struct ConvexLight<'a> {
     front: Vec<(DVec3, DVec3)>,
     vertices: &'a [DVec3],
     center: DVec3,
+    /// Bounds the light around `center`.
+    radius: f64,
+    /// The light is the sphere (`center`, `radius`).
+    sphere: bool,
 }
 
 impl<'a> ConvexLight<'a> {
     pub(super) fn new(shape: &'a ConvexShape, p: DVec3) -> ConvexLight<'a> {
         let front = shape.faces.iter().copied().filter(|(a, n)| n.dot(p - *a) > shape.eps).collect();
-        ConvexLight { front, vertices: &shape.vertices, center: shape.center }
+        ConvexLight { front, vertices: &shape.vertices, center: shape.center, radius: shape.radius, sphere: false }
+    }
+
+    /// A sphere light (its mesh inside the sphere `center`, `radius`): separated by planes
+    /// normal to the centres' offset only, its extent along them the sphere's (no faces to
+    /// gather: a default sphere has 12 600).
+    pub(super) fn sphere(shape: &'a ConvexShape, center: DVec3, radius: f64) -> ConvexLight<'a> {
+        ConvexLight { front: Vec::new(), vertices: &shape.vertices, center, radius, sphere: true }
+    }
+
+    /// The largest `v·axis` over the light.
+    fn support(&self, axis: DVec3) -> f64 {
+        if self.sphere {
+            self.center.dot(axis) + self.radius
+        } else {
+            self.vertices.iter().map(|v| v.dot(axis)).fold(f64::MIN, f64::max)
+        }
     }
 
     /// Whether a plane separates an object (bounds `b`, vertices `vertices`) from the light,
@@ -304,7 +355,7 @@ impl<'a> ConvexLight<'a> {
         if axis == DVec3::ZERO {
             return false;
         }
-        let light_max = self.vertices.iter().map(|v| v.dot(axis)).fold(f64::MIN, f64::max);
+        let light_max = self.support(axis);
         let min = pts.iter().map(|v| v.dot(axis)).fold(f64::MAX, f64::min);
         min > light_max && p.dot(axis) > light_max
     }

@@ -3,25 +3,27 @@
 //! at a point, light by light.
 
 use super::fresnel::{fresnel_weight, FresnelMode};
-use super::integrate::{integrate_piece, Accum, PieceFrame};
+use super::integrate::{integrate_piece, Accum, LobeLtc, PieceFrame};
 use super::objects::{object_info, ConvexShape, Objects, Receiver, Skip};
 use super::occluders::{ConvexLight, PieceQuery};
 use super::region::Occluders;
-use super::settings::{Mode, ShaderSettings};
-use crate::common::ltc::Ltc;
-use crate::common::pixel_shading::SharedPixel;
+use super::settings::{Glossy, Mode, ShaderSettings};
+use crate::common::ltc::{Ltc, LtcCoeffs};
+use crate::common::pixel_shading::{rgb_difference, ClusterExtent, Refine, SharedPixel, NEAR_FIELD};
 use glam::DVec3;
 use penumbra_core::accel::objects::ObjectBvh;
 use penumbra_core::camera::CameraSample;
-use penumbra_core::geometry::{Frame, Ray};
-use penumbra_core::integrator::ThreadStats;
+use penumbra_core::geometry::{Frame, RayDifferential};
+use penumbra_core::integrator::{RenderStats, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::emitting_normal;
 use penumbra_core::material::LtcDescription;
 use penumbra_core::mesh::{EdgeAdjacency, TriangleMesh};
-use penumbra_core::scene::Scene;
+use penumbra_core::scene::{Scene, SurfacePoint};
 use penumbra_core::{Rgb, Vec3};
+use penumbra_parser::DiagSink;
 use std::cell::OnceCell;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// What pixel shading computes once per surface a pixel sees: the analytic area lighting
 /// `(Σ L·form factor, glossy)` ([`LtcShader::area_lights_split`]).
@@ -37,10 +39,85 @@ enum LightShape {
     /// A closed convex mesh emitting outwards: what a point outside sees of it is exactly
     /// its silhouette loop (the front faces tile it, none overlap), integrated once.
     Convex(ConvexShape),
+    /// A `sphere` shape (its tessellation's vertices on one sphere): the true sphere pbrt-v3
+    /// renders, whose silhouette from a point outside is a circle — taken as the regular polygon
+    /// of the same solid angle ([`sphere_sides`]), whatever the tessellation (12 600 triangles
+    /// for a default sphere, whose silhouette loop would have hundreds of edges).
+    Sphere(SphereShape),
+}
+
+/// A sphere light: its mesh as a convex shape (for the occluders' separation tests) and the
+/// sphere.
+struct SphereShape {
+    convex: ConvexShape,
+    center: DVec3,
+    radius: f64,
+}
+
+/// Sides of the polygon that stands for a sphere light's silhouette circle (a regular polygon
+/// of the circle's solid angle; with 32 sides its corners lie 0.32 % of the circle's radius
+/// outside it, its edges' middles 0.16 % inside): 32 when the point's sharpest lobe is
+/// narrower than the circle (it resolves the outline), 16 when narrower than 4 times it, 8
+/// otherwise (a smooth integrand over an equal-area polygon: the difference is of fourth
+/// order in the circle's radius).
+fn sphere_sides(angular_radius: f64, lobe_width: f64) -> usize {
+    if lobe_width < angular_radius {
+        32
+    } else if lobe_width < 4.0 * angular_radius {
+        16
+    } else {
+        8
+    }
+}
+
+/// The silhouette circle of the sphere (`center`, `radius`) seen from `p` as the regular
+/// [`sphere_sides`]-gon of the same solid angle for a lobe `lobe_width` wide (radians), as
+/// world points at the tangent distance (so that their bounding sphere bounds the circle);
+/// `None` when `p` is inside the sphere.
+fn sphere_outline(p: DVec3, center: DVec3, radius: f64, lobe_width: f64) -> Option<Vec<DVec3>> {
+    let axis = center - p;
+    let d = axis.length();
+    if !(d > radius * (1.0 + 1e-9)) {
+        return None;
+    }
+    let axis = axis / d;
+    let sin_rho = radius / d;
+    let cos_rho = (1.0 - sin_rho * sin_rho).max(0.0).sqrt();
+    let sides = sphere_sides(sin_rho.asin(), lobe_width);
+    // A regular spherical n-gon of circumradius ρ' has solid angle 2π + 2nB − nπ with
+    // cot B = cos ρ' tan(π/n): ρ' for the cap's 2π(1 − cos ρ).
+    let n = sides as f64;
+    let omega = std::f64::consts::TAU * (1.0 - cos_rho);
+    let b = (omega - std::f64::consts::TAU + n * std::f64::consts::PI) / (2.0 * n);
+    let cos_r = (1.0 / b.tan() / (std::f64::consts::PI / n).tan()).clamp(-1.0, 1.0);
+    let sin_r = (1.0 - cos_r * cos_r).max(0.0).sqrt();
+    let (u, v) = crate::common::spherical_polygon::orthonormal_basis(axis);
+    let tangent = (d * d - radius * radius).max(0.0).sqrt();
+    Some(
+        (0..sides)
+            .map(|k| {
+                let phi = std::f64::consts::TAU * k as f64 / n;
+                p + (axis * cos_r + (u * phi.cos() + v * phi.sin()) * sin_r) * tangent
+            })
+            .collect(),
+    )
+}
+
+/// The sphere through all of `vertices` (the centre of their bounding box and the largest
+/// distance from it, all distances within 1e-5 of it), if there is one.
+fn on_one_sphere(vertices: &[DVec3]) -> Option<(DVec3, f64)> {
+    let (lo, hi) = vertices
+        .iter()
+        .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let center = (lo + hi) * 0.5;
+    let (near, far) =
+        vertices.iter().map(|v| (*v - center).length()).fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r), b.max(r)));
+    (far > 0.0 && near >= far * (1.0 - 1e-5)).then_some((center, far))
 }
 
 impl LightShape {
-    fn of(mesh: &TriangleMesh, adj: &EdgeAdjacency, tris: &[u32], two_sided: bool) -> LightShape {
+    /// `sphere`: the mesh is a `sphere` shape's tessellation.
+    fn of(mesh: &TriangleMesh, adj: &EdgeAdjacency, tris: &[u32], two_sided: bool, sphere: bool) -> LightShape {
         let n = mesh.triangle_count();
         let mut covered = vec![false; n];
         for t in tris {
@@ -61,7 +138,11 @@ impl LightShape {
                 w == Vec3::ZERO || emitting_normal(mesh, t).dot(w) > 0.0
             });
             if outward {
-                return LightShape::Convex(ConvexShape::new(mesh, adj));
+                let convex = ConvexShape::new(mesh, adj);
+                return match sphere.then(|| on_one_sphere(&convex.vertices)).flatten() {
+                    Some((center, radius)) => LightShape::Sphere(SphereShape { convex, center, radius }),
+                    None => LightShape::Convex(convex),
+                };
             }
         }
         LightShape::Triangles
@@ -115,7 +196,32 @@ pub struct LtcShader {
     objects: Objects,
     /// The area lights, gathered per emitting mesh (pbrt-v3 makes one light per triangle).
     groups: Vec<LightGroup>,
+    counters: ShaderCounters,
+    /// The integrator's name, for warnings (`ltc` or `ratio`).
+    name: &'static str,
 }
+
+/// What the shader counts over a render (for `stats.json`).
+#[derive(Default)]
+struct ShaderCounters {
+    /// Shading points integrated analytically.
+    points: AtomicU64,
+    /// Evaluations of a glossy lobe by the exact integration's quadrature.
+    quadrature_evals: AtomicU64,
+    /// Quadrature triangles split for accuracy.
+    quadrature_splits: AtomicU64,
+    /// Points whose material's lobes the table does not reach (`"glossy" "ltc"`): shaded by
+    /// `directlighting`'s estimator.
+    beyond_table: AtomicU64,
+}
+
+/// A glossy lobe narrower than this many times a pixel cluster's angular extent (its camera
+/// rays' spread) starts to be shaded at every member (fully from half as narrow, [`Refine::ramps`]): the highlight (a sharp reflection of the light's
+/// outline) moves across the pixel by about that angle, while the lobe is `~2α` wide.
+const SHARP_EVERY: f32 = 0.5;
+/// … and narrower than this many times, at the representative and the farthest member too, and
+/// at every member as far as the two differ by more than 10 % ([`crate::common::pixel_shading::REFINE`]).
+const SHARP_COMPARE: f32 = 8.0;
 
 /// A shading point's query: where it is and whether occluders are searched.
 struct PointQuery<'s> {
@@ -128,7 +234,7 @@ struct PointQuery<'s> {
 impl LtcShader {
     /// Prepares the per-object data `settings` needs on `scene` (silhouette adjacency only for
     /// the objects its mode takes as silhouettes).
-    pub fn new(settings: ShaderSettings, scene: &Scene) -> LtcShader {
+    pub fn new(settings: ShaderSettings, scene: &Scene, name: &'static str) -> LtcShader {
         let cells: Vec<OnceCell<EdgeAdjacency>> = scene.meshes.iter().map(|_| OnceCell::new()).collect();
         // The scene's (built once when the integrator asks: `ltc` does); `ratio` asks for none
         // and builds only its light meshes' here.
@@ -153,19 +259,22 @@ impl LtcShader {
             // light, as of every occluder, on its own.
             g.shape = match settings.mode {
                 Mode::PerTriangle => LightShape::Triangles,
-                _ => LightShape::of(mesh, adjacency(g.mesh), &g.tris, g.two_sided),
+                _ => {
+                    let sphere = scene.objects.get(g.mesh).is_some_and(|o| o.kind == "sphere");
+                    LightShape::of(mesh, adjacency(g.mesh), &g.tris, g.two_sided, sphere)
+                }
             };
         }
         let objects =
             Objects { info: objects, bvh: ObjectBvh::build(&boxes), merge_occluders: settings.merge_occluders };
-        LtcShader { settings, objects, groups }
+        LtcShader { settings, objects, groups, counters: ShaderCounters::default(), name }
     }
 
     /// Traces a pixel's camera `rays` and shades each surface they see once (with or without
     /// `shadows`): `begin_pixel` of `ltc` and `ratio`.
     pub fn trace_pixel(
         &self,
-        rays: &[Ray],
+        rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         shadows: bool,
@@ -177,13 +286,63 @@ impl LtcShader {
             samples,
             scene,
             stats,
-            |p| self.nearest_light_distance(p),
-            None,
+            |p, extent| self.refine(scene, p, extent),
+            Some(|a: &AreaLighting, b: &AreaLighting| rgb_difference(a.0, b.0).max(rgb_difference(a.1, b.1))),
             |h, _| {
-                let desc = LtcShader::lobes(scene, &h.si)?;
+                let desc = self.lobes(scene, &h.si)?;
                 Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
             },
         )
+    }
+
+    /// How finely pixel shading shades a cluster at `p` ([`Refine::ramps`]): every member near
+    /// a light (from the cluster's extent at [`NEAR_FIELD`] of its distance) or for a lobe far
+    /// sharper than the cluster's angle ([`SHARP_EVERY`]); compared with its farthest member for
+    /// a sharp one ([`SHARP_COMPARE`]); once otherwise.
+    fn refine(&self, scene: &Scene, p: &SurfacePoint, extent: ClusterExtent) -> Refine {
+        let near = if extent.world > 0.0 {
+            extent.world / (NEAR_FIELD * self.nearest_light_distance(p.si.p.as_dvec3()))
+        } else {
+            0.0
+        };
+        let alpha = scene
+            .material_of(&p.si)
+            .and_then(|(m, materials, tx)| m.ltc_lobes(&p.si, materials, tx))
+            .and_then(|d| d.lobes.iter().filter_map(|l| l.ggx_alpha()).reduce(f32::min));
+        // How many times sharper than the thresholds the lobe is (0 without a glossy lobe).
+        let sharp = |k: f32| match alpha {
+            Some(a) if extent.angle > 0.0 => f64::from(k * extent.angle as f32 / a),
+            _ => 0.0,
+        };
+        let r = Refine::ramps(sharp(SHARP_EVERY), sharp(SHARP_COMPARE));
+        Refine { every: r.every.max(Refine::ramps(near, 0.0).every), compare: r.compare }
+    }
+
+    /// After the render: the counters into `stats`, and the warnings they call for.
+    pub fn finish(&self, stats: &mut RenderStats, warnings: &DiagSink) {
+        let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
+        let c = &self.counters;
+        for (k, v) in [
+            ("ltc_points", get(&c.points)),
+            ("ltc_quadrature_evals", get(&c.quadrature_evals)),
+            ("ltc_quadrature_splits", get(&c.quadrature_splits)),
+            ("ltc_beyond_table_points", get(&c.beyond_table)),
+        ] {
+            stats.counters.insert(k.into(), v as f64);
+        }
+        let beyond = get(&c.beyond_table);
+        if beyond > 0 {
+            let alpha_max = Ltc::ggx().map_or(0.0, |t| t.alpha_max);
+            warnings.warn(
+                None,
+                format!(
+                    "{}: \"glossy\" \"ltc\": {beyond} shading points have a lobe rougher than the LTC table \
+                     reaches (alpha > {alpha_max}): directlighting's estimator shaded them (\"glossy\" \"exact\" \
+                     is exact there)",
+                    self.name
+                ),
+            );
+        }
     }
 
     /// The area lights, one per emitting mesh and radiance.
@@ -197,16 +356,24 @@ impl LtcShader {
         self.groups.iter().map(|g| ((p - g.center).length() - g.radius).max(0.0)).fold(f64::INFINITY, f64::min)
     }
 
-    /// The LTC description of the material at `si` (`None`: no LTC form, or no material).
-    pub fn lobes(scene: &Scene, si: &SurfaceInteraction) -> Option<LtcDescription> {
-        let (m, _, tx) = scene.material_of(si)?;
-        m.ltc_lobes(si, tx)
+    /// The LTC description of the material at `si` (`None`: no LTC form, or no material, or —
+    /// with `"glossy" "ltc"`, which has no exact fallback of its own — a lobe rougher than the
+    /// table reaches: then `directlighting`'s estimator shades the point, counted).
+    pub fn lobes(&self, scene: &Scene, si: &SurfaceInteraction) -> Option<LtcDescription> {
+        let (m, materials, tx) = scene.material_of(si)?;
+        let d = m.ltc_lobes(si, materials, tx)?;
+        if self.settings.glossy == Glossy::Ltc && d.lobes.iter().any(|l| l.ggx_alpha().is_some_and(|a| !Ltc::covers(a)))
+        {
+            self.counters.beyond_table.fetch_add(1, Ordering::Relaxed);
+            return None;
+        }
+        Some(d)
     }
 
-    /// The diffuse albedo of [`Self::lobes`] alone (`None` exactly when it is `None`).
+    /// The diffuse albedo of [`Self::lobes`] (`None` when the material has no LTC form).
     pub fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Option<Rgb> {
-        let (m, _, tx) = scene.material_of(si)?;
-        m.ltc_diffuse(si, tx)
+        let (m, materials, tx) = scene.material_of(si)?;
+        m.ltc_diffuse(si, materials, tx)
     }
 
     /// Analytic radiance reflected towards `si.wo` from all area lights, with analytic
@@ -238,6 +405,7 @@ impl LtcShader {
         let receiver = Receiver { mesh: si.mesh as usize, tri: si.tri as usize, facing };
         let Some(at) = piece_frame(si, desc) else { return (d, s) };
         let mut q = PointQuery { at, receiver, shadows, scratch };
+        self.counters.points.fetch_add(1, Ordering::Relaxed);
         for g in &self.groups {
             if scene.meshes.get(g.mesh).is_none() {
                 continue;
@@ -258,7 +426,24 @@ impl LtcShader {
                 self.planar_light(scene, q, geom, (outline.as_slice(), *normal, *origin), &mut acc);
                 true
             }
-            LightShape::Convex(shape) => self.convex_light(scene, q, geom, shape, &mut acc),
+            LightShape::Convex(shape) => {
+                let sil = shape.sil.loops(q.at.p, shape.eps);
+                match sil.as_slice() {
+                    [] => true, // p inside (or edge-on everywhere): no face emits towards it
+                    [outline] => {
+                        let p = q.at.p;
+                        self.convex_light(scene, q, geom, || ConvexLight::new(shape, p), outline, &mut acc)
+                    }
+                    _ => false,
+                }
+            }
+            LightShape::Sphere(s) => match sphere_outline(q.at.p, s.center, s.radius, q.at.lobe_width()) {
+                None => true, // inside the sphere
+                Some(outline) => {
+                    let cl = || ConvexLight::sphere(&s.convex, s.center, s.radius);
+                    self.convex_light(scene, q, geom, cl, &outline, &mut acc)
+                }
+            },
         };
         if !whole {
             self.light_triangles(scene, q, geom, &mut acc);
@@ -266,14 +451,25 @@ impl LtcShader {
         let le = geom.l;
         let diffuse = le * acc.diffuse_ff.max(0.0) as f32;
         let mut out = Rgb::ZERO;
-        if let Some((s, coeffs)) = q.at.spec {
-            let spec_term = match self.settings.fresnel {
-                FresnelMode::Schlick => {
-                    fresnel_weight(&s.fresnel, coeffs.magnitude, coeffs.fresnel) * acc.spec_int.max(0.0) as f32
+        for (k, lc) in q.at.lobes.iter().enumerate() {
+            let term = match (self.settings.glossy, self.settings.fresnel) {
+                (Glossy::Exact, _) => acc.exact[k].as_vec3().max(Rgb::ZERO),
+                (Glossy::Ltc, FresnelMode::Schlick) => {
+                    let c = &lc.coeffs;
+                    lc.lobe.ltc_scale()
+                        * fresnel_weight(&lc.lobe.fresnel(), c.magnitude, c.fresnel)
+                        * acc.spec_int[k].max(0.0) as f32
                 }
-                FresnelMode::Average => (acc.spec_fresnel * coeffs.magnitude).max(Rgb::ZERO),
+                (Glossy::Ltc, FresnelMode::Average) => {
+                    lc.lobe.ltc_scale() * (acc.spec_fresnel[k] * lc.coeffs.magnitude).max(Rgb::ZERO)
+                }
             };
-            out += s.scale * spec_term * le;
+            out += term * le;
+        }
+        let st = &acc.quadrature;
+        if st.evals > 0 {
+            self.counters.quadrature_evals.fetch_add(st.evals, Ordering::Relaxed);
+            self.counters.quadrature_splits.fetch_add(st.splits, Ordering::Relaxed);
         }
         (diffuse, out)
     }
@@ -311,48 +507,43 @@ impl LtcShader {
             } else {
                 Some(Occluders::default())
             };
-            integrate_piece(self.settings.fresnel, &q.at, outline, occ.unwrap_or_default(), acc);
+            integrate_piece(&self.settings, &q.at, outline, occ.unwrap_or_default(), acc);
         }
     }
 
-    /// A convex light's silhouette as one piece; false when an occluder is not wholly in
-    /// front of it (then it is taken triangle by triangle).
-    fn convex_light(
+    /// A convex light's silhouette `outline` (world points) as one piece; false when an
+    /// occluder is not wholly in front of it (then it is taken triangle by triangle). `light`
+    /// makes what the occluders' separation tests need of it.
+    fn convex_light<'s>(
         &self,
         scene: &Scene,
         q: &mut PointQuery,
         geom: &LightGroup,
-        shape: &ConvexShape,
+        light: impl FnOnce() -> ConvexLight<'s>,
+        outline: &[DVec3],
         acc: &mut Accum,
     ) -> bool {
         let p = q.at.p;
-        let sil = shape.sil.loops(p, shape.eps);
-        match sil.as_slice() {
-            [] => true, // p inside (or edge-on everywhere): no face emits towards it
-            [outline] => {
-                let occ = if q.shadows {
-                    let cl = ConvexLight::new(shape, p);
-                    let pq = PieceQuery {
-                        p,
-                        skip: Skip::Mesh(geom.mesh),
-                        piece: outline,
-                        plane: None,
-                        separate: Some(&cl),
-                        receiver: q.receiver,
-                    };
-                    self.objects.occluders(scene, &pq, q.scratch)
-                } else {
-                    Some(Occluders::default())
-                };
-                match occ {
-                    Some(occ) => {
-                        integrate_piece(self.settings.fresnel, &q.at, outline, occ, acc);
-                        true
-                    }
-                    None => false,
-                }
+        let occ = if q.shadows {
+            let cl = light();
+            let pq = PieceQuery {
+                p,
+                skip: Skip::Mesh(geom.mesh),
+                piece: outline,
+                plane: None,
+                separate: Some(&cl),
+                receiver: q.receiver,
+            };
+            self.objects.occluders(scene, &pq, q.scratch)
+        } else {
+            Some(Occluders::default())
+        };
+        match occ {
+            Some(occ) => {
+                integrate_piece(&self.settings, &q.at, outline, occ, acc);
+                true
             }
-            _ => false,
+            None => false,
         }
     }
 
@@ -398,14 +589,14 @@ impl LtcShader {
             } else {
                 Occluders::default()
             };
-            integrate_piece(self.settings.fresnel, &q.at, &pv, occ, acc);
+            integrate_piece(&self.settings, &q.at, &pv, occ, acc);
         }
     }
 }
 
 /// The shading frame at `si` for `desc` (its normal turned to ωo's side: pbrt-v3's BSDFs
 /// reflect on whichever side ωo is, so a mesh wound inwards still lights up), ωo in it and
-/// the glossy lobe's LTC; `None` without a normal.
+/// the glossy lobes' LTCs; `None` without a normal.
 fn piece_frame(si: &SurfaceInteraction, desc: &LtcDescription) -> Option<PieceFrame> {
     let n = desc.n.normalize_or_zero();
     if n == Vec3::ZERO {
@@ -413,12 +604,21 @@ fn piece_frame(si: &SurfaceInteraction, desc: &LtcDescription) -> Option<PieceFr
     }
     let n = if n.dot(si.wo) < 0.0 { -n } else { n };
     let frame = Frame::toward(d3(n), d3(si.wo));
-    let spec = desc.specular.map(|s| {
-        let cos_o = frame.to_local(d3(si.wo)).z.clamp(0.0, 1.0);
-        (s, Ltc::lookup(cos_o as f32, s.alpha))
-    });
     let wo_local = frame.to_local(d3(si.wo));
-    Some(PieceFrame { p: d3(si.p), frame, wo_local, spec })
+    let cos_o = wo_local.z.clamp(0.0, 1.0) as f32;
+    let lobes = desc
+        .lobes
+        .iter()
+        .map(|lobe| {
+            let coeffs = match lobe.ggx_alpha() {
+                Some(a) => Ltc::lookup(cos_o, a),
+                // The cosine (FresnelBlend's diffuse term).
+                None => LtcCoeffs { minv: glam::DMat3::IDENTITY, magnitude: 1.0, fresnel: 0.0 },
+            };
+            LobeLtc { lobe: *lobe, coeffs }
+        })
+        .collect();
+    Some(PieceFrame { p: d3(si.p), frame, wo_local, lobes })
 }
 
 /// The scene's area lights gathered per emitting mesh, radiance and sidedness, with the

@@ -9,6 +9,7 @@
 use super::fit::{Fit, FitParams};
 use super::Sphere;
 use glam::DVec3;
+use penumbra_core::fnv::Fnv1a;
 use penumbra_core::mesh::TriangleMesh;
 use std::path::{Path, PathBuf};
 
@@ -26,24 +27,9 @@ pub fn default_dir() -> Option<PathBuf> {
     std::env::var_os("HOME").filter(|d| !d.is_empty()).map(|h| PathBuf::from(h).join(".cache/penumbra/spheresets"))
 }
 
-/// FNV-1a, 64 bit: stable across builds and platforms (unlike `std`'s hasher).
-struct Fnv(u64);
-
-impl Fnv {
-    fn bytes(&mut self, b: &[u8]) {
-        for &x in b {
-            self.0 ^= x as u64;
-            self.0 = self.0.wrapping_mul(0x100_0000_01b3);
-        }
-    }
-    fn u64(&mut self, v: u64) {
-        self.bytes(&v.to_le_bytes());
-    }
-}
-
 /// The cache key of `mesh` fitted with `params`.
 pub fn key(mesh: &TriangleMesh, params: &FitParams) -> u64 {
-    let mut h = Fnv(0xcbf2_9ce4_8422_2325);
+    let mut h = Fnv1a::new();
     h.u64(FIT_VERSION);
     for v in [params.spheres, params.inner_points, params.surface_points, params.iterations, params.teleports] {
         h.u64(v as u64);
@@ -60,7 +46,7 @@ pub fn key(mesh: &TriangleMesh, params: &FitParams) -> u64 {
             h.bytes(&i.to_le_bytes());
         }
     }
-    h.0
+    h.finish()
 }
 
 fn path(dir: &Path, key: u64) -> PathBuf {

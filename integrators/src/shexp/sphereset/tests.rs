@@ -226,7 +226,11 @@ fn cache_round_trip_and_unwritable_dir() {
     // A moved, turned and scaled copy is the same shape: the same entry, the same spheres moved.
     let rot = glam::DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 37f64.to_radians());
     let moved = TriangleMesh {
-        positions: t.positions.iter().map(|p| (rot * (p.as_dvec3() * 3.0) + DVec3::new(5.0, -2.0, 1.0)).as_vec3()).collect(),
+        positions: t
+            .positions
+            .iter()
+            .map(|p| (rot * (p.as_dvec3() * 3.0) + DVec3::new(5.0, -2.0, 1.0)).as_vec3())
+            .collect(),
         ..t.clone()
     };
     let copy = build_for_scene(std::slice::from_ref(&moved), &objs, &small(), OpenMeshes::Shells, Some(&dir));
@@ -236,16 +240,26 @@ fn cache_round_trip_and_unwritable_dir() {
         assert!(a.center.distance(back) < 1e-5 && (a.radius - b.radius / 3.0).abs() < 1e-5, "{a:?} {b:?}");
     }
     // Another leaf count is another key.
-    let other = build_for_scene(std::slice::from_ref(&t), &objs, &FitParams { spheres: 5, ..small() }, OpenMeshes::Shells, Some(&dir));
+    let other = build_for_scene(
+        std::slice::from_ref(&t),
+        &objs,
+        &FitParams { spheres: 5, ..small() },
+        OpenMeshes::Shells,
+        Some(&dir),
+    );
     assert_eq!(other.cache_misses, 1);
     // A corrupt file is refitted, not trusted.
     let key = cache::key(&Canonical::of(&t).local, &small());
     std::fs::write(dir.join(format!("{key:016x}.spheres")), "penumbra spheres v1 garbage\n").unwrap();
-    assert_eq!(build_for_scene(std::slice::from_ref(&t), &objs, &small(), OpenMeshes::Shells, Some(&dir)).cache_misses, 1);
+    assert_eq!(
+        build_for_scene(std::slice::from_ref(&t), &objs, &small(), OpenMeshes::Shells, Some(&dir)).cache_misses,
+        1
+    );
     // A directory that cannot be created (below a regular file) fails nothing.
     let file = dir.join("not-a-dir");
     std::fs::write(&file, "x").unwrap();
-    let blocked = build_for_scene(std::slice::from_ref(&t), &objs, &small(), OpenMeshes::Shells, Some(&file.join("sub")));
+    let blocked =
+        build_for_scene(std::slice::from_ref(&t), &objs, &small(), OpenMeshes::Shells, Some(&file.join("sub")));
     assert!(blocked.cache_error.is_some());
     assert_eq!(blocked.sets[0].leaves, first.sets[0].leaves);
     let _ = std::fs::remove_dir_all(&dir);
@@ -327,7 +341,11 @@ fn zz_debug_canonical() {
     let t = torus(1.0, 0.3, 24, 12);
     let rot = glam::DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 37f64.to_radians());
     let moved = TriangleMesh {
-        positions: t.positions.iter().map(|p| (rot * (p.as_dvec3() * 3.0) + DVec3::new(5.0, -2.0, 1.0)).as_vec3()).collect(),
+        positions: t
+            .positions
+            .iter()
+            .map(|p| (rot * (p.as_dvec3() * 3.0) + DVec3::new(5.0, -2.0, 1.0)).as_vec3())
+            .collect(),
         ..t.clone()
     };
     let (a, b) = (Canonical::of(&t), Canonical::of(&moved));

@@ -1,0 +1,311 @@
+//! Real pbrt-v3 scenes as pbrt-v3 renders them (issue 34): the scenes of `scenes/real/` against
+//! the real pbrt-v3's renders of them (`tests/data/real-references/`, made by
+//! `tools/render_real_references.py` with each scene's own sampler, sample count and
+//! resolution — pbrt-v3's image depends on both through its ray differentials), so these
+//! tests run on a fresh clone.
+//!
+//! - images: every PNG/TGA/EXR/PFM layout pbrt-v3's `ReadImage` reads (`image-formats`);
+//! - orientation: `ReverseOrientation` and mirroring transforms on disk, sphere, cylinder and
+//!   triangle-mesh area lights, with and without normals, one- and two-sided;
+//! - ray differentials: an image-bumped sphere, a box of noise textures, a trilinear/EWA
+//!   checkerboard at a grazing angle, mirror and glass spheres over a checkerboard, the
+//!   orthographic and environment cameras — each through `directlighting` and, where their
+//!   expected images are the same, `whitted`, `path` (maxdepth 1) and `ltc`;
+//! - sphere lights sampled by their cone, and quadric lights under scales that pbrt-v3 samples
+//!   in object space.
+//!
+//! Tolerances: the image mean within 1 % (the issue's check), values and 8×8 regions within
+//! the noise of both images (ours estimated per pixel, the reference's taken equal to ours:
+//! same sampler, same sample count; see `common::assert_matches_reference`).
+
+mod common;
+use common::*;
+use penumbra_core::image::Image;
+
+fn reference(name: &str) -> Image {
+    penumbra_core::image::read(root().join(format!("tests/data/real-references/{name}.exr")))
+        .unwrap()
+        .select_channels(&["R", "G", "B"])
+        .unwrap()
+}
+
+/// Renders `scenes/real/NAME.pbrt` as written (its sampler, sample count and resolution) with
+/// `integrator` and its `params`, and compares it with pbrt-v3's `directlighting` reference.
+fn check_with(name: &str, integrator: &str, params: &[&str]) -> Render {
+    let ours = render_path(
+        &scene(&format!("real/{name}.pbrt")),
+        &Opts { integrator: Some(integrator), params, resolution: None, ..Default::default() },
+    );
+    let reference = reference(name);
+    let label = format!("{name} ({integrator})");
+    assert_matches_reference(&label, &ours, &reference, 1.0, 0.01);
+    assert_regions_match(&label, &ours, &reference, 1.0, 8);
+    ours
+}
+
+fn check(name: &str) -> Render {
+    check_with(name, "directlighting", &[])
+}
+
+#[test]
+fn images_of_every_layout_read_as_pbrt_v3_reads_them() {
+    let r = check("image-formats");
+    assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+}
+
+/// The decompression guard refuses a texture whose decoded size exceeds the cap, naming the
+/// file, its size and the cap; the render fails cleanly and writes nothing.
+#[test]
+fn decompression_guard_names_the_file_and_the_cap() {
+    let dir = cli_dir("real-guard");
+    let out = dir.join("out.exr");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .current_dir(&dir)
+        .env("PENUMBRA_MAX_IMAGE_BYTES", "2000")
+        .args(["render", "-q", "--spp", "1"])
+        .arg(scene("real/image-formats.pbrt"))
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("grey1.png") && err.contains("32×32×3") && err.contains("2000-byte limit"), "{err}");
+    assert!(err.contains("PENUMBRA_MAX_IMAGE_BYTES"), "{err}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn reverse_orientation_and_mirrors_on_quadric_lights() {
+    for name in ["orientation-disk", "orientation-sphere", "orientation-cylinder"] {
+        check(name);
+    }
+}
+
+#[test]
+fn reverse_orientation_and_mirrors_on_triangle_lights() {
+    for name in ["orientation-triangles", "orientation-normals", "orientation-twosided"] {
+        check(name);
+    }
+}
+
+#[test]
+fn ray_differentials_filter_textures_and_bump_maps() {
+    for name in ["bump-image-sphere", "noise-box", "filter-plane"] {
+        check(name);
+    }
+}
+
+/// Reflection and refraction carry the differentials (pbrt-v3's `SpecularReflect`/`Transmit`):
+/// `whitted` follows the same specular chains as `directlighting` (same expected image).
+#[test]
+fn ray_differentials_through_specular_bounces() {
+    check("specular-differentials");
+    check_with("specular-differentials", "whitted", &[]);
+}
+
+#[test]
+fn ray_differentials_of_orthographic_and_environment_cameras() {
+    check("camera-orthographic");
+    check("camera-environment");
+}
+
+/// Every integrator shades a camera ray's first surface with its differentials (the shared
+/// `Scene::first_point`): `path` with one bounce and `whitted` see the same expected image as
+/// `directlighting` in scenes without specular surfaces; `ltc` integrates the noise box's matte
+/// walls under its area light exactly, so it must give `directlighting`'s image (its block
+/// unbumped: `ltc` clamps the cosine at a bumped shading normal where pbrt-v3's BSDF takes its
+/// absolute value, a separate matter). `ltc`'s image is nearly noise-free, so the noise is
+/// `directlighting`'s.
+#[test]
+fn every_integrator_takes_the_camera_differentials() {
+    check_with("filter-plane", "whitted", &[]);
+    check_with("noise-box", "path", &["maxdepth=1"]);
+    check_with("bump-image-sphere", "path", &["maxdepth=1"]);
+    let text =
+        std::fs::read_to_string(scene("real/noise-box.pbrt")).unwrap().replace(" \"texture bumpmap\" \"bump\"", "");
+    let desc = penumbra_parser::parse_str(&text, "noise-box-unbumped", Some(&scene("real"))).unwrap().scene;
+    let dl = render_desc(&desc, &Opts { resolution: None, spp: Some(64), ..Default::default() });
+    let mut ltc =
+        render_desc(&desc, &Opts { integrator: Some("ltc"), resolution: None, spp: Some(64), ..Default::default() });
+    ltc.variance = dl.variance;
+    assert_matches_reference("noise-box unbumped (ltc vs directlighting)", &ltc, &dl.image, 0.0, 0.01);
+    assert_regions_match("noise-box unbumped (ltc vs directlighting)", &ltc, &dl.image, 0.0, 8);
+}
+
+#[test]
+fn sphere_lights_sampled_by_their_cone() {
+    check("sphere-lights");
+}
+
+/// pbrt-v3's scaled and partial quadric lights are reproduced by default, with a warning that
+/// names the scale; `"string shapesampling" "physical"` gives the light the geometry emits: a
+/// sphere of radius 2.5 scaled by 0.2 then renders as a sphere of radius 0.5.
+#[test]
+fn scaled_quadric_lights_as_pbrt_v3_and_physically() {
+    let r = check("scaled-quadric-lights");
+    for what in ["sphere scaled by 0.2000", "sphere scaled by 2.0000", "disk scaled by 0.5000", "partial sphere"] {
+        assert!(r.warnings.iter().any(|w| w.contains(what) && w.contains("shapesampling")), "{what}: {:?}", r.warnings);
+    }
+    let scene_with = |light: &str| {
+        format!(
+            "LookAt 0 -6 4  0 0 0.5  0 0 1\nCamera \"perspective\" \"float fov\" [45]\n\
+             Sampler \"halton\" \"integer pixelsamples\" [64]\n\
+             Film \"image\" \"integer xresolution\" [32] \"integer yresolution\" [32]\nWorldBegin\n\
+             AttributeBegin\nTranslate 0.5 0 1.5\n{light}\nAttributeEnd\n\
+             Material \"matte\" \"rgb Kd\" [0.5 0.5 0.5]\n\
+             Shape \"trianglemesh\" \"point P\" [-6 -6 0  6 -6 0  6 6 0  -6 6 0] \"integer indices\" [0 1 2 0 2 3]\n\
+             Shape \"trianglemesh\" \"point P\" [-1 -1 0.8  1 -1 0.8  1 1 0.8  -1 1 0.8] \"integer indices\" [0 2 1 0 3 2]\n\
+             WorldEnd\n"
+        )
+    };
+    let o = Opts { resolution: None, sampler: Some("random"), ..Default::default() };
+    let unscaled = render_text(
+        &scene_with("AreaLightSource \"diffuse\" \"rgb L\" [4 4 4]\nShape \"sphere\" \"float radius\" [0.5]"),
+        &o,
+    );
+    let physical = render_text(
+        &scene_with(
+            "Scale 0.2 0.2 0.2\nAreaLightSource \"diffuse\" \"rgb L\" [4 4 4] \"string shapesampling\" \"physical\"\n\
+             Shape \"sphere\" \"float radius\" [2.5]",
+        ),
+        &o,
+    );
+    let pbrt = render_text(
+        &scene_with(
+            "Scale 0.2 0.2 0.2\nAreaLightSource \"diffuse\" \"rgb L\" [4 4 4]\nShape \"sphere\" \"float radius\" [2.5]",
+        ),
+        &o,
+    );
+    assert!(physical.warnings.is_empty(), "{:?}", physical.warnings);
+    // Independent random-sampler renders: their means differ by noise alone (standard error
+    // from the per-pixel variances).
+    let se = |r: &Render| (r.variance.data.iter().map(|v| *v as f64).sum::<f64>()).sqrt() / r.image.data.len() as f64;
+    let (mu, mp, mb) = (mean(&unscaled.image), mean(&physical.image), mean(&pbrt.image));
+    let z = (mp - mu) / (se(&unscaled).powi(2) + se(&physical).powi(2)).sqrt();
+    eprintln!("unscaled {mu:.5}, scaled physical {mp:.5} (z {z:.2}), scaled as pbrt-v3 {mb:.5}");
+    assert!(z.abs() < 4.0, "physical scaled sphere {mp} vs unscaled {mu} (z = {z:.1})");
+    assert!(mb > 2.0 * mu, "pbrt-v3's scaled sphere is several times brighter: {mb} vs {mu}");
+}
+
+/// Alpha cut-outs as pbrt-v3's `Triangle::Intersect`/`IntersectP` apply them, in closest-hit
+/// and shadow queries alike: an image mask with (u, v) given, `shadowalpha` only, a procedural
+/// mask on the default per-triangle (u, v) under a mirroring transform, a card cut out
+/// entirely (it would shade most of the floor), fractional alpha (opaque) and a sphere
+/// (pbrt-v3 reads no alpha there). `path` with one bounce sees the same expected image; `ltc`
+/// cannot represent a cut-out in its analytic visibility, so it lights the scene with
+/// directlighting's estimator (same expected image) and says so; `silhouette` and `shexp`
+/// refuse the scene, naming the shape and its location, and write nothing.
+#[test]
+fn alpha_cutouts_in_closest_hit_and_shadow_queries() {
+    let r = check("cutout-cards");
+    assert!(r.warnings.iter().all(|w| w.contains("\"float alpha\" unused by shape \"sphere\"")), "{:?}", r.warnings);
+    check_with("cutout-cards", "path", &["maxdepth=1"]);
+    let ltc = check_with("cutout-cards", "ltc", &[]);
+    assert!(
+        ltc.warnings.iter().any(|w| w.contains("ltc: shape \"trianglemesh\" has an alpha cut-out")
+            && w.contains("directlighting's estimator")),
+        "{:?}",
+        ltc.warnings
+    );
+    let dir = cli_dir("real-cutouts");
+    let path = scene("real/cutout-cards.pbrt");
+    for integrator in ["silhouette", "shexp"] {
+        let out = dir.join(format!("{integrator}.exr"));
+        let o = penumbra(
+            &dir,
+            &["render", "-q", "--spp", "1", "-i", integrator, path.to_str().unwrap(), "-o", out.to_str().unwrap()],
+        );
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{integrator}: {err}");
+        assert!(
+            err.contains("cutout-cards.pbrt:21:1") && err.contains("cut-out") && err.contains("bool occluder"),
+            "{integrator}: {err}"
+        );
+        assert!(!out.exists(), "{integrator}");
+    }
+}
+
+/// Camera motion blur (pbrt-v3's `AnimatedTransform` for `CameraToWorld`, the shutter over
+/// `TransformTimes`): rotation and translation interpolated per camera ray. Without the motion
+/// (the start keyframe only) the image is far from pbrt-v3's: several times the RMSE.
+#[test]
+fn camera_motion_blur_as_pbrt_v3() {
+    let moving = check("camera-motion");
+    assert!(moving.warnings.is_empty(), "{:?}", moving.warnings);
+    let text = std::fs::read_to_string(scene("real/camera-motion.pbrt")).unwrap();
+    let fixed = text.replace("ActiveTransform EndTime\nLookAt 1.2 -3.6 2.2  0.3 0 0.3  0.2 0 1\n", "");
+    assert_ne!(fixed, text);
+    let desc = penumbra_parser::parse_str(&fixed, "camera-fixed", Some(&scene("real"))).unwrap().scene;
+    let still = render_desc(&desc, &Opts { resolution: None, ..Default::default() });
+    let reference = reference("camera-motion");
+    let (e_moving, e_still) = (rmse(&moving.image, &reference), rmse(&still.image, &reference));
+    eprintln!("camera-motion RMSE vs pbrt-v3: moving {e_moving:.2e}, start keyframe only {e_still:.2e}");
+    assert!(e_still > 4.0 * e_moving, "moving {e_moving} vs still {e_still}");
+}
+
+/// `nurbs` tessellated as pbrt-v3's `CreateNURBS` (30 × 30 evaluations over [u0, u1] ×
+/// [v0, v1], normals from ∂p/∂u × ∂p/∂v, (u, v) the parameters): a bicubic patch with uneven
+/// knots under a checkerboard in (u, v), a rational quarter cylinder ("Pw") cut by "u1", and an
+/// emitting bilinear patch whose emitting side is that of ∂p/∂u × ∂p/∂v. A skipped NURBS
+/// would leave the image black. Malformed knot vectors are errors at the parameter.
+#[test]
+fn nurbs_tessellated_as_pbrt_v3() {
+    let r = check("nurbs");
+    assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+    let dir = cli_dir("real-nurbs");
+    let bad = dir.join("bad.pbrt");
+    let text = std::fs::read_to_string(scene("real/nurbs.pbrt")).unwrap();
+    let line = text.lines().position(|l| l.contains("[0 0 0 0 2 2 2 2]")).unwrap() + 1;
+    std::fs::write(&bad, text.replace("[0 0 0 0 2 2 2 2]", "[0 0 0 2 2 2 2]")).unwrap();
+    let o = penumbra(&dir, &["info", bad.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains(&format!("bad.pbrt:{line}:")) && err.contains("7 knots in \"uknots\", 4 control points + order 4"),
+        "{err}"
+    );
+}
+
+/// `curve` ribbons (Bézier and b-spline bases of degree 2 and 3, normals slerped, widths
+/// lerped) rendered as the strips pbrt-v3's intersection approximates, with a warning: pbrt-v3
+/// narrows a ribbon where the ray runs along it, which a mesh cannot do. Measured against
+/// pbrt-v3 on `curve-ribbons` (narrow ribbons): mean +0.43 %, but 8×8 regions in a ribbon's
+/// shadow differ beyond the noise (|z| 13.9) — the strict comparison is
+/// [`ribbon_curves_match_pbrt_v3`], a known failure of issue 34. Here: the warning, the
+/// located errors, `flat`/`cylinder` skipped with a warning naming the type.
+#[test]
+fn ribbon_curves_as_strips_with_a_warning() {
+    let r = render_path(&scene("real/curve-ribbons.pbrt"), &Opts { resolution: None, ..Default::default() });
+    assert_eq!(r.warnings.len(), 3, "{:?}", r.warnings);
+    assert!(
+        r.warnings.iter().all(|w| w.contains("curve type \"ribbon\"") && w.contains("narrows")),
+        "{:?}",
+        r.warnings
+    );
+    // The strips are there: without them the image is the floor's alone (pbrt-v3's mean is 0.1450).
+    assert!((mean(&r.image) / mean(&reference("curve-ribbons")) - 1.0).abs() < 0.01);
+    let dir = cli_dir("real-curves");
+    let text = std::fs::read_to_string(scene("real/curve-ribbons.pbrt")).unwrap();
+    let line = text.lines().position(|l| l.contains("-1.3 0 0.05")).unwrap() + 1;
+    let bad = dir.join("bad.pbrt");
+    std::fs::write(&bad, text.replace("-1.3 0 0.05  ", "")).unwrap();
+    let o = penumbra(&dir, &["info", bad.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains(&format!("bad.pbrt:{line}:")) && err.contains("6 control points"), "{err}");
+    let flat = dir.join("flat.pbrt");
+    std::fs::write(&flat, text.replacen("\"string type\" \"ribbon\"", "\"string type\" \"cylinder\"", 1)).unwrap();
+    let o = penumbra(&dir, &["info", flat.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
+    assert!(o.status.success() && err.contains("curve type \"cylinder\"") && err.contains("skipped"), "{err}");
+}
+
+/// Known failure (issue 34): ribbons as pbrt-v3 intersects them need a curve primitive whose
+/// width depends on the ray; the tessellated strip differs in the shadows of ribbons lit along
+/// their length.
+#[test]
+#[ignore = "known failure, issue 34: pbrt-v3's ribbons narrow along the ray; ours are meshes"]
+fn ribbon_curves_match_pbrt_v3() {
+    check("curve-ribbons");
+}
