@@ -410,7 +410,8 @@ mod tests {
     /// receiver, so that most draws fall back.
     #[test]
     fn the_factor_is_the_unblocked_share() {
-        let cases: [(DVec3, f64, fn(DVec3) -> [f32; 3]); 2] = [
+        type Map = fn(DVec3) -> [f32; 3];
+        let cases: [(DVec3, f64, Map); 2] = [
             (DVec3::new(0.3, -0.2, 0.9).normalize(), 0.3, |d: DVec3| {
                 [1.0 + 0.8 * d.x as f32, 0.5, 0.2 + d.z.max(0.0) as f32]
             }),
