@@ -307,3 +307,46 @@ pub fn shade_clusters<T: Blend>(
     }
     shaded
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The weights are continuous in the differences and thresholds they replace: 0 up to the
+    /// old threshold (the switch's values and cost), 1 from twice it, no step anywhere between.
+    #[test]
+    fn weights_are_continuous_ramps_from_the_old_thresholds() {
+        assert_eq!(refine_weight(REFINE), 0.0);
+        assert_eq!(refine_weight(REFINE_FULL), 1.0);
+        assert_eq!(refine_weight(f32::NAN), 1.0);
+        assert_eq!(Refine::ramps(1.0, 1.0), Refine::ONCE);
+        assert_eq!(Refine::ramps(2.0, 2.0), Refine { every: 1.0, compare: 1.0 });
+        let mut prev = 0.0f32;
+        for i in 0..=4000 {
+            let d = 0.3 * i as f32 / 4000.0;
+            let w = refine_weight(d);
+            assert!(w >= prev && w - prev <= 1e-3, "d {d}: {prev} -> {w}");
+            prev = w;
+        }
+        // A pair of values just either side of the old 10 % threshold blends to nearly the
+        // shared value on both sides (the switch gave the shared value, then the member's own).
+        let shared = Rgb::splat(1.0);
+        let (below, above) = (Rgb::splat(0.9 + 1e-6), Rgb::splat(0.9 - 1e-6));
+        let (a, b) = (
+            shared.blend(&below, refine_weight(rgb_difference(shared, below))),
+            shared.blend(&above, refine_weight(rgb_difference(shared, above))),
+        );
+        assert!((a - b).abs().max_element() < 1e-4, "{a} vs {b}");
+    }
+
+    /// The ends of a blend are the shared value and the member's own, bit for bit; `None` has
+    /// nothing to blend.
+    #[test]
+    fn blends_end_exactly() {
+        let (s, o) = (Some(Rgb::new(0.3, 0.1, 7.0)), Some(Rgb::new(0.2, 0.4, 1e-3)));
+        assert_eq!(s.blend(&o, 0.0), s);
+        assert_eq!(s.blend(&o, 1.0), o);
+        assert_eq!(s.blend(&None, 0.5), None);
+        assert_eq!(None.blend(&o, 0.5), o);
+    }
+}
