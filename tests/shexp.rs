@@ -879,7 +879,11 @@ fn open_shapes_match_pbrt_v3() {
     let (a, b) = (common::mean(&r.image), common::mean(&reference));
     let (ours, theirs) = (block_means(&r.image), block_means(&reference));
     let worst = ours.iter().zip(&theirs).map(|(o, t)| (o / t - 1.0).abs()).fold(0.0, f64::max);
-    eprintln!("open-shapes/combined 64², 16 spp: mean {a:.5} vs pbrt-v3 {b:.5} ({:+.2} %), worst 8×8 block {:.2} %", 100.0 * (a / b - 1.0), 100.0 * worst);
+    eprintln!(
+        "open-shapes/combined 64², 16 spp: mean {a:.5} vs pbrt-v3 {b:.5} ({:+.2} %), worst 8×8 block {:.2} %",
+        100.0 * (a / b - 1.0),
+        100.0 * worst
+    );
     assert!((a / b - 1.0).abs() <= 0.02, "image mean {a} vs {b}");
     assert!(worst <= 0.05, "an 8×8 block {:.2} % off", 100.0 * worst);
     for kind in ["cylinder", "cone", "paraboloid", "hyperboloid", "disk"] {
