@@ -683,11 +683,14 @@ fn interreflection_recovers_most_of_paths_one_bounce_light() {
 }
 
 /// The shares of path's one-bounce light measured by the test above (RMS of the difference:
-/// ball 16 %, studio 44 % of path's).
+/// ball 16 %, studio 44 % of path's). The studio's were 0.763 and 0.704 with the fit of world
+/// coordinates; fitted in snapped canonical coordinates (`sphereset::Canonical`, fit version
+/// 4) its spheres overshadow the ground less and the measured shares are 0.815 and 0.733
+/// (unchanged with pixel shading's hard switch in place of the blend).
 const GROUND_BALL: f64 = 0.978;
 const SPHERE_BALL: f64 = 0.963;
-const GROUND_STUDIO: f64 = 0.763;
-const OBJECTS_STUDIO: f64 = 0.704;
+const GROUND_STUDIO: f64 = 0.815;
+const OBJECTS_STUDIO: f64 = 0.733;
 
 #[test]
 fn objects_of_albedo_zero_reflect_nothing() {
