@@ -248,12 +248,6 @@ const KNOWN: &[Known] = &[
                +1.38 % / 9.7 %, uber-opacity and tex-scale-mix blocks 3.9 % (the roughness sweeps now pass)",
     },
     Known {
-        run: "shexp",
-        cells: &["shape/shape-heightfield", "shape/shape-instances"],
-        issue: 39,
-        what: "shexp's open-mesh shadows: heightfield −2.4 % mean / +9.1 % block, instances +4.1 % / +19.5 %",
-    },
-    Known {
         run: "silhouette mode=ao",
         cells: &["camera/camera-orthographic-dof"],
         issue: 37,

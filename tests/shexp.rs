@@ -468,7 +468,7 @@ fn with_sphere_sets(desc: &penumbra_parser::SceneDescription, spheres: u32) -> S
     let mut scene = Scene::build(desc, req, &BuildOptions::default(), &DiagSink::new()).unwrap();
     let params = sphereset::fit::FitParams { spheres, ..Default::default() };
     let dir = sphereset::cache::default_dir();
-    let sets = sphereset::build_for_scene(&scene.meshes, &scene.objects, &params, dir.as_deref());
+    let sets = sphereset::build_for_scene(&scene.meshes, &scene.objects, &params, Default::default(), dir.as_deref());
     scene.prepared = Some(std::sync::Arc::new(sets));
     scene
 }
@@ -683,11 +683,15 @@ fn interreflection_recovers_most_of_paths_one_bounce_light() {
 }
 
 /// The shares of path's one-bounce light measured by the test above (RMS of the difference:
-/// ball 16 %, studio 44 % of path's).
+/// ball 16 %, studio 44 % of path's). The studio's were 0.763 and 0.704 before issue 39's
+/// sphere-set changes (fit in snapped canonical coordinates, `sphereset::Canonical`, fit
+/// version 4; the ground plane's choice); measured since: 0.815 and 0.733, nearer path's (the
+/// same with pixel shading's hard switch in place of the blend; which change moved them was
+/// not separated).
 const GROUND_BALL: f64 = 0.978;
 const SPHERE_BALL: f64 = 0.963;
-const GROUND_STUDIO: f64 = 0.763;
-const OBJECTS_STUDIO: f64 = 0.704;
+const GROUND_STUDIO: f64 = 0.815;
+const OBJECTS_STUDIO: f64 = 0.733;
 
 #[test]
 fn objects_of_albedo_zero_reflect_nothing() {
@@ -843,5 +847,54 @@ fn pixel_shading_matches_sample_shading() {
         eprintln!("{name}: pixel vs sample shading, 16 spp, relative RMSE {e:.4}, evaluations {ratio:.3}");
         assert!(e < 0.03, "{name}: relative RMSE {e}");
         assert!(ratio < 0.4, "{name}: {ratio} of sample shading's evaluations");
+    }
+}
+
+/// The 8×8-pixel block means (over the colour channels) of a `w`-wide image.
+fn block_means(img: &penumbra_core::image::Image) -> Vec<f64> {
+    let (w, h) = (img.width as usize, img.height as usize);
+    let mut out = Vec::new();
+    for by in 0..h / 8 {
+        for bx in 0..w / 8 {
+            let mut s = 0.0;
+            for y in by * 8..by * 8 + 8 {
+                for x in bx * 8..bx * 8 + 8 {
+                    s += (0..3).map(|c| img.data[(y * w + x) * 3 + c] as f64).sum::<f64>();
+                }
+            }
+            out.push(s / (64.0 * 3.0));
+        }
+    }
+    out
+}
+
+/// Issue 39: open quadrics and meshes (an open cylinder and cone, a paraboloid, a hyperboloid,
+/// partial spheres, an annulus, an open triangle sheet) shadow and receive as in pbrt-v3: their
+/// shadows are traced (`"openmeshes" "trace"`, one warning per object). The issue's goal: the
+/// image mean within 2 % and no 8×8 block beyond 5 % of pbrt-v3's (1024 spp, whose block noise
+/// is far below that). Measured 64², 16 spp: mean +0.01 %, worst block −3.65 % against
+/// directlighting at 256 spp; the conservative shells (`"shells"`, the method before) −6.96 %
+/// and a block −57 % (the open cylinder's inside black), so the test fails on them.
+#[test]
+fn open_shapes_match_pbrt_v3() {
+    let r = render_scene("open-shapes/combined.pbrt", &[], 64, 16);
+    let reference = common::reference("open-shapes/combined.exr");
+    assert!(r.image.data.iter().all(|v| v.is_finite()));
+    let (a, b) = (common::mean(&r.image), common::mean(&reference));
+    let (ours, theirs) = (block_means(&r.image), block_means(&reference));
+    let worst = ours.iter().zip(&theirs).map(|(o, t)| (o / t - 1.0).abs()).fold(0.0, f64::max);
+    eprintln!(
+        "open-shapes/combined 64², 16 spp: mean {a:.5} vs pbrt-v3 {b:.5} ({:+.2} %), worst 8×8 block {:.2} %",
+        100.0 * (a / b - 1.0),
+        100.0 * worst
+    );
+    assert!((a / b - 1.0).abs() <= 0.02, "image mean {a} vs {b}");
+    assert!(worst <= 0.05, "an 8×8 block {:.2} % off", 100.0 * worst);
+    for kind in ["cylinder", "cone", "paraboloid", "hyperboloid", "disk"] {
+        assert!(
+            r.warnings.iter().any(|w| w.contains(&format!("open mesh \"{kind}\"")) && w.contains("traced")),
+            "no warning names the traced {kind}: {:?}",
+            r.warnings
+        );
     }
 }

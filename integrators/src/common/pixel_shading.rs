@@ -1,8 +1,9 @@
 //! Pixel shading ("multisample antialiasing"): the camera samples of a pixel only resolve
 //! which surfaces the pixel sees and where their edges run; samples that see the same smooth
-//! piece of surface form a cluster, shaded once at its most central member. `ltc` and `ratio`
-//! use it through `PixelEstimator::begin_pixel`; the value shaded per cluster is the
-//! integrator's (`T`).
+//! piece of surface form a cluster, shaded once at its most central member. `ltc`, `ratio`,
+//! `silhouette` and `shexp` use it through `PixelEstimator::begin_pixel`; the value shaded per
+//! cluster is the integrator's (`T`, which [`Blend`]s: where the lighting varies across a
+//! cluster its members take a blend of the shared value and their own, [`shade_clusters`]).
 
 use super::params::{ParamSpec, Params};
 use glam::{DVec2, DVec3};
@@ -20,14 +21,76 @@ pub const SHADING: ParamSpec = ParamSpec::choice(
     "shade each surface a pixel sees once (camera samples only anti-alias), or every camera sample",
 );
 
-/// Pixel shading's refinement threshold for noise-free shaders (`silhouette`, `shexp`): two
-/// samples of one surface in a pixel whose values differ by more than this fraction of the
-/// larger in any colour make every sample of it shaded ([`shade_clusters`]' `differs`).
+/// Pixel shading's refinement band for noise-free shaders (`silhouette`, `shexp`): a cluster
+/// whose two shaded samples differ by `d` (the largest difference in any colour as a fraction
+/// of the larger value, [`rgb_difference`]) gives each member `(1 − w)` of the shared value
+/// plus `w` of its own, `w` rising linearly from 0 at `d =` [`REFINE`] to 1 at `d =`
+/// [`REFINE_FULL`] ([`refine_weight`]). A hard switch at one threshold let rounding decide
+/// between the shared value and the member's own: the scene scaled by 1e4 or turned changed
+/// single pixels by a few percent (`penumbra stability`); the blend makes a pixel a continuous
+/// function of the values. Below [`REFINE`] nothing changes: the same members are shaded as
+/// with the switch, so the cost is the switch's.
 pub const REFINE: f32 = 0.1;
+/// The difference from which a member takes its own value alone.
+pub const REFINE_FULL: f32 = 0.2;
 
-/// Whether two shaded values differ by more than [`REFINE`] of the larger in any colour.
-pub fn rgb_differs(a: Rgb, b: Rgb) -> bool {
-    ((a - b).abs() - REFINE * a.abs().max(b.abs())).max_element() > 0.0
+/// The largest difference of two shaded values in any colour, as a fraction of the larger
+/// (0 where both are 0).
+pub fn rgb_difference(a: Rgb, b: Rgb) -> f32 {
+    let (d, m) = ((a - b).abs(), a.abs().max(b.abs()));
+    (0..3).map(|c| if m[c] > 0.0 { d[c] / m[c] } else { 0.0 }).fold(0.0, f32::max)
+}
+
+/// The weight of a member's own value for a cluster whose two shaded samples differ by `d`
+/// ([`REFINE`]; 1 for a NaN).
+pub fn refine_weight(d: f32) -> f32 {
+    ramp(d, REFINE, REFINE_FULL)
+}
+
+/// 0 up to `lo`, 1 from `hi`, linear between; 1 for a NaN `x`.
+fn ramp(x: f32, lo: f32, hi: f32) -> f32 {
+    let w = (x - lo) / (hi - lo);
+    if w.is_nan() {
+        1.0
+    } else {
+        w.clamp(0.0, 1.0)
+    }
+}
+
+/// A value pixel shading can blend between a cluster's shared value and a member's own.
+pub trait Blend: Copy {
+    /// `(1 − w)·self + w·other` (`w` in [0, 1]; `other` itself at `w = 1`).
+    fn blend(&self, other: &Self, w: f32) -> Self;
+}
+
+impl Blend for Rgb {
+    fn blend(&self, other: &Self, w: f32) -> Self {
+        *self * (1.0 - w) + *other * w
+    }
+}
+
+impl<A: Blend, B: Blend> Blend for (A, B) {
+    fn blend(&self, other: &Self, w: f32) -> Self {
+        (self.0.blend(&other.0, w), self.1.blend(&other.1, w))
+    }
+}
+
+/// `None` (a shader that failed, such as `silhouette`'s traversal) has nothing to blend: the
+/// member's own value stands.
+impl<A: Blend> Blend for Option<A> {
+    fn blend(&self, other: &Self, w: f32) -> Self {
+        // The ends exactly (the shared value or the member's own, bit for bit).
+        if w >= 1.0 {
+            return *other;
+        }
+        if w <= 0.0 {
+            return *self;
+        }
+        match (self, other) {
+            (Some(a), Some(b)) => Some(a.blend(b, w)),
+            _ => *other,
+        }
+    }
 }
 
 /// Reads [`SHADING`]: `true` for pixel shading.
@@ -35,16 +98,33 @@ pub fn parse_shading(params: &Params) -> Result<bool, Diagnostic> {
     params.choice("shading", [true, false])
 }
 
-/// How finely a cluster is shaded (a shader's answer for its representative point and extent).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Refine {
+/// How finely a cluster is shaded (a shader's answer for its representative point and
+/// extent), as two weights in [0, 1] that vary continuously with the scene: `every`, the
+/// weight of each member's own value whatever the values (a light grazing the floor, a
+/// sharp highlight); `compare`, how far the cluster is also shaded at its farthest member and
+/// compared ([`shade_clusters`]). A shader that decided by thresholds let a pixel jump when
+/// rounding put the scene scaled or turned on the other side; ramps over a band do not.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Refine {
+    pub every: f32,
+    pub compare: f32,
+}
+
+impl Refine {
     /// Once, at the representative member.
-    Once,
-    /// At the representative and the farthest member, and at every member when `differs`
-    /// finds the two apart (as `Once` without a `differs` test).
-    Compare,
-    /// At every member.
-    Every,
+    pub const ONCE: Refine = Refine { every: 0.0, compare: 0.0 };
+    /// At the representative and the farthest member, which keeps its own value, and at every
+    /// member as far as the two values differ ([`refine_weight`]).
+    pub const COMPARE: Refine = Refine { every: 0.0, compare: 1.0 };
+    /// At every member, each taking its own value.
+    pub const EVERY: Refine = Refine { every: 1.0, compare: 0.0 };
+
+    /// `every` and `compare` each rising linearly from 0 where `x_every` resp. `x_compare`
+    /// reaches 1 to 1 where it reaches 2 (the thresholds of a hard switch at 1 become the start
+    /// of a band: below them the cost and the values are the switch's).
+    pub fn ramps(x_every: f64, x_compare: f64) -> Refine {
+        Refine { every: ramp(x_every as f32, 1.0, 2.0), compare: ramp(x_compare as f32, 1.0, 2.0) }
+    }
 }
 
 /// The size of a pixel cluster: the largest distance of a member's point from the
@@ -55,8 +135,9 @@ pub struct ClusterExtent {
     pub angle: f64,
 }
 
-/// A pixel cluster whose extent exceeds this fraction of its distance to the nearest light is
-/// shaded sample by sample ([`Refine::Every`]): the lighting varies across it.
+/// A pixel cluster whose extent exceeds this fraction of its distance to the nearest light
+/// starts to take each member's own value (the lighting varies across it); from twice this
+/// fraction it takes the members' own values alone ([`Refine::ramps`]).
 pub const NEAR_FIELD: f64 = 0.05;
 
 /// A camera ray's first surface (its BSDF not built), or the radiance it escaped with
@@ -70,18 +151,18 @@ pub struct SharedPixel<T> {
     shaded: Vec<Option<T>>,
 }
 
-impl<T: Copy> SharedPixel<T> {
+impl<T: Blend> SharedPixel<T> {
     /// Traces the pixel's camera `rays` (one traversal for the bundle when it meets few
     /// triangles) and shades each cluster once with `shade` ([`shade_clusters`]), which is
     /// given `stats` to count its own rays; `samples` are the rays' camera samples; `refine`
-    /// and `differs` as [`shade_clusters`]'.
+    /// and `difference` as [`shade_clusters`]'.
     pub fn trace(
         rays: &[RayDifferential],
         samples: &[CameraSample],
         scene: &Scene,
         stats: &mut ThreadStats,
         refine: impl Fn(&SurfacePoint, ClusterExtent) -> Refine,
-        differs: Option<fn(&T, &T) -> bool>,
+        difference: Option<fn(&T, &T) -> f32>,
         mut shade: impl FnMut(&SurfacePoint, &mut ThreadStats) -> Option<T>,
     ) -> SharedPixel<T> {
         let candidates = scene.bundle_candidates(rays);
@@ -93,7 +174,7 @@ impl<T: Copy> SharedPixel<T> {
             stats.add_continued(queries);
             hits.push(first);
         }
-        let shaded = shade_clusters(rays, samples, &hits, refine, differs, |p| shade(p, stats));
+        let shaded = shade_clusters(rays, samples, &hits, refine, difference, |p| shade(p, stats));
         SharedPixel { hits, shaded }
     }
 
@@ -156,23 +237,25 @@ fn clusters_of(
 
 /// Groups the pixel's hits into clusters and shades each cluster once, at the member whose
 /// camera sample lies closest to the members' mean film position (the first such member on a
-/// tie) — or more finely as `refine` asks for that point and the cluster's extent (every
-/// member when the lighting varies across the pixel: a light grazing the floor, a sharp
-/// highlight). The choice is made on the film, not on the rays' world directions, so that it
-/// is the same for the scene rotated, scaled or moved (`penumbra stability`): near-ties
-/// between world-space dot products fell either way with rounding and picked another shading
-/// point.
+/// tie) — or more finely as `refine` asks for that point and the cluster's extent. The choice
+/// is made on the film, not on the rays' world directions, so that it is the same for the
+/// scene rotated, scaled or moved (`penumbra stability`): near-ties between world-space dot
+/// products fell either way with rounding and picked another shading point.
 ///
-/// With `differs` and [`Refine::Compare`], a cluster is also shaded at its member farthest from
-/// that one on the film (the first on a tie), which keeps its own value; when `differs` finds
-/// the two values apart (a shadow edge or a highlight crossing the pixel), every member is
-/// shaded.
-pub fn shade_clusters<T: Copy>(
+/// With `difference` and `refine`'s `compare > 0`, a cluster is also shaded at its member
+/// farthest from that one on the film (the first on a tie), which takes `compare` of its own
+/// value, and `difference` of the two values (a fraction; infinite for values that cannot be
+/// compared) times `compare` gives the weight [`refine_weight`] of each member's own value: a
+/// shadow edge or a highlight crossing the pixel. `refine`'s `every` is another such weight;
+/// the larger counts. With a weight `w > 0` every member is shaded and takes `(1 − w)` of the
+/// shared value plus `w` of its own ([`Blend`]), so that the pixel varies continuously with
+/// the scene: a weight that jumped from 0 to 1 at a threshold let rounding pick either value.
+pub fn shade_clusters<T: Blend>(
     rays: &[RayDifferential],
     samples: &[CameraSample],
     hits: &[FirstSurface],
     refine: impl Fn(&SurfacePoint, ClusterExtent) -> Refine,
-    differs: Option<fn(&T, &T) -> bool>,
+    difference: Option<fn(&T, &T) -> f32>,
     mut shade: impl FnMut(&SurfacePoint) -> Option<T>,
 ) -> Vec<Option<T>> {
     let (cluster, clusters) = clusters_of(rays, samples, hits);
@@ -195,31 +278,75 @@ pub fn shade_clusters<T: Copy>(
         let angle = members().map(|m| dir(m).dot(dir(rep)).clamp(-1.0, 1.0).acos()).fold(0.0, f64::max);
         let Ok(rep_point) = &hits[rep] else { continue };
         let how = refine(rep_point, ClusterExtent { world: extent, angle });
-        let mut every = how == Refine::Every;
+        let mut w = how.every.clamp(0.0, 1.0);
         let v = shade_one(rep);
         let mut far = None;
-        if let (Some(differs), Refine::Compare) = (differs, how) {
+        if let Some(difference) = difference.filter(|_| how.compare > 0.0 && w < 1.0) {
             let by_distance = |a: &usize, b: &usize| {
                 let (da, db) = ((film(*a) - film(rep)).length_squared(), (film(*b) - film(rep)).length_squared());
                 da.total_cmp(&db).then(b.cmp(a))
             };
             if let Some(f) = members().filter(|&m| m != rep).max_by(by_distance) {
-                let w = shade_one(f);
-                every = match (&v, &w) {
-                    (Some(a), Some(b)) => differs(a, b),
-                    (None, None) => false,
-                    _ => true,
+                let fv = shade_one(f);
+                let d = match (&v, &fv) {
+                    (Some(a), Some(b)) => refine_weight(difference(a, b)),
+                    (None, None) => 0.0,
+                    _ => 1.0,
                 };
-                far = Some((f, w));
+                w = w.max(how.compare.min(1.0) * d);
+                far = Some((f, fv, how.compare.min(1.0).max(w)));
             }
         }
         for m in members() {
             shaded[m] = match far {
-                Some((f, w)) if f == m => w,
-                _ if m == rep || !every => v,
-                _ => shade_one(m),
+                Some((f, fv, wf)) if f == m => v.blend(&fv, wf),
+                _ if m == rep || w <= 0.0 => v,
+                _ => v.blend(&shade_one(m), w),
             };
         }
     }
     shaded
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The weights are continuous in the differences and thresholds they replace: 0 up to the
+    /// old threshold (the switch's values and cost), 1 from twice it, no step anywhere between.
+    #[test]
+    fn weights_are_continuous_ramps_from_the_old_thresholds() {
+        assert_eq!(refine_weight(REFINE), 0.0);
+        assert_eq!(refine_weight(REFINE_FULL), 1.0);
+        assert_eq!(refine_weight(f32::NAN), 1.0);
+        assert_eq!(Refine::ramps(1.0, 1.0), Refine::ONCE);
+        assert_eq!(Refine::ramps(2.0, 2.0), Refine { every: 1.0, compare: 1.0 });
+        let mut prev = 0.0f32;
+        for i in 0..=4000 {
+            let d = 0.3 * i as f32 / 4000.0;
+            let w = refine_weight(d);
+            assert!(w >= prev && w - prev <= 1e-3, "d {d}: {prev} -> {w}");
+            prev = w;
+        }
+        // A pair of values just either side of the old 10 % threshold blends to nearly the
+        // shared value on both sides (the switch gave the shared value, then the member's own).
+        let shared = Rgb::splat(1.0);
+        let (below, above) = (Rgb::splat(0.9 + 1e-6), Rgb::splat(0.9 - 1e-6));
+        let (a, b) = (
+            shared.blend(&below, refine_weight(rgb_difference(shared, below))),
+            shared.blend(&above, refine_weight(rgb_difference(shared, above))),
+        );
+        assert!((a - b).abs().max_element() < 1e-4, "{a} vs {b}");
+    }
+
+    /// The ends of a blend are the shared value and the member's own, bit for bit; `None` has
+    /// nothing to blend.
+    #[test]
+    fn blends_end_exactly() {
+        let (s, o) = (Some(Rgb::new(0.3, 0.1, 7.0)), Some(Rgb::new(0.2, 0.4, 1e-3)));
+        assert_eq!(s.blend(&o, 0.0), s);
+        assert_eq!(s.blend(&o, 1.0), o);
+        assert_eq!(s.blend(&None, 0.5), None);
+        assert_eq!(None.blend(&o, 0.5), o);
+    }
 }

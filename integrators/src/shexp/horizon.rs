@@ -209,6 +209,31 @@ impl HorizonGap {
         ([0, 1, 2].map(|c| a0[c] + f * (a1[c] - a0[c])), [0, 1, 2].map(|c| b0[c] + f * (b1[c] - b0[c])))
     }
 
+    /// Whether the ray from `p` in unit direction `d`, below the horizon, passes the plane:
+    /// it meets the plane's plane outside the outline (even–odd rule). `false` from on or
+    /// below the plane, and for `d` on or above the horizon.
+    pub fn passes(&self, p: DVec3, d: DVec3) -> bool {
+        let rel = p - self.origin;
+        let (h, down) = (rel.dot(self.g), -d.dot(self.g));
+        if !(h > 0.0) || !(down > 0.0) || !h.is_finite() {
+            return false;
+        }
+        let q = rel + d * (h / down);
+        let (x, y) = (q.dot(self.e1), q.dot(self.e2));
+        // Crossings of the ray from (x, y) along +x, half-open in y.
+        let mut inside = false;
+        for sg in &self.segments {
+            let (ax, ay, bx, by) = (sg[0], sg[1], sg[2], sg[3]);
+            if (ay > y) != (by > y) {
+                let cx = ax + (y - ay) / (by - ay) * (bx - ax);
+                if cx > x {
+                    inside = !inside;
+                }
+            }
+        }
+        !inside
+    }
+
     /// `E_gap` per channel at `p` with unit normal `n` (zero on or below the plane).
     pub fn irradiance(&self, p: DVec3, n: DVec3) -> [f64; 3] {
         let rel = p - self.origin;
@@ -301,7 +326,7 @@ mod tests {
     }
 
     fn ground() -> GroundPlane {
-        GroundPlane { object: 0, point: DVec3::ZERO, normal: DVec3::Y }
+        GroundPlane { object: 0, point: DVec3::ZERO, normal: DVec3::Y, behind: false }
     }
 
     fn white() -> Vec<EnvSource> {
@@ -418,6 +443,64 @@ mod tests {
             }
         }
         eprintln!("worst |gap − ray casting| / π: {worst:.2e}");
+    }
+
+    /// `passes` against ray casting: the square, L-shaped and holed outlines, directions on a
+    /// grid below (and some above) the horizon from points over and beside the planes.
+    #[test]
+    fn passes_agrees_with_ray_casting() {
+        let on = |mesh: &TriangleMesh, q: DVec3| {
+            mesh.indices.iter().any(|tri| {
+                let v = tri.map(|k| mesh.positions[k as usize].as_dvec3());
+                let s = |a: DVec3, b: DVec3| (b.x - a.x) * (q.z - a.z) - (b.z - a.z) * (q.x - a.x);
+                let (s0, s1, s2) = (s(v[0], v[1]), s(v[1], v[2]), s(v[2], v[0]));
+                (s0 >= 0.0 && s1 >= 0.0 && s2 >= 0.0) || (s0 <= 0.0 && s1 <= 0.0 && s2 <= 0.0)
+            })
+        };
+        let l_shape = quad_mesh(
+            &[
+                [-3.0, 0.0, -3.0],
+                [-3.0, 0.0, 3.0],
+                [0.0, 0.0, 3.0],
+                [0.0, 0.0, 0.0],
+                [3.0, 0.0, 0.0],
+                [3.0, 0.0, -3.0],
+                [0.0, 0.0, -3.0],
+            ],
+            &[[0, 1, 2], [0, 2, 3], [0, 3, 6], [6, 3, 4], [6, 4, 5]],
+        );
+        let holed = quad_mesh(
+            &[
+                [-3.0, 0.0, -3.0],
+                [-3.0, 0.0, 3.0],
+                [3.0, 0.0, 3.0],
+                [3.0, 0.0, -3.0],
+                [-1.0, 0.0, -1.0],
+                [-1.0, 0.0, 1.0],
+                [1.0, 0.0, 1.0],
+                [1.0, 0.0, -1.0],
+            ],
+            &[[0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]],
+        );
+        let (mut tested, mut missed) = (0, 0);
+        for mesh in [square(3.0), l_shape, holed] {
+            let gap = HorizonGap::build(&white(), ground(), &mesh).unwrap();
+            for (p, _) in cases() {
+                for i in 0..97 {
+                    let phi = 2.0 * PI * (i as f64 + 0.31) / 97.0;
+                    for j in 0..41 {
+                        let e = PI * ((j as f64 + 0.47) / 41.0 - 0.1);
+                        let d = DVec3::new(e.cos() * phi.cos(), -e.sin(), e.cos() * phi.sin());
+                        let want = d.y < 0.0 && !on(&mesh, p + d * (p.y / -d.y));
+                        tested += 1;
+                        missed += usize::from(gap.passes(p, d) != want);
+                    }
+                }
+            }
+            assert!(!gap.passes(DVec3::new(0.5, 0.0, 0.5), DVec3::new(1.0, -1.0, 0.0).normalize()));
+            assert!(!gap.passes(DVec3::new(0.5, -1.0, 0.5), DVec3::new(1.0, -1.0, 0.0).normalize()));
+        }
+        assert_eq!(missed, 0, "{missed} of {tested} directions disagree");
     }
 
     #[test]

@@ -13,8 +13,13 @@
 //! - plus, when the ground plane is finite, the environment below the horizon that passes
 //!   its edge ([`horizon`], in closed form along each azimuth; not shadowed by the spheres).
 //!
-//! Open occluders other than the ground plane are bounded by conservative sphere shells (one
-//! warning names each). What SH at low order cannot carry, and what is not Lambertian, goes
+//! Open meshes other than the ground plane (open quadrics, partial spheres, disks, open
+//! triangle meshes) have no inside for spheres to bound: their shadows are traced ([`open`]:
+//! per camera sample, a direction drawn by the term above and one ray against them, so that
+//! the estimate is `S · V_o(ω)`, noise-free where they block nothing; one warning names each),
+//! or with `"string openmeshes" "shells"` bounded by conservative sphere shells. Receivers
+//! behind the ground plane (an object through the floor) take the environment through
+//! `directlighting`'s estimator (one warning). What SH at low order cannot carry, and what is not Lambertian, goes
 //! through `directlighting`'s estimator (`common::direct::estimate_direct`, one warning): the
 //! non-Lambertian lobes under the infinite lights, every other light (area, point, spot,
 //! distant) with the full BSDF, and perfectly specular lobes recursively up to `maxdepth`.
@@ -42,11 +47,15 @@
 //!   ([`reflect::tables::FormFactor`]); `"thesis"`: eqs. 4.24 and 4.32 as written.
 //! - `"bool groundbounce"` true: with `interreflect`, the ground plane reflects its shadowed
 //!   light onto what stands on it ([`reflect::ground`]; not in the thesis).
+//! - `"string openmeshes"` `"trace"`: open meshes' shadows traced ([`open`]); `"shells"`:
+//!   through conservative sphere shells (noise-free, too dark near and inside them).
+//! - `"integer opensamples"` 1: traced-visibility directions per camera sample.
 
 pub mod bright;
 pub mod cubemap;
 pub mod horizon;
 pub mod lighting;
+pub mod open;
 pub mod reflect;
 pub mod sphereset;
 pub mod visibility;
@@ -54,7 +63,7 @@ pub mod visibility;
 use crate::common::direct::{estimate_direct, specular};
 use crate::common::other_lights::FallbackWarning;
 use crate::common::params::{ParamSpec, Params, Range};
-use crate::common::pixel_shading::{parse_shading, rgb_differs, Refine, SharedPixel, SHADING};
+use crate::common::pixel_shading::{parse_shading, rgb_difference, Blend, Refine, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, pixel_bounds_param, PIXEL_BOUNDS};
 use glam::DVec3;
 use lighting::EnvLighting;
@@ -73,7 +82,7 @@ use penumbra_core::scene::{Requirements, Scene, SurfaceHit, SurfacePoint};
 use penumbra_core::sh::ShOrder;
 use penumbra_core::{Rgb, Vec3};
 use penumbra_parser::{DiagSink, Diagnostic, ParamSet};
-use sphereset::{Source, SphereSets};
+use sphereset::{OpenMeshes, Source, SphereSets};
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
@@ -105,6 +114,10 @@ pub struct Shexp {
     /// `"string shading"` `pixel` (default): the environment's Lambertian term once per
     /// surface a pixel sees ([`crate::common::pixel_shading`]); `sample`: every camera sample.
     pub pixel_shading: bool,
+    /// `"string openmeshes"`: open meshes' shadows traced ([`open`]) or through shells.
+    pub open_meshes: OpenMeshes,
+    /// `"integer opensamples"`: traced-visibility draws per camera sample.
+    pub open_samples: u32,
 }
 
 /// The parameters `shexp` reads.
@@ -159,6 +172,13 @@ pub const PARAMS: &[ParamSpec] = &[
         true,
         "interreflect: the ground plane reflects its shadowed direct light onto what stands on it (not in the thesis)",
     ),
+    ParamSpec::choice(
+        "openmeshes",
+        &["trace", "shells"],
+        "open meshes other than the ground plane (open quadrics, disks, open triangle meshes): their shadows traced exactly by rays, or through conservative sphere shells (noise-free, overshadowing)",
+    )
+    .strict(),
+    ParamSpec::int("opensamples", 1, "traced open-mesh visibility: directions drawn per camera sample").range(1, 1024),
     max_depth(1024),
     PIXEL_BOUNDS,
     SHADING,
@@ -186,8 +206,12 @@ impl Shexp {
         let max_depth = max_depth_param(&p)?;
         let pixel_bounds = pixel_bounds_param(&p)?;
         let pixel_shading = parse_shading(&p)?;
+        let open_meshes = p.choice("openmeshes", [OpenMeshes::Trace, OpenMeshes::Shells])?;
+        let open_samples = p.count("opensamples")?;
         Ok(Box::new(Shexp {
             pixel_shading,
+            open_meshes,
+            open_samples,
             order,
             exp,
             spheres,
@@ -234,10 +258,39 @@ struct Estimator<'a> {
     bright: Vec<bright::BrightLight>,
     reflect: Option<reflect::Reflectors>,
     ground: Option<reflect::ground::GroundBounce>,
+    /// The open meshes whose shadows are traced, and the directions drawn for them ([`open`]).
+    traced: Option<open::TracedObjects>,
+    proposal: Option<open::EnvProposal>,
+    warn_behind: AtomicBool,
+    warnings: &'a DiagSink,
     /// Names the materials whose non-Lambertian lobes take the environment through the estimator.
     fallback: FallbackWarning<'a>,
     /// Evaluations of the smooth environment term ([`Estimator::lambertian_irradiance`]).
     receivers: AtomicU64,
+}
+
+/// The largest `n²` (order 8).
+const MAX_COEFFS: usize = 64;
+
+/// The environment's smooth light on a receiver's Lambertian lobes, over π, as pixel shading
+/// shares it: the part open meshes can block (the SH term, the light under the horizon past the
+/// ground plane's edge), the rest (the ground's and the spheres' reflected light), and the
+/// sphere-set visibility `V` the traced open meshes' estimate draws by (zero without them).
+#[derive(Clone, Copy, Debug)]
+struct EnvValue {
+    open: Rgb,
+    rest: Rgb,
+    v: [f32; MAX_COEFFS],
+}
+
+impl Blend for EnvValue {
+    fn blend(&self, other: &Self, w: f32) -> Self {
+        let mut v = self.v;
+        for (a, b) in v.iter_mut().zip(other.v) {
+            *a = *a * (1.0 - w) + b * w;
+        }
+        EnvValue { open: self.open.blend(&other.open, w), rest: self.rest.blend(&other.rest, w), v }
+    }
 }
 
 /// Per-thread buffers: visibility scratch, `V`, `LH(N)`, a basis scratch and `LH_below(N)`.
@@ -253,7 +306,22 @@ impl Estimator<'_> {
     /// `ground`, plus the ground plane's light of that radiance through the same `V`
     /// ([`reflect::ground`]).
     fn shadowed(&self, p: DVec3, n: DVec3, object: usize, ground: Option<[f64; 3]>) -> [f64; 3] {
-        let Some(env) = &self.env else { return [0.0; 3] };
+        let (open, rest) = self.shadowed_parts(p, n, object, ground, None);
+        [0, 1, 2].map(|c| open[c] + rest[c])
+    }
+
+    /// [`Self::shadowed`] in two parts: what open meshes can block (the SH term and the light
+    /// under the horizon past the ground plane's edge), and the ground plane's light; the
+    /// visibility vector `V` into `v_out` (its first `n²` entries) when given.
+    fn shadowed_parts(
+        &self,
+        p: DVec3,
+        n: DVec3,
+        object: usize,
+        ground: Option<[f64; 3]>,
+        v_out: Option<&mut [f32]>,
+    ) -> ([f64; 3], [f64; 3]) {
+        let Some(env) = &self.env else { return ([0.0; 3], [0.0; 3]) };
         let k = self.vis.order().coeffs();
         SCRATCH.with(|cell| {
             let mut cell = cell.borrow_mut();
@@ -280,12 +348,16 @@ impl Estimator<'_> {
                     *o += e;
                 }
             }
-            if let (Some(g), Some(radiance)) = (&self.ground, ground) {
-                for (o, e) in out.iter_mut().zip(g.irradiance((p, n), radiance, v, below, tmp)) {
-                    *o += e;
+            if let Some(v_out) = v_out {
+                for (o, x) in v_out.iter_mut().zip(v.iter()) {
+                    *o = *x as f32;
                 }
             }
-            out
+            let mut rest = [0.0; 3];
+            if let (Some(g), Some(radiance)) = (&self.ground, ground) {
+                rest = g.irradiance((p, n), radiance, v, below, tmp);
+            }
+            (out, rest)
         })
     }
 
@@ -423,21 +495,93 @@ impl Estimator<'_> {
 
     /// The environment's smooth light on the Lambertian lobes at `hit`, over π (the caller
     /// multiplies it by the albedo): shadowed by the sphere sets, with the ground's and, with
-    /// `interreflect`, the spheres' reflected light. `None` without an environment. The split
-    /// bright regions are not in it ([`Self::bright_irradiance`]).
-    fn lambertian_irradiance(&self, hit: &SurfaceHit, scene: &Scene, stats: &mut ThreadStats) -> Option<Rgb> {
+    /// `interreflect`, the spheres' reflected light. `None` without an environment, or behind
+    /// the ground plane ([`Self::behind_ground`]). The split bright regions are not in it
+    /// ([`Self::bright_irradiance`]), nor the traced objects' shadows ([`Self::traced_share`]).
+    fn lambertian_irradiance(&self, hit: &SurfaceHit, scene: &Scene, stats: &mut ThreadStats) -> Option<EnvValue> {
         self.env.as_ref()?;
+        if self.behind_ground(&hit.si) {
+            return None;
+        }
         self.receivers.fetch_add(1, Ordering::Relaxed);
         let (n, p) = (Self::facing_normal(hit), hit.si.p.as_dvec3());
         let nd = n.as_dvec3().normalize();
         let ground = self.ground_radiance(p, nd, scene, &mut stats.shadow_rays);
-        let mut e = self.shadowed(p, nd, hit.si.mesh as usize, ground);
+        let mut value = EnvValue { open: Rgb::ZERO, rest: Rgb::ZERO, v: [0.0; MAX_COEFFS] };
+        let v_out = self.traced.is_some().then_some(&mut value.v[..]);
+        let (open, mut rest) = self.shadowed_parts(p, nd, hit.si.mesh as usize, ground, v_out);
         if self.reflect.is_some() {
-            for (v, rv) in e.iter_mut().zip(self.reflected(p, nd, hit.si.mesh as usize)) {
+            for (v, rv) in rest.iter_mut().zip(self.reflected(p, nd, hit.si.mesh as usize)) {
                 *v += rv;
             }
         }
-        Some(Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32) * std::f32::consts::FRAC_1_PI)
+        let rgb = |e: [f64; 3]| Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32) * std::f32::consts::FRAC_1_PI;
+        value.open = rgb(open);
+        value.rest = rgb(rest);
+        Some(value)
+    }
+
+    /// Whether the receiver at `si` lies behind the ground plane (an object through the floor):
+    /// the environment cut at the plane's horizon is not what it sees, so `shade_hit` takes the
+    /// infinite lights through `directlighting`'s estimator there.
+    fn behind_ground(&self, si: &SurfaceInteraction) -> bool {
+        let Some(g) = self.sets.ground.filter(|g| g.behind) else { return false };
+        let p = si.p.as_dvec3();
+        si.mesh as usize != g.object && g.is_behind(p, 1e-5 * (p - g.point).length())
+    }
+
+    /// Per channel, the share of `value.open` that the traced objects leave at `hit`:
+    /// `"opensamples"` draws of [`open::EnvProposal::factor`], averaged (1 without traced
+    /// objects; the sampler's dimensions are taken whenever the scene has some).
+    fn traced_share(
+        &self,
+        hit: &SurfaceHit,
+        value: &EnvValue,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+    ) -> Rgb {
+        let (Some(traced), Some(proposal)) = (&self.traced, &self.proposal) else { return Rgb::ONE };
+        let k = self.shexp.open_samples.max(1);
+        let us: Vec<[f32; 2]> = (0..k)
+            .map(|_| {
+                let u = sampler.get_2d();
+                [u.x, u.y]
+            })
+            .collect();
+        let si = &hit.si;
+        let (n, p) = (Self::facing_normal(hit).as_dvec3().normalize(), si.p.as_dvec3());
+        if !traced.may_block(p, n) {
+            return Rgb::ONE;
+        }
+        let order = self.vis.order();
+        let receiver = open::Receiver {
+            p,
+            n,
+            v: &value.v[..order.coeffs()],
+            order,
+            ground: self.sets.ground.map(|g| (g.normal, self.gap.as_ref())),
+        };
+        let model = [value.open.x, value.open.y, value.open.z].map(|v| v as f64 * std::f64::consts::PI);
+        let wo_side = si.n.dot(si.wo);
+        let mut blocked = |d: DVec3| {
+            let d32 = d.as_vec3();
+            // Below the geometric surface the Lambertian lobe gets nothing from any ray; not a
+            // traced object's shadow.
+            if si.n.dot(d32) * wo_side <= 0.0 || !traced.may_meet(p, d) {
+                return false;
+            }
+            let (b, queries) = traced.blocked(scene, si.spawn_ray(d32));
+            stats.shadow_rays += queries;
+            b
+        };
+        let mut sum = [0.0; 3];
+        for u in us {
+            for (s, f) in sum.iter_mut().zip(proposal.factor(&receiver, model, u, &mut blocked)) {
+                *s += f / k as f64;
+            }
+        }
+        Vec3::new(sum[0] as f32, sum[1] as f32, sum[2] as f32)
     }
 
     /// The split-off bright regions' light on the Lambertian lobes at `hit`, over π: one
@@ -474,7 +618,7 @@ impl Estimator<'_> {
         &self,
         ray: &RayDifferential,
         hit: &SurfaceHit,
-        irradiance: Option<Rgb>,
+        irradiance: Option<EnvValue>,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -482,10 +626,27 @@ impl Estimator<'_> {
     ) -> Rgb {
         let SurfaceHit { si, bsdf, le, .. } = hit;
         let mut l = *le;
-        let (kd, rest) = split_lambertian(bsdf);
         let lights = scene.light_list();
+        if self.env.is_some() && self.behind_ground(si) {
+            if !self.warn_behind.swap(true, Ordering::Relaxed) {
+                self.warnings.warn(
+                    None,
+                    "shexp: surfaces behind the ground plane (objects through the floor) take the environment through \
+                     directlighting's estimator",
+                );
+            }
+            for &i in &self.infinite {
+                let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
+                l += estimate_direct(si, bsdf, u_scatter, i, &lights[i], u_light, scene, stats);
+            }
+            return l + self.others_and_specular(ray, hit, scene, sampler, stats, depth);
+        }
+        let (kd, rest) = split_lambertian(bsdf);
         if kd != Rgb::ZERO && self.env.is_some() {
-            let smooth = irradiance.or_else(|| self.lambertian_irradiance(hit, scene, stats)).unwrap_or(Rgb::ZERO);
+            let smooth = match irradiance.or_else(|| self.lambertian_irradiance(hit, scene, stats)) {
+                Some(e) => e.open * self.traced_share(hit, &e, scene, sampler, stats) + e.rest,
+                None => Rgb::ZERO,
+            };
             l += kd * (smooth + self.bright_irradiance(hit, scene, sampler, stats));
         }
         if let Some(rest) = &rest {
@@ -498,6 +659,24 @@ impl Estimator<'_> {
                 }
             }
         }
+        l + self.others_and_specular(ray, hit, scene, sampler, stats, depth)
+    }
+
+    /// The lights other than the infinite ones (`directlighting`'s estimator) and the perfectly
+    /// specular lobes, recursively.
+    #[allow(clippy::too_many_arguments)]
+    fn others_and_specular(
+        &self,
+        ray: &RayDifferential,
+        hit: &SurfaceHit,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+        depth: u32,
+    ) -> Rgb {
+        let SurfaceHit { si, bsdf, .. } = hit;
+        let lights = scene.light_list();
+        let mut l = Rgb::ZERO;
         for &i in &self.others {
             let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
             l += estimate_direct(si, bsdf, u_scatter, i, &lights[i], u_light, scene, stats);
@@ -534,7 +713,7 @@ impl Estimator<'_> {
 }
 
 impl PixelEstimator for Estimator<'_> {
-    type Shared = SharedPixel<Rgb>;
+    type Shared = SharedPixel<EnvValue>;
     fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
         let SampleContext { scene, sampler, stats, aov: _ } = cx;
         self.li(ray, scene, sampler, stats, 0)
@@ -557,8 +736,8 @@ impl PixelEstimator for Estimator<'_> {
             let hit = p.with_bsdf(scene)?;
             (split_lambertian(&hit.bsdf).0 != Rgb::ZERO).then(|| self.lambertian_irradiance(&hit, scene, stats))?
         };
-        let differs = |a: &Rgb, b: &Rgb| rgb_differs(*a, *b);
-        Some(SharedPixel::trace(rays, samples, scene, stats, |_, _| Refine::Compare, Some(differs), shade))
+        let difference = |a: &EnvValue, b: &EnvValue| rgb_difference(a.open + a.rest, b.open + b.rest);
+        Some(SharedPixel::trace(rays, samples, scene, stats, |_, _| Refine::COMPARE, Some(difference), shade))
     }
 
     fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
@@ -576,7 +755,7 @@ impl Shexp {
     fn sphere_sets(&self, scene: &Scene) -> SphereSets {
         let params = sphereset::fit::FitParams { spheres: self.spheres, ..Default::default() };
         let dir = sphereset::cache::default_dir();
-        sphereset::build_for_scene(&scene.meshes, &scene.objects, &params, dir.as_deref())
+        sphereset::build_for_scene(&scene.meshes, &scene.objects, &params, self.open_meshes, dir.as_deref())
     }
 }
 
@@ -603,13 +782,14 @@ impl Integrator for Shexp {
         crate::common::refuse_cutouts("shexp", "visibility (sphere sets fitted to the meshes)", scene)?;
         // Prepared with the scene (`build_scene`), or built here for a scene built without it.
         let built;
-        let sets = match scene.prepared::<SphereSets>().filter(|s| s.spheres == self.spheres) {
-            Some(s) => s,
-            None => {
-                built = self.sphere_sets(scene);
-                &built
-            }
-        };
+        let sets =
+            match scene.prepared::<SphereSets>().filter(|s| s.spheres == self.spheres && s.open == self.open_meshes) {
+                Some(s) => s,
+                None => {
+                    built = self.sphere_sets(scene);
+                    &built
+                }
+            };
         for s in sets.sets.iter().filter(|s| s.source == Source::Shell) {
             ctx.warnings.warn(
                 scene.objects.get(s.object).map(|o| o.loc.clone()),
@@ -618,6 +798,16 @@ impl Integrator for Shexp {
                      sphere shells",
                     scene.objects.get(s.object).map(|o| o.kind.as_str()).unwrap_or("?"),
                     s.leaves.len()
+                ),
+            );
+        }
+        for &i in &sets.traced {
+            ctx.warnings.warn(
+                scene.objects.get(i).map(|o| o.loc.clone()),
+                format!(
+                    "shexp: open mesh \"{}\" has no inside for sphere sets to bound: its shadows are traced (\"integer \
+                     opensamples\" rays per camera sample and receiver that may see it)",
+                    scene.objects.get(i).map(|o| o.kind.as_str()).unwrap_or("?"),
                 ),
             );
         }
@@ -641,6 +831,7 @@ impl Integrator for Shexp {
             .map_err(|e| RenderError::Failed(format!("shexp: {e}")))?;
         let mut bright_lights = Vec::new();
         let mut gap = None;
+        let (mut traced, mut proposal) = (None, None);
         let env = if infinite.is_empty() {
             None
         } else {
@@ -656,6 +847,10 @@ impl Integrator for Shexp {
             gap = sets
                 .ground
                 .and_then(|g| scene.meshes.get(g.object).and_then(|m| horizon::HorizonGap::build(&sources, g, m)));
+            if !sets.traced.is_empty() {
+                traced = Some(open::TracedObjects::new(&scene.meshes, &sets.traced));
+                proposal = Some(open::EnvProposal::build(&sources));
+            }
             Some(with_threads(ctx.threads, || EnvLighting::build(&sources, ground, self.order, self.lh_resolution))?)
         };
         let mut est = Estimator {
@@ -669,6 +864,10 @@ impl Integrator for Shexp {
             bright: bright_lights,
             reflect: None,
             ground: None,
+            traced,
+            proposal,
+            warn_behind: AtomicBool::new(false),
+            warnings: ctx.warnings,
             fallback: FallbackWarning::new("shexp", ctx.warnings),
             receivers: AtomicU64::new(0),
         };
@@ -694,6 +893,7 @@ impl Integrator for Shexp {
         stats.counters.insert("leaf spheres".into(), sets.leaf_count() as f64);
         stats.counters.insert("bright lights".into(), est.bright.len() as f64);
         stats.counters.insert("shexp.receivers".into(), est.receivers.load(Ordering::Relaxed) as f64);
+        stats.counters.insert("shexp.traced_objects".into(), sets.traced.len() as f64);
         if let Some(r) = &est.reflect {
             stats.counters.insert("reflecting spheres".into(), r.reflecting() as f64);
         }

@@ -41,7 +41,8 @@
 //! surface seen in a pixel (a cluster of [`crate::common::pixel_shading`]) is integrated at
 //! its most central and its farthest sample, and at every sample where the two differ by more
 //! than [`REFINE`](crate::common::pixel_shading::REFINE) (a shadow edge or highlight crossing
-//! the pixel); the other samples reuse the central value (`shade`: the irradiance over π,
+//! the pixel; each sample then takes a blend of the central value and its own, its own alone
+//! from a difference of [`REFINE_FULL`](crate::common::pixel_shading::REFINE_FULL)); the other samples reuse the central value (`shade`: the irradiance over π,
 //! multiplied by each sample's own albedo, and the SH-shaded lobes' radiance; the estimator's
 //! lights, emission and specular recursion stay per sample). `sample`: every camera sample is
 //! integrated, as `prt` always is.
@@ -60,7 +61,7 @@
 use crate::common::direct::{estimate_direct, specular};
 use crate::common::other_lights::FallbackWarning;
 use crate::common::params::{ParamSpec, Params};
-use crate::common::pixel_shading::{parse_shading, rgb_differs, Refine, SharedPixel, SHADING};
+use crate::common::pixel_shading::{parse_shading, rgb_difference, Refine, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, SH_ORDER};
 use dual::{Contour, DualEdges};
 use param::{moment, Meridians, PoleFrame};
@@ -582,13 +583,14 @@ type EnvTerms = (Rgb, Rgb);
 /// `shade`'s [`EnvTerms`] (`None`: the traversal failed).
 type ClusterValue = Option<EnvTerms>;
 
-/// Whether a pixel cluster's two shaded samples call for shading every member: a shadow edge
-/// or a highlight crosses the pixel ([`rgb_differs`]), or the traversal failed at one of them.
-fn differs(a: &ClusterValue, b: &ClusterValue) -> bool {
+/// How far apart a pixel cluster's two shaded samples are ([`rgb_difference`]: a shadow edge or
+/// a highlight crossing the pixel makes every member take its own value, in part or whole);
+/// infinite where the traversal failed at one of them.
+fn difference(a: &ClusterValue, b: &ClusterValue) -> f32 {
     match (a, b) {
-        (Some((e1, g1)), Some((e2, g2))) => rgb_differs(*e1 + *g1, *e2 + *g2),
-        (None, None) => false,
-        _ => true,
+        (Some((e1, g1)), Some((e2, g2))) => rgb_difference(*e1 + *g1, *e2 + *g2),
+        (None, None) => 0.0,
+        _ => f32::INFINITY,
     }
 }
 
@@ -696,8 +698,8 @@ impl PixelEstimator for Estimator<'_> {
             samples,
             scene,
             stats,
-            |_, _| Refine::Compare,
-            Some(differs),
+            |_, _| Refine::COMPARE,
+            Some(difference),
             |p: &SurfacePoint, stats: &mut ThreadStats| match self.mode {
                 Mode::Shade => {
                     let hit = p.with_bsdf(scene)?;

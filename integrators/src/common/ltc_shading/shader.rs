@@ -9,7 +9,7 @@ use super::occluders::{ConvexLight, PieceQuery};
 use super::region::Occluders;
 use super::settings::{Glossy, Mode, ShaderSettings};
 use crate::common::ltc::{Ltc, LtcCoeffs};
-use crate::common::pixel_shading::{rgb_differs, ClusterExtent, Refine, SharedPixel, NEAR_FIELD};
+use crate::common::pixel_shading::{rgb_difference, ClusterExtent, Refine, SharedPixel, NEAR_FIELD};
 use glam::DVec3;
 use penumbra_core::accel::objects::ObjectBvh;
 use penumbra_core::camera::CameraSample;
@@ -216,11 +216,11 @@ struct ShaderCounters {
 }
 
 /// A glossy lobe narrower than this many times a pixel cluster's angular extent (its camera
-/// rays' spread) is shaded at every member: the highlight (a sharp reflection of the light's
+/// rays' spread) starts to be shaded at every member (fully from half as narrow, [`Refine::ramps`]): the highlight (a sharp reflection of the light's
 /// outline) moves across the pixel by about that angle, while the lobe is `~2α` wide.
 const SHARP_EVERY: f32 = 0.5;
-/// … and narrower than this many times, at the representative and the farthest member, and at
-/// every member when the two differ by more than 10 %.
+/// … and narrower than this many times, at the representative and the farthest member too, and
+/// at every member as far as the two differ by more than 10 % ([`crate::common::pixel_shading::REFINE`]).
 const SHARP_COMPARE: f32 = 8.0;
 
 /// A shading point's query: where it is and whether occluders are searched.
@@ -287,7 +287,7 @@ impl LtcShader {
             scene,
             stats,
             |p, extent| self.refine(scene, p, extent),
-            Some(|a: &AreaLighting, b: &AreaLighting| rgb_differs(a.0, b.0) || rgb_differs(a.1, b.1)),
+            Some(|a: &AreaLighting, b: &AreaLighting| rgb_difference(a.0, b.0).max(rgb_difference(a.1, b.1))),
             |h, _| {
                 let desc = self.lobes(scene, &h.si)?;
                 Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
@@ -295,24 +295,27 @@ impl LtcShader {
         )
     }
 
-    /// How finely pixel shading shades a cluster at `p`: every member near a light (the
-    /// cluster's extent above [`NEAR_FIELD`] of its distance) or for a lobe far sharper than the
-    /// cluster's angle ([`SHARP_EVERY`]); compared with its farthest member for a sharp one
-    /// ([`SHARP_COMPARE`]); once otherwise.
+    /// How finely pixel shading shades a cluster at `p` ([`Refine::ramps`]): every member near
+    /// a light (from the cluster's extent at [`NEAR_FIELD`] of its distance) or for a lobe far
+    /// sharper than the cluster's angle ([`SHARP_EVERY`]); compared with its farthest member for
+    /// a sharp one ([`SHARP_COMPARE`]); once otherwise.
     fn refine(&self, scene: &Scene, p: &SurfacePoint, extent: ClusterExtent) -> Refine {
-        if extent.world > NEAR_FIELD * self.nearest_light_distance(p.si.p.as_dvec3()) {
-            return Refine::Every;
-        }
+        let near = if extent.world > 0.0 {
+            extent.world / (NEAR_FIELD * self.nearest_light_distance(p.si.p.as_dvec3()))
+        } else {
+            0.0
+        };
         let alpha = scene
             .material_of(&p.si)
             .and_then(|(m, materials, tx)| m.ltc_lobes(&p.si, materials, tx))
             .and_then(|d| d.lobes.iter().filter_map(|l| l.ggx_alpha()).reduce(f32::min));
-        let angle = extent.angle as f32;
-        match alpha {
-            Some(a) if a < SHARP_EVERY * angle => Refine::Every,
-            Some(a) if a < SHARP_COMPARE * angle => Refine::Compare,
-            _ => Refine::Once,
-        }
+        // How many times sharper than the thresholds the lobe is (0 without a glossy lobe).
+        let sharp = |k: f32| match alpha {
+            Some(a) if extent.angle > 0.0 => f64::from(k * extent.angle as f32 / a),
+            _ => 0.0,
+        };
+        let r = Refine::ramps(sharp(SHARP_EVERY), sharp(SHARP_COMPARE));
+        Refine { every: r.every.max(Refine::ramps(near, 0.0).every), compare: r.compare }
     }
 
     /// After the render: the counters into `stats`, and the warnings they call for.

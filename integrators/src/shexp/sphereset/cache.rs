@@ -14,7 +14,7 @@ use penumbra_core::mesh::TriangleMesh;
 use std::path::{Path, PathBuf};
 
 /// Bumped whenever the fit changes what it produces.
-pub const FIT_VERSION: u64 = 3;
+pub const FIT_VERSION: u64 = 4;
 
 /// The default cache directory (see the module doc), `None` when disabled or unknown.
 pub fn default_dir() -> Option<PathBuf> {

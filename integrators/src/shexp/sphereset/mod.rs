@@ -7,11 +7,15 @@
 //!   triangles) gets `"integer spheres"` leaves by the variational fit of [`fit`] (or the
 //!   single smallest sphere through its vertices when that sticks out less), then a
 //!   [`hierarchy`] over them; fits are cached on disk by a hash of the mesh ([`cache`]);
-//! - **ground plane**: the largest open planar mesh with every other occluder in front of it
-//!   is not bounded by spheres; `shexp` cuts the environment at its horizon instead;
-//! - **shell**: any other open mesh (a wall, a leaf, a partial quadric) cannot be bounded as a
-//!   solid; its surface samples are bounded by spheres fitted without inner points (thick,
-//!   conservative shells: they overshadow rather than vanish), with one warning naming it; a
+//! - **ground plane**: the largest open planar mesh with other occluders on one side of it (the
+//!   side with more of their vertices is its front) is not bounded by spheres; `shexp` cuts the
+//!   environment at its horizon instead (receivers behind it take the environment through
+//!   `directlighting`'s estimator);
+//! - **traced** (`OpenMeshes::Trace`, the default): any other open mesh (a wall, a leaf, an open
+//!   quadric or partial sphere, a disk) has no inside to bound; `shexp` traces its shadows
+//!   ([`super::open`]);
+//! - **shell** (`OpenMeshes::Shells`): such a mesh's surface samples bounded by spheres fitted
+//!   without inner points (thick, conservative shells: they overshadow rather than vanish); a
 //!   planar one does not shadow its own surface.
 //!
 //! Objects with `"bool occluder" false`, without a material, or without triangles get none.
@@ -82,6 +86,26 @@ pub struct GroundPlane {
     pub object: usize,
     pub point: DVec3,
     pub normal: DVec3,
+    /// Some other occluder's vertex lies behind the plane (its receivers there see the
+    /// environment from the other side).
+    pub behind: bool,
+}
+
+impl GroundPlane {
+    /// Whether `p` lies behind the plane by more than `tol` (a length).
+    pub fn is_behind(&self, p: DVec3, tol: f64) -> bool {
+        (p - self.point).dot(self.normal) < -tol
+    }
+}
+
+/// How open meshes other than the ground plane cast shadows (`"string openmeshes"`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum OpenMeshes {
+    /// Exactly, by rays ([`super::open`]).
+    #[default]
+    Trace,
+    /// Through conservative sphere shells.
+    Shells,
 }
 
 /// Everything built for a scene.
@@ -91,6 +115,10 @@ pub struct SphereSets {
     pub spheres: u32,
     pub sets: Vec<SphereSet>,
     pub ground: Option<GroundPlane>,
+    /// How open meshes were taken.
+    pub open: OpenMeshes,
+    /// Open meshes whose shadows are traced (`OpenMeshes::Trace`), ascending.
+    pub traced: Vec<usize>,
     /// Objects given nothing, with the reason (for `penumbra info`).
     pub skipped: Vec<(usize, &'static str)>,
     /// Open meshes approximated by shells (the integrator warns about them).
@@ -128,6 +156,10 @@ impl SphereSets {
         if let Some(g) = &self.ground {
             o.push(format!("object {} (ground plane): cuts the environment below normal {:.3}", g.object, g.normal));
         }
+        for &i in &self.traced {
+            let Some(obj) = objects.get(i) else { continue };
+            o.push(format!("object {i} ({} at {}:{}): open, its shadows traced", obj.kind, obj.loc.file, obj.loc.line));
+        }
         for (i, why) in &self.skipped {
             o.push(format!("object {i}: no spheres ({why})"));
         }
@@ -145,12 +177,13 @@ impl SphereSets {
             self.sets.iter().filter(|s| matches!(s.source, Source::Fitted | Source::Cached)).collect();
         let (out, vol): (f64, f64) = fitted.iter().fold((0.0, 0.0), |a, s| (a.0 + s.outside_volume, a.1 + s.volume));
         let mut s = format!(
-            "{} leaf spheres: {} exact, {} fitted ({} from cache), {} shells",
+            "{} leaf spheres: {} exact, {} fitted ({} from cache), {} shells; {} open meshes traced",
             self.leaf_count(),
             count(Source::Exact),
             count(Source::Fitted) + count(Source::Cached),
             count(Source::Cached),
-            count(Source::Shell)
+            count(Source::Shell),
+            self.traced.len()
         );
         if vol > 0.0 {
             s += &format!("; fitted outside volume {:.1} % of their volume", 100.0 * out / vol);
@@ -227,25 +260,74 @@ fn single_sphere(mesh: &TriangleMesh, volume: f64, params: &FitParams) -> Fit {
     }
 }
 
+/// A mesh in its [canonical frame](canonical), its coordinates snapped to a grid of
+/// [`Canonical::step`]: what a closed mesh is fitted (and cached) as.
+pub struct Canonical {
+    pub frame: canonical::Frame,
+    pub local: TriangleMesh,
+    world: Vec<DVec3>,
+}
+
+/// The coarsest grid step (in units of the mesh's extent) canonical coordinates are snapped to.
+const SNAP: f64 = 1.0 / 256.0;
+
+impl Canonical {
+    /// The canonical frame of `mesh` and its vertices in it, snapped to multiples of
+    /// [`Self::step`]. A scaled or turned copy of a mesh has the same canonical coordinates up
+    /// to rounding (about 1e-7 of its extent); the variational fit is an optimisation whose
+    /// outcome such differences could change (Nelder–Mead steps, ties), so the coordinates are
+    /// snapped first: only a coordinate within rounding of a grid line can then differ (about
+    /// 2e-7 / step of them), and the copies get the same fit.
+    pub fn of(mesh: &TriangleMesh) -> Canonical {
+        let world: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+        let frame = canonical::Frame::of(&world);
+        let raw: Vec<DVec3> = world.iter().map(|p| frame.to_local(*p)).collect();
+        let step = Self::step(&raw, &mesh.indices);
+        let local = TriangleMesh {
+            positions: raw.iter().map(|p| ((*p / step).round() * step).as_vec3()).collect(),
+            indices: mesh.indices.clone(),
+            ..Default::default()
+        };
+        Canonical { frame, local, world }
+    }
+
+    /// [`SNAP`], or a power of two under an eighth of the shortest edge for a finer mesh (the
+    /// snapped mesh keeps its shape).
+    fn step(local: &[DVec3], indices: &[[u32; 3]]) -> f64 {
+        let at = |i: u32| local.get(i as usize).copied().unwrap_or(DVec3::ZERO);
+        let shortest = indices
+            .iter()
+            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+            .map(|(a, b)| at(a).distance(at(b)))
+            .filter(|l| *l > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        if shortest.is_finite() {
+            SNAP.min(2f64.powi((shortest / 8.0).log2().floor().max(-40.0) as i32))
+        } else {
+            SNAP
+        }
+    }
+
+    /// A fit of [`Self::local`] mapped to world space, its leaves grown to bound every
+    /// world-space vertex.
+    pub fn to_world(&self, mut f: Fit) -> Fit {
+        f.spheres.iter_mut().for_each(|s| *s = self.frame.sphere_to_world(*s));
+        fit::cover(&mut f.spheres, &self.world);
+        let cube = self.frame.scale.powi(3);
+        f.outside_volume *= cube;
+        f.volume *= cube;
+        f
+    }
+}
+
 /// A closed mesh's leaves: the variational fit, or one sphere when that sticks out less.
-/// Fitted in the mesh's [canonical frame](canonical) and mapped back, so that a uniformly
+/// Fitted in the mesh's [canonical frame](Canonical) and mapped back, so that a uniformly
 /// scaled or turned mesh gets the same spheres, scaled and turned, up to rounding; the leaves
 /// then bound every world-space vertex.
 pub fn fit_closed(mesh: &TriangleMesh, params: &FitParams) -> Fit {
-    let world: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
-    let frame = canonical::Frame::of(&world);
-    let local = TriangleMesh {
-        positions: world.iter().map(|p| frame.to_local(*p).as_vec3()).collect(),
-        indices: mesh.indices.clone(),
-        ..Default::default()
-    };
-    let mut f = fit_closed_local(&local, params);
-    f.spheres.iter_mut().for_each(|s| *s = frame.sphere_to_world(*s));
-    fit::cover(&mut f.spheres, &world);
-    let cube = frame.scale.powi(3);
-    f.outside_volume *= cube;
-    f.volume *= cube;
-    f
+    let c = Canonical::of(mesh);
+    let f = fit_closed_local(&c.local, params);
+    c.to_world(f)
 }
 
 fn fit_closed_local(mesh: &TriangleMesh, params: &FitParams) -> Fit {
@@ -267,9 +349,10 @@ pub fn build_for_scene(
     meshes: &[TriangleMesh],
     objects: &[SceneObject],
     params: &FitParams,
+    open_meshes: OpenMeshes,
     cache_dir: Option<&Path>,
 ) -> SphereSets {
-    let mut out = SphereSets { spheres: params.spheres, ..Default::default() };
+    let mut out = SphereSets { spheres: params.spheres, open: open_meshes, ..Default::default() };
     let mut open: Vec<(usize, Option<(DVec3, DVec3)>)> = Vec::new();
     for (i, (mesh, obj)) in meshes.iter().zip(objects).enumerate() {
         if !obj.occluder {
@@ -306,15 +389,17 @@ pub fn build_for_scene(
             open.push((i, plane_of(mesh)));
             continue;
         }
-        let key = cache::key(mesh, params);
-        let (fit, source) = match cache_dir.and_then(|d| cache::load(d, key)) {
+        // Cached in the canonical frame: a moved, turned or scaled copy finds the same entry.
+        let canonical = Canonical::of(mesh);
+        let key = cache::key(&canonical.local, params);
+        let (local_fit, source) = match cache_dir.and_then(|d| cache::load(d, key)) {
             Some(f) => {
                 out.cache_hits += 1;
                 (f, Source::Cached)
             }
             None => {
                 out.cache_misses += 1;
-                let f = fit_closed(mesh, params);
+                let f = fit_closed_local(&canonical.local, params);
                 if let Some(d) = cache_dir {
                     if let Err(e) = cache::store(d, key, &f) {
                         out.cache_error.get_or_insert_with(|| format!("{}: {e}", d.display()));
@@ -323,6 +408,7 @@ pub fn build_for_scene(
                 (f, Source::Fitted)
             }
         };
+        let fit = canonical.to_world(local_fit);
         out.sets.push(SphereSet {
             object: i,
             hierarchy: hierarchy::build(&fit.spheres),
@@ -335,39 +421,38 @@ pub fn build_for_scene(
             convex: mesh.is_closed_convex(1e-5),
         });
     }
-    // The ground plane: planar, every other occluder's vertices in front of it, the largest.
+    // The ground plane: planar, with other occluders' vertices off its plane (its front is the
+    // side with more of them); one with nothing behind it before one with something, then the
+    // largest.
     let others = |skip: usize| {
         meshes
             .iter()
             .enumerate()
             .filter(move |(j, _)| *j != skip && objects[*j].occluder && meshes[*j].triangle_count() > 0)
     };
-    let mut ground: Option<(f64, GroundPlane)> = None;
+    let mut ground: Option<((bool, f64), GroundPlane)> = None;
     for &(i, plane) in &open {
         let Some((p0, n)) = plane else { continue };
         let ext = meshes[i].positions.iter().map(|p| p.as_dvec3().distance(p0)).fold(0.0, f64::max);
         let tol = 1e-5 * ext;
-        let mut sides = (false, false, false); // any in front, any behind, any at all
+        let (mut front, mut back) = (0usize, 0usize);
         for (_, m) in others(i) {
             for p in &m.positions {
                 let d = (p.as_dvec3() - p0).dot(n);
-                sides.2 = true;
                 if d > tol {
-                    sides.0 = true;
+                    front += 1;
                 } else if d < -tol {
-                    sides.1 = true;
+                    back += 1;
                 }
             }
         }
-        let normal = match sides {
-            (_, _, false) => continue, // nothing to cut for
-            (true, false, _) => n,
-            (false, true, _) => -n,
-            _ => continue,
-        };
-        let area = meshes[i].total_area();
-        if ground.as_ref().map(|g| area > g.0).unwrap_or(true) {
-            ground = Some((area, GroundPlane { object: i, point: p0, normal }));
+        if front == 0 && back == 0 {
+            continue; // nothing to cut for
+        }
+        let (normal, behind) = if front >= back { (n, back > 0) } else { (-n, front > 0) };
+        let key = (!behind, meshes[i].total_area());
+        if ground.as_ref().map(|g| key > g.0).unwrap_or(true) {
+            ground = Some((key, GroundPlane { object: i, point: p0, normal, behind }));
         }
     }
     out.ground = ground.map(|g| g.1);
@@ -378,6 +463,10 @@ pub fn build_for_scene(
         if plane.is_some() && others(i).next().is_none() {
             // A plane never shadows itself, and there is nothing else to shadow.
             out.skipped.push((i, "planar, nothing else to shadow"));
+            continue;
+        }
+        if open_meshes == OpenMeshes::Trace {
+            out.traced.push(i);
             continue;
         }
         let t0 = Instant::now();

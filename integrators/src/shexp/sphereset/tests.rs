@@ -168,7 +168,7 @@ fn spheres_map_to_their_exact_sphere() {
     let s = exact_sphere(&m).unwrap();
     assert!(s.center.distance(DVec3::new(1.0, -2.0, 3.0)) < 1e-6);
     assert!((s.radius - 0.5).abs() < 1e-6);
-    let sets = build_for_scene(&[m], &[object("sphere")], &small(), None);
+    let sets = build_for_scene(&[m], &[object("sphere")], &small(), OpenMeshes::Shells, None);
     assert_eq!(sets.sets.len(), 1);
     assert_eq!(sets.sets[0].source, Source::Exact);
     assert_eq!(sets.sets[0].leaves, vec![s]);
@@ -176,7 +176,7 @@ fn spheres_map_to_their_exact_sphere() {
     let mut e = uv_sphere(Vec3::ZERO, 0.5);
     e.positions.iter_mut().for_each(|p| p.x *= 2.0);
     assert!(exact_sphere(&e).is_none());
-    let sets = build_for_scene(std::slice::from_ref(&e), &[object("sphere")], &small(), None);
+    let sets = build_for_scene(std::slice::from_ref(&e), &[object("sphere")], &small(), OpenMeshes::Shells, None);
     assert_eq!(sets.sets[0].source, Source::Fitted);
     assert_bounds(&e, &sets.sets[0].leaves);
 }
@@ -198,7 +198,7 @@ fn ground_plane_and_shells() {
     );
     let cube = boxed(Vec3::new(-0.5, 0.0, -0.5), Vec3::new(0.5, 1.0, 0.5));
     let objs = [object("trianglemesh"), object("trianglemesh"), object("trianglemesh")];
-    let sets = build_for_scene(&[plane, wall.clone(), cube], &objs, &small(), None);
+    let sets = build_for_scene(&[plane, wall.clone(), cube], &objs, &small(), OpenMeshes::Shells, None);
     let g = sets.ground.unwrap();
     assert_eq!(g.object, 0);
     assert!((g.normal - DVec3::Y).length() < 1e-12, "{}", g.normal);
@@ -216,24 +216,34 @@ fn cache_round_trip_and_unwritable_dir() {
     let _ = std::fs::remove_dir_all(&dir);
     let t = torus(1.0, 0.3, 24, 12);
     let objs = [object("trianglemesh")];
-    let first = build_for_scene(std::slice::from_ref(&t), &objs, &small(), Some(&dir));
+    let first = build_for_scene(std::slice::from_ref(&t), &objs, &small(), OpenMeshes::Shells, Some(&dir));
     assert_eq!((first.cache_hits, first.cache_misses, first.cache_error.clone()), (0, 1, None));
-    let second = build_for_scene(std::slice::from_ref(&t), &objs, &small(), Some(&dir));
+    let second = build_for_scene(std::slice::from_ref(&t), &objs, &small(), OpenMeshes::Shells, Some(&dir));
     assert_eq!((second.cache_hits, second.cache_misses), (1, 0));
     assert_eq!(second.sets[0].source, Source::Cached);
     assert_eq!(second.sets[0].leaves, first.sets[0].leaves);
     assert_eq!(second.sets[0].outside_volume, first.sets[0].outside_volume);
     // Another leaf count is another key.
-    let other = build_for_scene(std::slice::from_ref(&t), &objs, &FitParams { spheres: 5, ..small() }, Some(&dir));
+    let other = build_for_scene(
+        std::slice::from_ref(&t),
+        &objs,
+        &FitParams { spheres: 5, ..small() },
+        OpenMeshes::Shells,
+        Some(&dir),
+    );
     assert_eq!(other.cache_misses, 1);
     // A corrupt file is refitted, not trusted.
-    let key = cache::key(&t, &small());
+    let key = cache::key(&Canonical::of(&t).local, &small());
     std::fs::write(dir.join(format!("{key:016x}.spheres")), "penumbra spheres v1 garbage\n").unwrap();
-    assert_eq!(build_for_scene(std::slice::from_ref(&t), &objs, &small(), Some(&dir)).cache_misses, 1);
+    assert_eq!(
+        build_for_scene(std::slice::from_ref(&t), &objs, &small(), OpenMeshes::Shells, Some(&dir)).cache_misses,
+        1
+    );
     // A directory that cannot be created (below a regular file) fails nothing.
     let file = dir.join("not-a-dir");
     std::fs::write(&file, "x").unwrap();
-    let blocked = build_for_scene(std::slice::from_ref(&t), &objs, &small(), Some(&file.join("sub")));
+    let blocked =
+        build_for_scene(std::slice::from_ref(&t), &objs, &small(), OpenMeshes::Shells, Some(&file.join("sub")));
     assert!(blocked.cache_error.is_some());
     assert_eq!(blocked.sets[0].leaves, first.sets[0].leaves);
     let _ = std::fs::remove_dir_all(&dir);
@@ -275,7 +285,7 @@ fn fits_and_shells_do_not_depend_on_scale_or_orientation() {
     let torus = moved(&torus(1.0, 0.3, 24, 12), &|p| p + offset);
     let cylinder = moved(&open_cylinder(0.75, 2.0, 24, 4), &|p| p - offset);
     let objs = [object("trianglemesh"), object("trianglemesh")];
-    let fitted = |meshes: [TriangleMesh; 2]| build_for_scene(&meshes, &objs, &small(), None);
+    let fitted = |meshes: [TriangleMesh; 2]| build_for_scene(&meshes, &objs, &small(), OpenMeshes::Shells, None);
     let base = fitted([torus.clone(), cylinder.clone()]);
     assert_eq!(base.sets.iter().map(|s| s.source).collect::<Vec<_>>(), [Source::Fitted, Source::Shell]);
     let rot = glam::DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 37f64.to_radians());
@@ -308,4 +318,31 @@ fn fits_and_shells_do_not_depend_on_scale_or_orientation() {
         }
     }
     assert!(worst.is_empty(), "{worst:?}");
+}
+
+#[test]
+fn zz_debug_canonical() {
+    let t = torus(1.0, 0.3, 24, 12);
+    let rot = glam::DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 37f64.to_radians());
+    let moved = TriangleMesh {
+        positions: t
+            .positions
+            .iter()
+            .map(|p| (rot * (p.as_dvec3() * 3.0) + DVec3::new(5.0, -2.0, 1.0)).as_vec3())
+            .collect(),
+        ..t.clone()
+    };
+    let (a, b) = (Canonical::of(&t), Canonical::of(&moved));
+    let mut diff = 0;
+    let mut worst = 0.0f64;
+    for (p, q) in a.local.positions.iter().zip(&b.local.positions) {
+        for c in 0..3 {
+            if p[c] != q[c] {
+                diff += 1;
+                worst = worst.max((p[c] - q[c]).abs() as f64);
+            }
+        }
+    }
+    eprintln!("frames {:?} {:?}", a.frame.axes, b.frame.axes);
+    eprintln!("differing coords {diff}, worst {worst}");
 }
