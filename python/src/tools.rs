@@ -135,9 +135,11 @@ fn flags(options: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<String>> {
             }
             continue;
         }
+        // Sequences are comma-separated, except `resolution=(W, H)`, which is `WxH`.
+        let sep = if flag == "--resolution" { "x" } else { "," };
         let value = match v.extract::<Vec<Bound<'_, PyAny>>>() {
             Ok(items) if !v.is_instance_of::<pyo3::types::PyString>() => {
-                items.iter().map(|i| i.str().map(|s| s.to_string())).collect::<PyResult<Vec<_>>>()?.join(",")
+                items.iter().map(|i| i.str().map(|s| s.to_string())).collect::<PyResult<Vec<_>>>()?.join(sep)
             }
             _ => v.str()?.to_string(),
         };
