@@ -13,7 +13,8 @@ use std::path::PathBuf;
 /// An `(H, W, 3)` float32 array that owns `data` (moved, not copied), and its buffer's address.
 pub fn rgb_array(py: Python<'_>, w: u32, h: u32, data: Vec<f32>) -> PyResult<(Bound<'_, PyArray3<f32>>, usize)> {
     let address = data.as_ptr() as usize;
-    let a = Array3::from_shape_vec((h as usize, w as usize, 3), data).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let a =
+        Array3::from_shape_vec((h as usize, w as usize, 3), data).map_err(|e| PyValueError::new_err(e.to_string()))?;
     Ok((PyArray3::from_owned_array(py, a), address))
 }
 
@@ -42,7 +43,8 @@ pub fn split_image(py: Python<'_>, img: Image) -> PyResult<(Bound<'_, PyArray3<f
         if rgb.contains(&c) {
             continue;
         }
-        let a = Array2::from_shape_vec((h as usize, w as usize), values).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let a = Array2::from_shape_vec((h as usize, w as usize), values)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
         channels.set_item(&img.channels[c], PyArray2::from_owned_array(py, a))?;
     }
     let (a, address) = rgb_array(py, w, h, rgb_data)?;
@@ -59,7 +61,9 @@ pub fn array_image(obj: &Bound<'_, PyAny>, names: Option<Vec<String>>) -> PyResu
     let (h, w, c) = match shape.as_slice() {
         [h, w] => (*h, *w, 1),
         [h, w, c] => (*h, *w, *c),
-        _ => return Err(PyValueError::new_err(format!("an image is a (H, W) or (H, W, C) array, got shape {shape:?}"))),
+        _ => {
+            return Err(PyValueError::new_err(format!("an image is a (H, W) or (H, W, C) array, got shape {shape:?}")))
+        }
     };
     let names = match (names, c) {
         (Some(n), _) => n,
@@ -139,7 +143,12 @@ pub fn read_image<'py>(py: Python<'py>, path: PathBuf, channels: Option<Vec<Stri
 /// `channels` naming its C channels. Written atomically: a failed write leaves no file.
 #[pyfunction]
 #[pyo3(signature = (path, image, channels=None, exposure=0.0))]
-pub fn write_image(path: PathBuf, image: &Bound<'_, PyAny>, channels: Option<Vec<String>>, exposure: f32) -> PyResult<()> {
+pub fn write_image(
+    path: PathBuf,
+    image: &Bound<'_, PyAny>,
+    channels: Option<Vec<String>>,
+    exposure: f32,
+) -> PyResult<()> {
     let mut img = match image.cast::<Render>() {
         Ok(r) => render_image(r.get(), image.py())?,
         Err(_) => array_image(image, channels)?,

@@ -152,7 +152,9 @@ pub fn spp_arg(spp: Option<i64>) -> PyResult<Option<u32>> {
 fn pipeline_error(py: Python<'_>, e: PipelineError) -> PyErr {
     match e {
         PipelineError::Scene(d) => scene_error(py, &d),
-        PipelineError::Render(RenderError::Cancelled) => pyo3::exceptions::PyKeyboardInterrupt::new_err("render cancelled"),
+        PipelineError::Render(RenderError::Cancelled) => {
+            pyo3::exceptions::PyKeyboardInterrupt::new_err("render cancelled")
+        }
         other => pyo3::exceptions::PyRuntimeError::new_err(other.to_string()),
     }
 }
@@ -277,4 +279,3 @@ impl Scene {
         format!("<penumbra.Scene {}>", self.label)
     }
 }
-

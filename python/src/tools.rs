@@ -304,7 +304,8 @@ impl TempDir {
     fn new() -> PyResult<TempDir> {
         use std::sync::atomic::{AtomicU64, Ordering};
         static N: AtomicU64 = AtomicU64::new(0);
-        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos()).unwrap_or(0);
+        let nanos =
+            std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos()).unwrap_or(0);
         let p = std::env::temp_dir().join(format!(
             "penumbra-py-{}-{nanos}-{}",
             std::process::id(),
@@ -348,4 +349,3 @@ pub fn relight<'py>(
     let (a, _) = rgb_array(py, out.width, out.height, out.data)?;
     Ok(a.into_any())
 }
-

@@ -22,9 +22,9 @@ mod summary;
 mod tests;
 
 use crate::cli::{cancel_on_interrupt, print_new_warnings};
+use crate::pipeline::{self, RenderOptions};
 pub use args::SweepArgs;
 use args::{budget_param, setup, Setup};
-use crate::pipeline::{self, RenderOptions};
 use penumbra_core::image::{self, Image};
 use penumbra_core::metrics;
 use penumbra_core::scene::BuildOptions;
