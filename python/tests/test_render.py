@@ -145,3 +145,8 @@ def test_read_write_roundtrip(tmp_path):
     assert penumbra.read_image(tmp_path / "a.png").shape == (5, 7, 3)
     with pytest.raises(ValueError, match="R, G, B"):
         penumbra.read_image(tmp_path / "a.exr", channels=["Z"])
+
+
+def test_cli_warnings_are_python_warnings(scene_path):
+    with pytest.warns(penumbra.SceneWarning, match=r"quad-cube.pbrt:7:1: 4 samples per pixel raised to 16"):
+        penumbra.load(scene_path).render(integrator="ltc", **OPTS)
