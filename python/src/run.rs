@@ -42,9 +42,9 @@ pub fn cancellable<T: Send>(
     let progress = Progress::default();
     std::thread::scope(|s| {
         let handle = s.spawn(|| {
-            let out = job(&cancel, &progress);
-            finished.store(true, Ordering::SeqCst);
-            out
+            // Set when the job ends, even by a panic (the waiting loop must not spin forever).
+            let _done = SetOnDrop(&finished);
+            job(&cancel, &progress)
         });
         let mut raised: Option<PyErr> = None;
         let mut last = (u64::MAX, u64::MAX);
@@ -90,4 +90,13 @@ pub fn cancellable<T: Send>(
         }
         Ok(out)
     })
+}
+
+/// Sets its flag when dropped.
+struct SetOnDrop<'a>(&'a AtomicBool);
+
+impl Drop for SetOnDrop<'_> {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
 }
