@@ -9,3 +9,7 @@ python3 -c 'import OpenImageIO' >/dev/null 2>&1 || (apt-get update && apt-get in
 # Embree 3 for the optional ray-query backend (cargo feature `embree`), whose tests CI runs
 # beside the README's command.
 test -e /usr/include/embree3/rtcore.h || (apt-get update && apt-get install -y libembree-dev)
+# Python 3 with venv and pip for the Python package's tests (python/test.sh).
+command -v python3 >/dev/null 2>&1 || (apt-get update && apt-get install -y python3)
+python3 -c 'import ensurepip, venv' >/dev/null 2>&1 && python3 -m pip --version >/dev/null 2>&1 \
+  || (apt-get update && apt-get install -y python3-venv python3-pip)

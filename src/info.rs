@@ -1,6 +1,6 @@
 //! `penumbra info [SCENE] [-i NAME]`: what a scene contains, checked as `render` checks it.
 
-use penumbra::{cli_params, pipeline};
+use crate::{cli_params, pipeline};
 use penumbra_core::integrator::check_scene;
 use penumbra_core::scene::BuildOptions;
 use penumbra_parser::{DiagSink, Entity, Param, ParamValue, SceneDescription, ShapeDesc};
@@ -14,7 +14,7 @@ pub struct InfoArgs {
     /// The pbrt-v3 scene file (default: the embedded default scene, as `render`).
     pub scene: Option<PathBuf>,
     /// Check and describe the build for this integrator (default: the scene's, as `render`).
-    #[arg(short = 'i', long = "integrator", value_parser = penumbra::cli_params::integrator_arg)]
+    #[arg(short = 'i', long = "integrator", value_parser = crate::cli_params::integrator_arg)]
     pub integrator: Option<String>,
     /// Integrator parameter `key=value`, as for `render` (repeatable).
     #[arg(long = "param", value_name = "KEY=VALUE")]
@@ -39,7 +39,7 @@ pub fn run(args: InfoArgs) -> ExitCode {
         Ok(p) => p,
         Err(d) => {
             eprint!("{d}");
-            return ExitCode::from(penumbra::exit::USAGE);
+            return ExitCode::from(crate::exit::USAGE);
         }
     };
     let warnings = DiagSink::new();

@@ -3,12 +3,15 @@
 //! call exactly what `penumbra render` runs.
 
 pub mod check;
+pub mod cli;
 pub mod cli_params;
+pub mod info;
 pub mod output;
 pub mod pipeline;
 pub mod relight;
 pub mod scene_identity;
 pub mod shard;
+pub mod sweep;
 
 /// Exit statuses shared by every subcommand (`diff` adds idiff's 1–4 for its verdicts).
 pub mod exit {

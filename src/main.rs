@@ -1,18 +1,16 @@
 //! `penumbra`: render pbrt-v3 scenes with selectable integrators, compare them, gate image error in CI.
 
 use clap::{CommandFactory, Parser, Subcommand};
+use penumbra::{cli, info, sweep};
 use std::ffi::OsString;
 use std::path::Path;
 use std::process::ExitCode;
 
-mod cli;
 mod convert;
 mod diff;
-mod info;
 mod merge;
 mod render;
 mod stability;
-mod sweep;
 
 #[derive(Parser)]
 #[command(

@@ -186,3 +186,39 @@ pub fn render_with(
         build: scene.report.clone(),
     })
 }
+
+/// What a render's `stats.json` records besides the render itself.
+pub struct StatsContext<'a> {
+    /// The scene as the user named it.
+    pub scene: &'a str,
+    /// The `--param` arguments as given.
+    pub parameters: &'a [String],
+    /// The image written (`None`: none, as the Python API's renders).
+    pub image: Option<&'a Path>,
+    pub seed: u64,
+    pub exposure: f32,
+    pub parse_seconds: f64,
+}
+
+/// The `stats.json` of a render (`penumbra render` writes it beside the image; the Python
+/// API's `Render.stats` is the same dictionary).
+pub fn stats_json(r: &Rendered, c: &StatsContext) -> serde_json::Value {
+    let pb = &r.film.pixel_bounds;
+    serde_json::json!({
+        "scene": c.scene,
+        "integrator": r.integrator,
+        "parameters": c.parameters,
+        "image": c.image.map(|p| p.display().to_string()),
+        "resolution": [r.film.full_resolution.0, r.film.full_resolution.1],
+        "pixel_bounds": [pb.min.x, pb.max.x, pb.min.y, pb.max.y],
+        "spp": r.stats.spp,
+        "seed": c.seed,
+        "exposure": c.exposure,
+        "threads": r.stats.threads,
+        "parse_seconds": c.parse_seconds,
+        "build_seconds": r.build.total_seconds(),
+        "build": r.build.stages.iter().map(|(s, t, d)| serde_json::json!({"stage": s, "seconds": t, "detail": d})).collect::<Vec<_>>(),
+        "render_seconds": r.stats.render_seconds,
+        "stats": r.stats,
+    })
+}

@@ -328,21 +328,14 @@ fn progress_bar() -> indicatif::ProgressBar {
 
 /// What `stats.json` records of a render.
 fn stats_json(args: &RenderArgs, r: &pipeline::Rendered, output: &Path, parse_seconds: f64) -> serde_json::Value {
-    serde_json::json!({
-        "scene": scene_label(args),
-        "integrator": r.integrator,
-        "parameters": args.flags.params,
-        "image": output.display().to_string(),
-        "resolution": [r.film.full_resolution.0, r.film.full_resolution.1],
-        "pixel_bounds": [r.film.pixel_bounds.min.x, r.film.pixel_bounds.max.x, r.film.pixel_bounds.min.y, r.film.pixel_bounds.max.y],
-        "spp": r.stats.spp,
-        "seed": args.flags.seed,
-        "exposure": args.exposure,
-        "threads": r.stats.threads,
-        "parse_seconds": parse_seconds,
-        "build_seconds": r.build.total_seconds(),
-        "build": r.build.stages.iter().map(|(s, t, d)| serde_json::json!({"stage": s, "seconds": t, "detail": d})).collect::<Vec<_>>(),
-        "render_seconds": r.stats.render_seconds,
-        "stats": r.stats,
-    })
+    let label = scene_label(args);
+    let c = pipeline::StatsContext {
+        scene: &label,
+        parameters: &args.flags.params,
+        image: Some(output),
+        seed: args.flags.seed,
+        exposure: args.exposure,
+        parse_seconds,
+    };
+    pipeline::stats_json(r, &c)
 }

@@ -111,12 +111,14 @@ pub struct CheckArgs {
     pub threads: usize,
 }
 
-pub(crate) struct Failure {
+/// A check that could not be judged: its exit code and message.
+#[derive(Debug)]
+pub struct Failure {
     pub code: u8,
     pub message: String,
 }
 
-pub(crate) fn fail(code: u8, message: impl Into<String>) -> Failure {
+pub fn fail(code: u8, message: impl Into<String>) -> Failure {
     Failure { code, message: message.into() }
 }
 
@@ -140,7 +142,7 @@ pub fn run(args: CheckArgs) -> ExitCode {
 }
 
 /// The gate's options from the command line (or a suite case's overrides of them).
-pub(crate) fn options(args: &CheckArgs) -> Result<GateOptions, Failure> {
+pub fn options(args: &CheckArgs) -> Result<GateOptions, Failure> {
     let correction = match args.correction.to_ascii_lowercase().as_str() {
         "sidak" | "šidák" => Correction::Sidak,
         "holm" => Correction::Holm,
@@ -193,7 +195,7 @@ pub fn spp_from_stats(image: &Path) -> Option<f64> {
 }
 
 /// Reads one side: the image and its samples per pixel.
-pub(crate) fn read_side(path: &Path, spp: Option<f64>) -> Result<(Image, Side), Failure> {
+pub fn read_side(path: &Path, spp: Option<f64>) -> Result<(Image, Side), Failure> {
     let img = image::read(path).map_err(|e| fail(EXIT_FILE, e.to_string()))?;
     let side = Side::from_image(&img, spp.or_else(|| spp_from_stats(path)))
         .map_err(|e| fail(EXIT_DIFFERENT_SIZE, format!("{}: {e}", path.display())))?;
@@ -202,7 +204,7 @@ pub(crate) fn read_side(path: &Path, spp: Option<f64>) -> Result<(Image, Side), 
 
 /// Runs the gate, turning its refusals into exit codes: a size mismatch is 3, anything the
 /// images lack for the chosen test is 4. Noise-free comparisons need a tolerance.
-pub(crate) fn judge(test: &Side, reference: &Side, o: &GateOptions, tolerance_given: bool) -> Result<Outcome, Failure> {
+pub fn judge(test: &Side, reference: &Side, o: &GateOptions, tolerance_given: bool) -> Result<Outcome, Failure> {
     if (test.width, test.height) != (reference.width, reference.height) {
         return Err(fail(
             EXIT_DIFFERENT_SIZE,
@@ -229,6 +231,26 @@ pub(crate) fn judge(test: &Side, reference: &Side, o: &GateOptions, tolerance_gi
         ));
     }
     Ok(out)
+}
+
+/// The gate on two images in memory, each with its samples per pixel when known (the Python
+/// API's `check`): `args` gives the options as the command line does (its paths are not read).
+/// Returns the report `--json` prints, with its `exit_code`.
+pub fn judge_images(
+    (test, test_spp): (&Image, Option<f64>),
+    (reference, reference_spp): (&Image, Option<f64>),
+    args: &CheckArgs,
+) -> Result<serde_json::Value, Failure> {
+    let o = options(args)?;
+    let side = |img: &Image, spp: Option<f64>, which: &str| {
+        Side::from_image(img, spp).map_err(|e| fail(EXIT_DIFFERENT_SIZE, format!("{which}: {e}")))
+    };
+    let t = side(test, test_spp.or(args.test_spp), "test")?;
+    let r = side(reference, reference_spp.or(args.reference_spp), "reference")?;
+    let out = judge(&t, &r, &o, args.abs_tol.is_some() || args.rel_tol.is_some())?;
+    let mut v = report::json(&out, &o);
+    v["exit_code"] = serde_json::json!(if out.passed { EXIT_OK } else { EXIT_FAIL });
+    Ok(v)
 }
 
 fn run_pair(args: &CheckArgs) -> Result<u8, Failure> {

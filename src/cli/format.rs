@@ -2,8 +2,8 @@
 
 // One JSON number format and one colour map for every report, `check`'s included (which lives
 // in the library crate, so it owns them).
-pub use penumbra::check::maps::viridis;
-pub use penumbra::check::report::num;
+pub use crate::check::maps::viridis;
+pub use crate::check::report::num;
 
 /// Formats like C's `%.{prec}g` (and C++ streams' default): `prec` significant
 /// digits, scientific notation when the exponent is < -4 or >= prec, trailing

@@ -133,7 +133,7 @@ pub fn cancel_on_interrupt() -> Arc<AtomicBool> {
     let c = cancel.clone();
     let _ = ctrlc::set_handler(move || {
         if c.swap(true, Ordering::SeqCst) {
-            std::process::exit(penumbra::exit::INTERRUPTED.into());
+            std::process::exit(crate::exit::INTERRUPTED.into());
         }
     });
     cancel

@@ -5,9 +5,9 @@ use super::row::Metric;
 use super::{fail, Failure};
 use crate::cli::print_new_warnings;
 use crate::cli::{check_crop, full_resolution, spp_parser, RenderFlags};
-use penumbra::cli_params;
-use penumbra::pipeline;
-use penumbra::scene_identity::scene_identity;
+use crate::cli_params;
+use crate::pipeline;
+use crate::scene_identity::scene_identity;
 use penumbra_core::metrics;
 use penumbra_core::scene::Crop;
 use penumbra_integrators::common::params::Kind;
@@ -48,7 +48,7 @@ pub struct SweepArgs {
     #[arg(long, value_name = "S")]
     pub reference_seed: Option<u64>,
     /// Integrators to compare, comma-separated.
-    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]", value_parser = penumbra::cli_params::integrator_arg)]
+    #[arg(short = 'i', long = "integrators", value_delimiter = ',', required = true, value_name = "NAME[,NAME...]", value_parser = crate::cli_params::integrator_arg)]
     pub integrators: Vec<String>,
     /// Explicit budgets, comma-separated (default: 1, 2, 4, ... until --time-limit).
     #[arg(long, value_delimiter = ',', value_name = "B[,B...]", value_parser = clap::value_parser!(u32).range(1..))]
@@ -151,7 +151,7 @@ pub fn setup(args: &SweepArgs) -> Result<Setup, Failure> {
             return Err(fail("--budget-param expects a parameter name"));
         }
     }
-    let usage = |d: penumbra_parser::Diagnostic| Failure { code: penumbra::exit::USAGE, message: d.to_string() };
+    let usage = |d: penumbra_parser::Diagnostic| Failure { code: crate::exit::USAGE, message: d.to_string() };
     let params = cli_params::parse_all(&args.flags.params).map_err(usage)?;
     // Every `--param` applies to every integrator of the sweep: each must declare it, with its type.
     for n in &integrators {

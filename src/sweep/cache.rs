@@ -4,7 +4,7 @@
 use super::args::Setup;
 use super::{fail, rgb_only, Failure, SweepArgs, EXIT_CANCELLED};
 use crate::cli::print_new_warnings;
-use penumbra::pipeline::{self, RenderOptions};
+use crate::pipeline::{self, RenderOptions};
 use penumbra_core::fnv::fnv1a64;
 use penumbra_core::image::{self, Image};
 use penumbra_core::scene::{BuildOptions, Crop};
@@ -17,7 +17,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 /// The cache key of a `--reference-spp` render of the scene whose
-/// [`scene_identity`](penumbra::scene_identity::scene_identity) is `scene`.
+/// [`scene_identity`](crate::scene_identity::scene_identity) is `scene`.
 pub fn reference_key(
     scene: &str,
     integrator: &str,

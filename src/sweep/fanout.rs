@@ -150,7 +150,7 @@ pub(super) fn run_item(args: &SweepArgs, s: &mut Setup, k: usize) -> Result<u8, 
             "threads": r.stats.threads,
             "rays": r.stats.rays,
             "shadow_rays": r.stats.shadow_rays,
-            "machine": penumbra::shard::machine(),
+            "machine": crate::shard::machine(),
         }),
     )?;
     say(format!(

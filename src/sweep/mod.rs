@@ -13,7 +13,7 @@
 mod args;
 mod cache;
 mod fanout;
-pub(crate) mod plot;
+pub mod plot;
 mod report;
 mod row;
 mod schedule;
@@ -22,15 +22,15 @@ mod summary;
 mod tests;
 
 use crate::cli::{cancel_on_interrupt, print_new_warnings};
+use crate::pipeline::{self, RenderOptions};
 pub use args::SweepArgs;
 use args::{budget_param, setup, Setup};
-use penumbra::pipeline::{self, RenderOptions};
 use penumbra_core::image::{self, Image};
 use penumbra_core::metrics;
 use penumbra_core::scene::BuildOptions;
 use penumbra_parser::DiagSink;
 use report::Outputs;
-use row::Row;
+pub use row::{Metric, Row};
 use schedule::Schedule;
 use std::collections::BTreeSet;
 use std::process::ExitCode;
@@ -40,11 +40,20 @@ use std::time::Instant;
 use summary::fmt_num;
 
 /// Exit status when interrupted (as a shell reports SIGINT).
-const EXIT_CANCELLED: u8 = penumbra::exit::INTERRUPTED;
+const EXIT_CANCELLED: u8 = crate::exit::INTERRUPTED;
 
-struct Failure {
-    code: u8,
-    message: String,
+/// Why a sweep stopped: the CLI's exit status for it and the message.
+#[derive(Debug)]
+pub struct Failure {
+    pub code: u8,
+    pub message: String,
+}
+
+impl Failure {
+    /// Whether the sweep stopped because it was cancelled (Ctrl-C).
+    pub fn cancelled(&self) -> bool {
+        self.code == EXIT_CANCELLED
+    }
 }
 
 fn fail(message: impl std::fmt::Display) -> Failure {
@@ -130,10 +139,10 @@ fn flip_of(a: &Image, b: &Image) -> Option<f64> {
 }
 
 pub fn run(mut args: SweepArgs) -> ExitCode {
-    args.flags.threads = penumbra::cli_params::threads_or_warn(args.flags.threads);
+    args.flags.threads = crate::cli_params::threads_or_warn(args.flags.threads);
     match run_inner(&args) {
         Ok(code) => ExitCode::from(code),
-        Err(f) => penumbra::cli_params::exit_with_error(f.code, &f.message),
+        Err(f) => crate::cli_params::exit_with_error(f.code, &f.message),
     }
 }
 
@@ -160,7 +169,7 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
     };
     let reference = cache::reference(args, &s, file_reference, &cancel, &mut seen, &say)?;
     let out = Outputs::new(args, &s.integrators, reference.json, reference.label);
-    let sweep = Sweep { args, s: &s, reference: &reference.image, cancel: &cancel, out: &out, say: &say };
+    let sweep = Sweep { args, s: &s, reference: &reference.image, cancel: &cancel, out: Some(&out), say: &say };
     let mut rows: Vec<Row> = Vec::new();
     let mut error: Option<Failure> = None;
     for name in &s.integrators {
@@ -184,6 +193,25 @@ fn run_inner(args: &SweepArgs) -> Result<u8, Failure> {
     }
 }
 
+/// The sweep as a library call (the Python API's `sweep`): the rows `penumbra sweep` would
+/// tabulate, checked and rendered exactly as it does, without its tables, plot or summary (a
+/// `--reference-spp` reference is still cached under `args.output`). `cancel` stops it at the
+/// next tile (then `Err` with [`Failure::cancelled`]); `say` gets the progress lines.
+pub fn rows(args: &SweepArgs, cancel: &Arc<AtomicBool>, say: &dyn Fn(String)) -> Result<Vec<Row>, Failure> {
+    let mut s = setup(args)?;
+    let file_reference = read_file_reference(args, &s)?;
+    let mut seen = std::mem::take(&mut s.seen);
+    let reference = cache::reference(args, &s, file_reference, cancel, &mut seen, say)?;
+    let sweep = Sweep { args, s: &s, reference: &reference.image, cancel, out: None, say };
+    let mut rows: Vec<Row> = Vec::new();
+    for name in &s.integrators {
+        if let Some(e) = sweep.integrator(name, &mut seen, &mut rows)? {
+            return Err(e);
+        }
+    }
+    Ok(rows)
+}
+
 /// The `--reference` image (R, G, B), checked against the renders' size.
 fn read_file_reference(args: &SweepArgs, s: &Setup) -> Result<Option<Image>, Failure> {
     let Some(p) = &args.reference else { return Ok(None) };
@@ -198,7 +226,8 @@ struct Sweep<'a> {
     s: &'a Setup,
     reference: &'a Image,
     cancel: &'a Arc<AtomicBool>,
-    out: &'a Outputs<'a>,
+    /// Where the tables are rewritten after each render (`None`: no files, as [`rows`]).
+    out: Option<&'a Outputs<'a>>,
     say: &'a dyn Fn(String),
 }
 
@@ -246,7 +275,9 @@ impl Sweep<'_> {
                 args.metric.of(&row).map(fmt_num).unwrap_or_else(|| "-".into())
             ));
             rows.push(row);
-            self.out.write_tables(rows, false).map_err(fail)?;
+            if let Some(out) = self.out {
+                out.write_tables(rows, false).map_err(fail)?;
+            }
             if self.cancel.load(Ordering::SeqCst) {
                 return Ok(Some(Failure {
                     code: EXIT_CANCELLED,

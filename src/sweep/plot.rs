@@ -170,7 +170,7 @@ fn place_labels(points: &[(i32, i32)], sizes: &[(i32, i32)], area: (u32, u32)) -
 }
 
 /// Registers the embedded font as plotters' "sans-serif" (for every drawing of the application).
-pub(crate) fn register_font() -> Result<(), String> {
+pub fn register_font() -> Result<(), String> {
     plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, FONT)
         .map_err(|_| "the embedded plot font is invalid".to_string())
 }
