@@ -213,6 +213,16 @@ struct ShaderCounters {
     /// Points whose material's lobes the table does not reach (`"glossy" "ltc"`): shaded by
     /// `directlighting`'s estimator.
     beyond_table: AtomicU64,
+    /// (point, light) pairs taken whole: a planar outline, a convex silhouette, a sphere's cap.
+    whole_lights: AtomicU64,
+    /// (point, light) pairs taken triangle by triangle, by why: the light's shape has no
+    /// outline, a convex light's silhouette is not one loop, an occluder is not separated from
+    /// a convex or sphere light.
+    by_triangles_shape: AtomicU64,
+    by_triangles_loops: AtomicU64,
+    by_triangles_occluder: AtomicU64,
+    /// Light triangles integrated one by one.
+    light_triangles: AtomicU64,
 }
 
 /// A glossy lobe narrower than this many times a pixel cluster's angular extent (its camera
@@ -324,6 +334,11 @@ impl LtcShader {
             ("ltc_quadrature_evals", get(&c.quadrature_evals)),
             ("ltc_quadrature_splits", get(&c.quadrature_splits)),
             ("ltc_beyond_table_points", get(&c.beyond_table)),
+            ("ltc_whole_lights", get(&c.whole_lights)),
+            ("ltc_by_triangles_shape", get(&c.by_triangles_shape)),
+            ("ltc_by_triangles_loops", get(&c.by_triangles_loops)),
+            ("ltc_by_triangles_occluder", get(&c.by_triangles_occluder)),
+            ("ltc_light_triangles", get(&c.light_triangles)),
         ] {
             stats.counters.insert(k.into(), v as f64);
         }
@@ -417,33 +432,40 @@ impl LtcShader {
     /// The same for the lights of one mesh.
     fn area_group(&self, scene: &Scene, q: &mut PointQuery, geom: &LightGroup) -> (Rgb, Rgb) {
         let mut acc = Accum::default();
-        let whole = match &geom.shape {
-            LightShape::Triangles => false,
+        let c = &self.counters;
+        let by_triangles = match &geom.shape {
+            LightShape::Triangles => Some(&c.by_triangles_shape),
             LightShape::Planar { outline, normal, origin } => {
                 self.planar_light(scene, q, geom, (outline.as_slice(), *normal, *origin), &mut acc);
-                true
+                None
             }
             LightShape::Convex(shape) => {
                 let sil = shape.sil.loops(q.at.p, shape.eps);
                 match sil.as_slice() {
-                    [] => true, // p inside (or edge-on everywhere): no face emits towards it
+                    [] => None, // p inside (or edge-on everywhere): no face emits towards it
                     [outline] => {
                         let p = q.at.p;
-                        self.convex_light(scene, q, geom, || ConvexLight::new(shape, p), outline, &mut acc)
+                        let cl = || ConvexLight::new(shape, p);
+                        (!self.convex_light(scene, q, geom, cl, outline, &mut acc)).then_some(&c.by_triangles_occluder)
                     }
-                    _ => false,
+                    _ => Some(&c.by_triangles_loops),
                 }
             }
             LightShape::Sphere(s) => match sphere_outline(q.at.p, s.center, s.radius, q.at.lobe_width()) {
-                None => true, // inside the sphere
+                None => None, // inside the sphere
                 Some(outline) => {
-                    let cl = || ConvexLight::sphere(&s.convex, s.center, s.radius);
-                    self.convex_light(scene, q, geom, cl, &outline, &mut acc)
+                    (!self.sphere_light(scene, q, geom, s, &outline, &mut acc)).then_some(&c.by_triangles_occluder)
                 }
             },
         };
-        if !whole {
-            self.light_triangles(scene, q, geom, &mut acc);
+        match by_triangles {
+            Some(counter) => {
+                counter.fetch_add(1, Ordering::Relaxed);
+                self.light_triangles(scene, q, geom, &mut acc);
+            }
+            None => {
+                c.whole_lights.fetch_add(1, Ordering::Relaxed);
+            }
         }
         let le = geom.l;
         let diffuse = le * acc.diffuse_ff.max(0.0) as f32;
@@ -498,6 +520,7 @@ impl LtcShader {
                     piece: outline,
                     plane: Some((origin, ln)),
                     separate: None,
+                    ball: None,
                     receiver: q.receiver,
                 };
                 self.objects.occluders(scene, &pq, q.scratch)
@@ -529,6 +552,48 @@ impl LtcShader {
                 piece: outline,
                 plane: None,
                 separate: Some(&cl),
+                ball: None,
+                receiver: q.receiver,
+            };
+            self.objects.occluders(scene, &pq, q.scratch)
+        } else {
+            Some(Occluders::default())
+        };
+        match occ {
+            Some(occ) => {
+                integrate_piece(&self.settings, &q.at, outline, occ, acc);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// A sphere light's cap `outline` as one piece, its occluders clipped to the silhouette
+    /// circle's plane (exact: see [`Objects::enters_ball`]); false when an occluder reaches into
+    /// the sphere (then it is taken triangle by triangle).
+    fn sphere_light(
+        &self,
+        scene: &Scene,
+        q: &mut PointQuery,
+        geom: &LightGroup,
+        s: &SphereShape,
+        outline: &[DVec3],
+        acc: &mut Accum,
+    ) -> bool {
+        let p = q.at.p;
+        let occ = if q.shadows {
+            let axis = s.center - p;
+            let d = axis.length();
+            let axis = axis / d;
+            // The silhouette circle's plane: at d − r²/d from p along the axis; normal towards p.
+            let plane = (p + axis * (d - s.radius * s.radius / d), -axis);
+            let pq = PieceQuery {
+                p,
+                skip: Skip::Mesh(geom.mesh),
+                piece: outline,
+                plane: Some(plane),
+                separate: None,
+                ball: Some((s.center, s.radius)),
                 receiver: q.receiver,
             };
             self.objects.occluders(scene, &pq, q.scratch)
@@ -580,12 +645,14 @@ impl LtcShader {
                     piece: &pv,
                     plane: Some((pv[0], ln)),
                     separate: None,
+                    ball: None,
                     receiver: q.receiver,
                 };
                 self.objects.occluders(scene, &pq, q.scratch).unwrap_or_default()
             } else {
                 Occluders::default()
             };
+            self.counters.light_triangles.fetch_add(1, Ordering::Relaxed);
             integrate_piece(&self.settings, &q.at, &pv, occ, acc);
         }
     }
