@@ -373,30 +373,17 @@ pub(super) struct ConvexLight<'a> {
     center: DVec3,
     /// Bounds the light around `center`.
     radius: f64,
-    /// The light is the sphere (`center`, `radius`).
-    sphere: bool,
 }
 
 impl<'a> ConvexLight<'a> {
     pub(super) fn new(shape: &'a ConvexShape, p: DVec3) -> ConvexLight<'a> {
         let front = shape.faces.iter().copied().filter(|(a, n)| n.dot(p - *a) > shape.eps).collect();
-        ConvexLight { front, vertices: &shape.vertices, center: shape.center, radius: shape.radius, sphere: false }
-    }
-
-    /// A sphere light (its mesh inside the sphere `center`, `radius`): separated by planes
-    /// normal to the centres' offset only, its extent along them the sphere's (no faces to
-    /// gather: a default sphere has 12 600).
-    pub(super) fn sphere(shape: &'a ConvexShape, center: DVec3, radius: f64) -> ConvexLight<'a> {
-        ConvexLight { front: Vec::new(), vertices: &shape.vertices, center, radius, sphere: true }
+        ConvexLight { front, vertices: &shape.vertices, center: shape.center, radius: shape.radius }
     }
 
     /// The largest `v·axis` over the light.
     fn support(&self, axis: DVec3) -> f64 {
-        if self.sphere {
-            self.center.dot(axis) + self.radius
-        } else {
-            self.vertices.iter().map(|v| v.dot(axis)).fold(f64::MIN, f64::max)
-        }
+        self.vertices.iter().map(|v| v.dot(axis)).fold(f64::MIN, f64::max)
     }
 
     /// Whether a plane separates an object (bounds `b`, vertices `vertices`) from the light,

@@ -46,10 +46,8 @@ enum LightShape {
     Sphere(SphereShape),
 }
 
-/// A sphere light: its mesh as a convex shape (for the occluders' separation tests) and the
-/// sphere.
+/// A sphere light: the sphere its mesh's vertices lie on.
 struct SphereShape {
-    convex: ConvexShape,
     center: DVec3,
     radius: f64,
 }
@@ -138,10 +136,10 @@ impl LightShape {
                 w == Vec3::ZERO || emitting_normal(mesh, t).dot(w) > 0.0
             });
             if outward {
-                let convex = ConvexShape::new(mesh, adj);
-                return match sphere.then(|| on_one_sphere(&convex.vertices)).flatten() {
-                    Some((center, radius)) => LightShape::Sphere(SphereShape { convex, center, radius }),
-                    None => LightShape::Convex(convex),
+                let vertices: Vec<DVec3> = mesh.positions.iter().map(|v| d3(*v)).collect();
+                return match sphere.then(|| on_one_sphere(&vertices)).flatten() {
+                    Some((center, radius)) => LightShape::Sphere(SphereShape { center, radius }),
+                    None => LightShape::Convex(ConvexShape::new(mesh, adj)),
                 };
             }
         }
@@ -223,7 +221,21 @@ struct ShaderCounters {
     by_triangles_occluder: AtomicU64,
     /// Light triangles integrated one by one.
     light_triangles: AtomicU64,
+    /// Points over the cost budget ([`LIGHT_TRIANGLE_BUDGET`]): shaded by `directlighting`'s
+    /// estimator (counted by the integrator through [`LtcShader::count_over_budget`]).
+    over_budget: AtomicU64,
 }
+
+/// The cost bound of a shading point: a light whose whole outline cannot be used (an occluder
+/// reaches into a sphere light, a convex light's silhouette is not one loop, a light mesh of no
+/// simple shape) is integrated triangle by triangle, each with its own occluder search and
+/// clipping; when more than this many of its triangles face the point with shadows on, the
+/// point is shaded by `directlighting`'s estimator instead (issue 42: a tessellated sphere
+/// light, 12 600 triangles, took each point hundreds of occluder searches — hours for an image
+/// `directlighting` renders in a minute). 256 triangles, each an occluder search plus a
+/// clipped integration, cost about as much as directlighting's estimator at a few hundred
+/// samples; a quad, a box or a low-poly light stays analytic.
+pub const LIGHT_TRIANGLE_BUDGET: usize = 256;
 
 /// A glossy lobe narrower than this many times a pixel cluster's angular extent (its camera
 /// rays' spread) is shaded at every member: the highlight (a sharp reflection of the light's
@@ -239,6 +251,8 @@ struct PointQuery<'s> {
     receiver: Receiver,
     shadows: bool,
     scratch: &'s mut Vec<usize>,
+    /// A light would exceed [`LIGHT_TRIANGLE_BUDGET`]: the point is not shaded analytically.
+    over_budget: bool,
 }
 
 impl LtcShader {
@@ -300,7 +314,7 @@ impl LtcShader {
             Some(|a: &AreaLighting, b: &AreaLighting| rgb_differs(a.0, b.0) || rgb_differs(a.1, b.1)),
             |h, _| {
                 let desc = self.lobes(scene, &h.si)?;
-                Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
+                self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch)
             },
         )
     }
@@ -339,8 +353,21 @@ impl LtcShader {
             ("ltc_by_triangles_loops", get(&c.by_triangles_loops)),
             ("ltc_by_triangles_occluder", get(&c.by_triangles_occluder)),
             ("ltc_light_triangles", get(&c.light_triangles)),
+            ("ltc_over_budget_points", get(&c.over_budget)),
         ] {
             stats.counters.insert(k.into(), v as f64);
+        }
+        let over = get(&c.over_budget);
+        if over > 0 {
+            warnings.warn(
+                None,
+                format!(
+                    "{}: {over} shading points would have taken a light triangle by triangle with more than \
+                     {LIGHT_TRIANGLE_BUDGET} of its triangles facing them (an occluder inside a sphere light, a \
+                     light mesh of no simple shape): directlighting's estimator shaded them, to bound the cost",
+                    self.name
+                ),
+            );
         }
         let beyond = get(&c.beyond_table);
         if beyond > 0 {
@@ -355,6 +382,12 @@ impl LtcShader {
                 ),
             );
         }
+    }
+
+    /// Counts a point that [`Self::area_lights`] left to `directlighting`'s estimator (over the
+    /// cost budget): the integrator calls it once per such point it shades.
+    pub fn count_over_budget(&self) {
+        self.counters.over_budget.fetch_add(1, Ordering::Relaxed);
     }
 
     /// The area lights, one per emitting mesh and radiance.
@@ -389,7 +422,8 @@ impl LtcShader {
     }
 
     /// Analytic radiance reflected towards `si.wo` from all area lights, with analytic
-    /// visibility when `shadows`, else unshadowed.
+    /// visibility when `shadows`, else unshadowed; `None` when the point is over the cost budget
+    /// ([`LIGHT_TRIANGLE_BUDGET`]; never without shadows): `directlighting`'s estimator shades it.
     pub fn area_lights(
         &self,
         scene: &Scene,
@@ -397,9 +431,9 @@ impl LtcShader {
         desc: &LtcDescription,
         shadows: bool,
         scratch: &mut Vec<usize>,
-    ) -> Rgb {
-        let (diffuse, specular) = self.area_lights_split(scene, si, desc, shadows, scratch);
-        desc.diffuse * diffuse + specular
+    ) -> Option<Rgb> {
+        let (diffuse, specular) = self.area_lights_split(scene, si, desc, shadows, scratch)?;
+        Some(desc.diffuse * diffuse + specular)
     }
 
     /// [`area_lights`](Self::area_lights) as the light reaching the Lambertian lobe (to be
@@ -411,22 +445,25 @@ impl LtcShader {
         desc: &LtcDescription,
         shadows: bool,
         scratch: &mut Vec<usize>,
-    ) -> (Rgb, Rgb) {
+    ) -> Option<(Rgb, Rgb)> {
         let (mut d, mut s) = (Rgb::ZERO, Rgb::ZERO);
         let facing = mesh_winding_normal(scene, si).dot(si.wo) as f64;
         let receiver = Receiver { mesh: si.mesh as usize, tri: si.tri as usize, facing };
-        let Some(at) = piece_frame(si, desc) else { return (d, s) };
-        let mut q = PointQuery { at, receiver, shadows, scratch };
+        let Some(at) = piece_frame(si, desc) else { return Some((d, s)) };
+        let mut q = PointQuery { at, receiver, shadows, scratch, over_budget: false };
         self.counters.points.fetch_add(1, Ordering::Relaxed);
         for g in &self.groups {
             if scene.meshes.get(g.mesh).is_none() {
                 continue;
             }
             let (gd, gs) = self.area_group(scene, &mut q, g);
+            if q.over_budget {
+                return None;
+            }
             d += gd;
             s += gs;
         }
-        (d, s)
+        Some((d, s))
     }
 
     /// The same for the lights of one mesh.
@@ -459,6 +496,10 @@ impl LtcShader {
             },
         };
         match by_triangles {
+            Some(_) if q.shadows && facing_triangles(scene, q.at.p, geom) > LIGHT_TRIANGLE_BUDGET => {
+                q.over_budget = true;
+                return (Rgb::ZERO, Rgb::ZERO);
+            }
             Some(counter) => {
                 counter.fetch_add(1, Ordering::Relaxed);
                 self.light_triangles(scene, q, geom, &mut acc);
@@ -656,6 +697,22 @@ impl LtcShader {
             integrate_piece(&self.settings, &q.at, &pv, occ, acc);
         }
     }
+}
+
+/// How many of the light's triangles [`LtcShader::light_triangles`] would integrate at `p`
+/// (all of a two-sided light's; those of a one-sided light whose emitting side faces `p`).
+fn facing_triangles(scene: &Scene, p: DVec3, geom: &LightGroup) -> usize {
+    let Some(mesh) = scene.meshes.get(geom.mesh) else { return 0 };
+    if geom.two_sided {
+        return geom.tris.len();
+    }
+    geom.tris
+        .iter()
+        .filter(|&&t| {
+            let t = t as usize;
+            t < mesh.triangle_count() && d3(emitting_normal(mesh, t)).dot(p - d3(mesh.vertices(t)[0])) > 0.0
+        })
+        .count()
 }
 
 /// The shading frame at `si` for `desc` (its normal turned to ωo's side: pbrt-v3's BSDFs
