@@ -47,3 +47,37 @@ fn sunk_sphere_light_is_bounded_and_falls_back_to_directlighting() {
     let (a, b) = (common::mean(&ours.image), common::mean(&dl.image));
     assert!((a - b).abs() <= 4.0 * se + 1e-9, "ltc mean {a} vs directlighting {b} (se {se})");
 }
+
+/// The mean of rows `y0..y1` of `img` (all channels).
+fn rows_mean(img: &penumbra_core::image::Image, y0: usize, y1: usize) -> f64 {
+    let w = img.width as usize * 3;
+    let v = &img.data[y0 * w..y1 * w];
+    v.iter().map(|x| *x as f64).sum::<f64>() / v.len() as f64
+}
+
+/// Veach's MIS plates (`scenes/mis-plates`, the scene of issue 42): every shading point takes
+/// every sphere light whole (its cap, occluders clipped to the silhouette plane), none goes
+/// triangle by triangle or over budget; the plates α 0.05 and 0.1 and the floor (the image's
+/// lower half) agree with pbrt-v3 (`tests/data/mis-plates/reference-blocks8.pfm`, 128 spp at
+/// 256×192, 8×8 block means) within 1 % — the issue's goal; measured −0.0 % at 64×48 (the whole
+/// 256×192 image: +0.33 %, see docs/integrators/ltc.md). The upper half is not compared at
+/// 64×48: the lights seen directly (r 0.033 at L 902 covers a twentieth of a pixel) and their
+/// highlights on the α 0.005 and 0.02 plates are sub-pixel, and 16 camera samples leave them
+/// ±3–12 % noisy at this resolution (`directlighting` at 64 spp: ±0.6–1.8 %).
+#[test]
+fn mis_plates_lights_are_taken_whole_and_match_pbrt_v3() {
+    let path = common::scene("mis-plates/mis-plates.pbrt");
+    let o = Opts { integrator: Some("ltc"), resolution: Some((64, 48)), spp: Some(16), threads: 2, ..Opts::default() };
+    let r = render_path(&path, &o);
+    for c in ["ltc_by_triangles_shape", "ltc_by_triangles_loops", "ltc_by_triangles_occluder", "ltc_over_budget_points"]
+    {
+        assert_eq!(counter(&r, c), 0.0, "{c}");
+    }
+    assert_eq!(counter(&r, "ltc_whole_lights"), 4.0 * counter(&r, "ltc_points"));
+    let reference =
+        penumbra_core::image::read(root().join("tests/data/mis-plates/reference-blocks8.pfm")).expect("ref");
+    assert_eq!((reference.width, reference.height), (32, 24));
+    let (ours, theirs) = (rows_mean(&r.image, 24, 48), rows_mean(&reference, 12, 24));
+    let rel = ours / theirs - 1.0;
+    assert!(rel.abs() < 0.01, "lower half: ltc {ours} vs pbrt-v3 {theirs} ({:+.2} %)", rel * 100.0);
+}

@@ -2,10 +2,10 @@
 """Render the mis-plates reference with the real pbrt-v3 (issue 42).
 
 Usage: python3 tests/data/mis-plates/make_reference.py [--spp N] [--keep FILE.pfm]
-(default 512 spp).
+(default 128 spp).
 
 scenes/mis-plates/mis-plates.pbrt with its Sampler set to N samples and its Film to a float32
-.pfm; `../shared/tools/pbrt-v3/pbrt --quiet --nthreads 1` (niced) renders the 256x192 image with
+.pfm; `../shared/tools/pbrt-v3/pbrt --quiet --nthreads 1` renders the 256x192 image with
 pbrt-v3's `directlighting` (strategy all, maxdepth 1, box filter); the image is box-averaged
 over 8x8 pixel blocks and the 32x24 image of block means is written as reference-blocks8.pfm
 (float32; the image mean is its mean). Pure Python (no numpy); needs `../shared` beside the
@@ -41,7 +41,7 @@ def write_pfm(path, w, h, rows):
 
 
 def main():
-    spp, keep = 512, None
+    spp, keep = 128, None
     args = sys.argv[1:]
     while args:
         a = args.pop(0)
@@ -57,7 +57,7 @@ def main():
         scene = os.path.join(tmp, "scene.pbrt")
         open(scene, "w").write(text)
         t0 = time.time()
-        subprocess.run(["nice", PBRT, "--quiet", "--nthreads", "1", scene], check=True)
+        subprocess.run([PBRT, "--quiet", "--nthreads", "1", scene], check=True)
         secs = time.time() - t0
         w, h, rows = read_pfm(pfm)
     assert (w, h) == (W, H)
