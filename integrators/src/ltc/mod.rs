@@ -171,10 +171,14 @@ impl Estimator<'_> {
                 (lit, Coverage::of(lit.is_some(), transmits))
             }
             None => match self.shader.lobes(scene, si) {
-                Some(d) => {
-                    let v = self.shader.area_lights(scene, si, &d, self.ltc.shadows, &mut Vec::new());
-                    (Some(v), Coverage::of(true, d.transmits))
-                }
+                Some(d) => match self.shader.area_lights(scene, si, &d, self.ltc.shadows, &mut Vec::new()) {
+                    Some(v) => (Some(v), Coverage::of(true, d.transmits)),
+                    // Over the cost budget: every light through directlighting's estimator.
+                    None => {
+                        self.shader.count_over_budget();
+                        (None, Coverage::None)
+                    }
+                },
                 None => (None, Coverage::None),
             },
         };

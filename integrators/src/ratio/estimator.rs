@@ -449,7 +449,8 @@ impl Estimator<'_> {
         if let Some(d) = &desc {
             u = match area {
                 Some((diffuse, specular)) => d.diffuse * diffuse + specular,
-                None => self.shader.area_lights(scene, si, d, false, &mut Vec::new()),
+                // Unshadowed: never over the cost budget (which bounds occluder searches).
+                None => self.shader.area_lights(scene, si, d, false, &mut Vec::new()).unwrap_or(Rgb::ZERO),
             };
         }
         let lobes = desc.as_ref().map(|d| Lobes::of(si, d));

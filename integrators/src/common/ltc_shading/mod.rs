@@ -25,4 +25,4 @@ mod shader;
 
 pub use fresnel::{fresnel_at, FresnelMode};
 pub use settings::{Glossy, Mode, ShaderSettings};
-pub use shader::{AreaLighting, LightGroup, LtcShader};
+pub use shader::{AreaLighting, LightGroup, LtcShader, LIGHT_TRIANGLE_BUDGET};

@@ -28,6 +28,11 @@ pub(super) struct PieceQuery<'a> {
     pub(super) piece: &'a [DVec3],
     pub(super) plane: Option<(DVec3, DVec3)>,
     pub(super) separate: Option<&'a ConvexLight<'a>>,
+    /// A sphere light (centre, radius), with `plane` its silhouette circle's plane: occluder
+    /// geometry on `p`'s side of that plane and outside the ball lies in front of the light
+    /// along every ray from `p` that meets it ([`Objects::enters_ball`]); geometry inside the
+    /// ball is not, and makes the query fail (`None`).
+    pub(super) ball: Option<(DVec3, f64)>,
     pub(super) receiver: Receiver,
 }
 
@@ -80,6 +85,11 @@ impl Objects {
             if skips_object(q, &reach, o, info) {
                 continue;
             }
+            if let Some((c, r)) = q.ball {
+                if self.enters_ball(scene, &reach, o, q, (c, r)) {
+                    return None;
+                }
+            }
             if let Some(cl) = q.separate {
                 if !cl.separated(&info.bounds, &scene.meshes[o].positions, q.p)
                     && !self.triangles_separated(scene, &reach, o, cl, q.p)
@@ -101,6 +111,41 @@ impl Objects {
             self.triangle_occluders(scene, q, &reach, o, straddles, &mut g);
         }
         Some(g.occ)
+    }
+
+    /// Whether a triangle of object `o` in the query's cone reaches into the ball `(c, r)` (a
+    /// sphere light's) on `p`'s side of the query's plane (the light's silhouette plane).
+    ///
+    /// Why the silhouette plane and the ball suffice: a ray from `p` that meets the sphere enters
+    /// it on the part facing `p` — on `p`'s side of the silhouette plane, every point of which is
+    /// seen from `p` — and leaves it beyond that plane. A point on such a ray, on `p`'s side of
+    /// the plane and outside the ball, therefore comes before the entry point: it hides the
+    /// light. Clipping the occluders to the plane (`plane`) is exact unless geometry lies inside
+    /// the ball (a light sunk into a floor), which is what this detects.
+    fn enters_ball(&self, scene: &Scene, reach: &Reach, o: usize, q: &PieceQuery, (c, r): (DVec3, f64)) -> bool {
+        let b = &self.info[o].bounds;
+        let near = c.clamp(b.min.as_dvec3(), b.max.as_dvec3());
+        if (near - c).length_squared() >= r * r {
+            return false;
+        }
+        let mesh = &scene.meshes[o];
+        let mut candidates = Vec::new();
+        self.info[o].tris.query(&reach.cone, &mut candidates);
+        candidates.iter().any(|&t| {
+            if o == q.receiver.mesh && t == q.receiver.tri {
+                return false;
+            }
+            let pv = mesh.vertices(t).map(|v| v.as_dvec3());
+            let piece = match q.plane {
+                Some((plane_o, ln)) => clip_to_plane(&pv, plane_o, ln),
+                None => pv.to_vec(),
+            };
+            piece.len() >= 3
+                && (1..piece.len() - 1).any(|k| {
+                    let x = closest_on_triangle(c, [piece[0], piece[k], piece[k + 1]]);
+                    (x - c).length_squared() < r * r
+                })
+        })
     }
 
     /// Whether every triangle of object `o` in the query's cone either cannot occlude the convex
@@ -259,6 +304,42 @@ fn classify_triangle(q: &PieceQuery, reach: &Reach, pv: [DVec3; 3], closed: f64)
     TriangleOcc::Loop(spherical_polygon::project(p, &clipped))
 }
 
+/// The point of triangle `t` nearest to `x` (by the triangle's Voronoi regions).
+fn closest_on_triangle(x: DVec3, [a, b, c]: [DVec3; 3]) -> DVec3 {
+    let (ab, ac, ap) = (b - a, c - a, x - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = x - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = x - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = va + vb + vc;
+    if !(denom.abs() > 0.0) {
+        return a;
+    }
+    a + ab * (vb / denom) + ac * (vc / denom)
+}
+
 /// Sutherland–Hodgman in 3D: the part of polygon `poly` with `(x − o)·n ≥ 0`.
 fn clip_to_plane(poly: &[DVec3], o: DVec3, n: DVec3) -> Vec<DVec3> {
     let mut out = Vec::with_capacity(poly.len() + 2);
@@ -292,30 +373,17 @@ pub(super) struct ConvexLight<'a> {
     center: DVec3,
     /// Bounds the light around `center`.
     radius: f64,
-    /// The light is the sphere (`center`, `radius`).
-    sphere: bool,
 }
 
 impl<'a> ConvexLight<'a> {
     pub(super) fn new(shape: &'a ConvexShape, p: DVec3) -> ConvexLight<'a> {
         let front = shape.faces.iter().copied().filter(|(a, n)| n.dot(p - *a) > shape.eps).collect();
-        ConvexLight { front, vertices: &shape.vertices, center: shape.center, radius: shape.radius, sphere: false }
-    }
-
-    /// A sphere light (its mesh inside the sphere `center`, `radius`): separated by planes
-    /// normal to the centres' offset only, its extent along them the sphere's (no faces to
-    /// gather: a default sphere has 12 600).
-    pub(super) fn sphere(shape: &'a ConvexShape, center: DVec3, radius: f64) -> ConvexLight<'a> {
-        ConvexLight { front: Vec::new(), vertices: &shape.vertices, center, radius, sphere: true }
+        ConvexLight { front, vertices: &shape.vertices, center: shape.center, radius: shape.radius }
     }
 
     /// The largest `v·axis` over the light.
     fn support(&self, axis: DVec3) -> f64 {
-        if self.sphere {
-            self.center.dot(axis) + self.radius
-        } else {
-            self.vertices.iter().map(|v| v.dot(axis)).fold(f64::MIN, f64::max)
-        }
+        self.vertices.iter().map(|v| v.dot(axis)).fold(f64::MIN, f64::max)
     }
 
     /// Whether a plane separates an object (bounds `b`, vertices `vertices`) from the light,

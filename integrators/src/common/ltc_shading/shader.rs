@@ -46,10 +46,8 @@ enum LightShape {
     Sphere(SphereShape),
 }
 
-/// A sphere light: its mesh as a convex shape (for the occluders' separation tests) and the
-/// sphere.
+/// A sphere light: the sphere its mesh's vertices lie on.
 struct SphereShape {
-    convex: ConvexShape,
     center: DVec3,
     radius: f64,
 }
@@ -138,10 +136,10 @@ impl LightShape {
                 w == Vec3::ZERO || emitting_normal(mesh, t).dot(w) > 0.0
             });
             if outward {
-                let convex = ConvexShape::new(mesh, adj);
-                return match sphere.then(|| on_one_sphere(&convex.vertices)).flatten() {
-                    Some((center, radius)) => LightShape::Sphere(SphereShape { convex, center, radius }),
-                    None => LightShape::Convex(convex),
+                let vertices: Vec<DVec3> = mesh.positions.iter().map(|v| d3(*v)).collect();
+                return match sphere.then(|| on_one_sphere(&vertices)).flatten() {
+                    Some((center, radius)) => LightShape::Sphere(SphereShape { center, radius }),
+                    None => LightShape::Convex(ConvexShape::new(mesh, adj)),
                 };
             }
         }
@@ -213,7 +211,31 @@ struct ShaderCounters {
     /// Points whose material's lobes the table does not reach (`"glossy" "ltc"`): shaded by
     /// `directlighting`'s estimator.
     beyond_table: AtomicU64,
+    /// (point, light) pairs taken whole: a planar outline, a convex silhouette, a sphere's cap.
+    whole_lights: AtomicU64,
+    /// (point, light) pairs taken triangle by triangle, by why: the light's shape has no
+    /// outline, a convex light's silhouette is not one loop, an occluder is not separated from
+    /// a convex or sphere light.
+    by_triangles_shape: AtomicU64,
+    by_triangles_loops: AtomicU64,
+    by_triangles_occluder: AtomicU64,
+    /// Light triangles integrated one by one.
+    light_triangles: AtomicU64,
+    /// Points over the cost budget ([`LIGHT_TRIANGLE_BUDGET`]): shaded by `directlighting`'s
+    /// estimator (counted by the integrator through [`LtcShader::count_over_budget`]).
+    over_budget: AtomicU64,
 }
+
+/// The cost bound of a shading point: a light whose whole outline cannot be used (an occluder
+/// reaches into a sphere light, a convex light's silhouette is not one loop, a light mesh of no
+/// simple shape) is integrated triangle by triangle, each with its own occluder search and
+/// clipping; when more than this many of its triangles face the point with shadows on, the
+/// point is shaded by `directlighting`'s estimator instead (issue 42: a tessellated sphere
+/// light, 12 600 triangles, took each point hundreds of occluder searches — hours for an image
+/// `directlighting` renders in a minute). 256 triangles, each an occluder search plus a
+/// clipped integration, cost about as much as directlighting's estimator at a few hundred
+/// samples; a quad, a box or a low-poly light stays analytic.
+pub const LIGHT_TRIANGLE_BUDGET: usize = 256;
 
 /// A glossy lobe narrower than this many times a pixel cluster's angular extent (its camera
 /// rays' spread) starts to be shaded at every member (fully from half as narrow, [`Refine::ramps`]): the highlight (a sharp reflection of the light's
@@ -229,6 +251,8 @@ struct PointQuery<'s> {
     receiver: Receiver,
     shadows: bool,
     scratch: &'s mut Vec<usize>,
+    /// A light would exceed [`LIGHT_TRIANGLE_BUDGET`]: the point is not shaded analytically.
+    over_budget: bool,
 }
 
 impl LtcShader {
@@ -290,7 +314,7 @@ impl LtcShader {
             Some(|a: &AreaLighting, b: &AreaLighting| rgb_difference(a.0, b.0).max(rgb_difference(a.1, b.1))),
             |h, _| {
                 let desc = self.lobes(scene, &h.si)?;
-                Some(self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch))
+                self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch)
             },
         )
     }
@@ -327,8 +351,26 @@ impl LtcShader {
             ("ltc_quadrature_evals", get(&c.quadrature_evals)),
             ("ltc_quadrature_splits", get(&c.quadrature_splits)),
             ("ltc_beyond_table_points", get(&c.beyond_table)),
+            ("ltc_whole_lights", get(&c.whole_lights)),
+            ("ltc_by_triangles_shape", get(&c.by_triangles_shape)),
+            ("ltc_by_triangles_loops", get(&c.by_triangles_loops)),
+            ("ltc_by_triangles_occluder", get(&c.by_triangles_occluder)),
+            ("ltc_light_triangles", get(&c.light_triangles)),
+            ("ltc_over_budget_points", get(&c.over_budget)),
         ] {
             stats.counters.insert(k.into(), v as f64);
+        }
+        let over = get(&c.over_budget);
+        if over > 0 {
+            warnings.warn(
+                None,
+                format!(
+                    "{}: {over} shading points would have taken a light triangle by triangle with more than \
+                     {LIGHT_TRIANGLE_BUDGET} of its triangles facing them (an occluder inside a sphere light, a \
+                     light mesh of no simple shape): directlighting's estimator shaded them, to bound the cost",
+                    self.name
+                ),
+            );
         }
         let beyond = get(&c.beyond_table);
         if beyond > 0 {
@@ -343,6 +385,12 @@ impl LtcShader {
                 ),
             );
         }
+    }
+
+    /// Counts a point that [`Self::area_lights`] left to `directlighting`'s estimator (over the
+    /// cost budget): the integrator calls it once per such point it shades.
+    pub fn count_over_budget(&self) {
+        self.counters.over_budget.fetch_add(1, Ordering::Relaxed);
     }
 
     /// The area lights, one per emitting mesh and radiance.
@@ -377,7 +425,8 @@ impl LtcShader {
     }
 
     /// Analytic radiance reflected towards `si.wo` from all area lights, with analytic
-    /// visibility when `shadows`, else unshadowed.
+    /// visibility when `shadows`, else unshadowed; `None` when the point is over the cost budget
+    /// ([`LIGHT_TRIANGLE_BUDGET`]; never without shadows): `directlighting`'s estimator shades it.
     pub fn area_lights(
         &self,
         scene: &Scene,
@@ -385,9 +434,9 @@ impl LtcShader {
         desc: &LtcDescription,
         shadows: bool,
         scratch: &mut Vec<usize>,
-    ) -> Rgb {
-        let (diffuse, specular) = self.area_lights_split(scene, si, desc, shadows, scratch);
-        desc.diffuse * diffuse + specular
+    ) -> Option<Rgb> {
+        let (diffuse, specular) = self.area_lights_split(scene, si, desc, shadows, scratch)?;
+        Some(desc.diffuse * diffuse + specular)
     }
 
     /// [`area_lights`](Self::area_lights) as the light reaching the Lambertian lobe (to be
@@ -399,54 +448,68 @@ impl LtcShader {
         desc: &LtcDescription,
         shadows: bool,
         scratch: &mut Vec<usize>,
-    ) -> (Rgb, Rgb) {
+    ) -> Option<(Rgb, Rgb)> {
         let (mut d, mut s) = (Rgb::ZERO, Rgb::ZERO);
         let facing = mesh_winding_normal(scene, si).dot(si.wo) as f64;
         let receiver = Receiver { mesh: si.mesh as usize, tri: si.tri as usize, facing };
-        let Some(at) = piece_frame(si, desc) else { return (d, s) };
-        let mut q = PointQuery { at, receiver, shadows, scratch };
+        let Some(at) = piece_frame(si, desc) else { return Some((d, s)) };
+        let mut q = PointQuery { at, receiver, shadows, scratch, over_budget: false };
         self.counters.points.fetch_add(1, Ordering::Relaxed);
         for g in &self.groups {
             if scene.meshes.get(g.mesh).is_none() {
                 continue;
             }
             let (gd, gs) = self.area_group(scene, &mut q, g);
+            if q.over_budget {
+                return None;
+            }
             d += gd;
             s += gs;
         }
-        (d, s)
+        Some((d, s))
     }
 
     /// The same for the lights of one mesh.
     fn area_group(&self, scene: &Scene, q: &mut PointQuery, geom: &LightGroup) -> (Rgb, Rgb) {
         let mut acc = Accum::default();
-        let whole = match &geom.shape {
-            LightShape::Triangles => false,
+        let c = &self.counters;
+        let by_triangles = match &geom.shape {
+            LightShape::Triangles => Some(&c.by_triangles_shape),
             LightShape::Planar { outline, normal, origin } => {
                 self.planar_light(scene, q, geom, (outline.as_slice(), *normal, *origin), &mut acc);
-                true
+                None
             }
             LightShape::Convex(shape) => {
                 let sil = shape.sil.loops(q.at.p, shape.eps);
                 match sil.as_slice() {
-                    [] => true, // p inside (or edge-on everywhere): no face emits towards it
+                    [] => None, // p inside (or edge-on everywhere): no face emits towards it
                     [outline] => {
                         let p = q.at.p;
-                        self.convex_light(scene, q, geom, || ConvexLight::new(shape, p), outline, &mut acc)
+                        let cl = || ConvexLight::new(shape, p);
+                        (!self.convex_light(scene, q, geom, cl, outline, &mut acc)).then_some(&c.by_triangles_occluder)
                     }
-                    _ => false,
+                    _ => Some(&c.by_triangles_loops),
                 }
             }
             LightShape::Sphere(s) => match sphere_outline(q.at.p, s.center, s.radius, q.at.lobe_width()) {
-                None => true, // inside the sphere
+                None => None, // inside the sphere
                 Some(outline) => {
-                    let cl = || ConvexLight::sphere(&s.convex, s.center, s.radius);
-                    self.convex_light(scene, q, geom, cl, &outline, &mut acc)
+                    (!self.sphere_light(scene, q, geom, s, &outline, &mut acc)).then_some(&c.by_triangles_occluder)
                 }
             },
         };
-        if !whole {
-            self.light_triangles(scene, q, geom, &mut acc);
+        match by_triangles {
+            Some(_) if q.shadows && facing_triangles(scene, q.at.p, geom) > LIGHT_TRIANGLE_BUDGET => {
+                q.over_budget = true;
+                return (Rgb::ZERO, Rgb::ZERO);
+            }
+            Some(counter) => {
+                counter.fetch_add(1, Ordering::Relaxed);
+                self.light_triangles(scene, q, geom, &mut acc);
+            }
+            None => {
+                c.whole_lights.fetch_add(1, Ordering::Relaxed);
+            }
         }
         let le = geom.l;
         let diffuse = le * acc.diffuse_ff.max(0.0) as f32;
@@ -501,6 +564,7 @@ impl LtcShader {
                     piece: outline,
                     plane: Some((origin, ln)),
                     separate: None,
+                    ball: None,
                     receiver: q.receiver,
                 };
                 self.objects.occluders(scene, &pq, q.scratch)
@@ -532,6 +596,48 @@ impl LtcShader {
                 piece: outline,
                 plane: None,
                 separate: Some(&cl),
+                ball: None,
+                receiver: q.receiver,
+            };
+            self.objects.occluders(scene, &pq, q.scratch)
+        } else {
+            Some(Occluders::default())
+        };
+        match occ {
+            Some(occ) => {
+                integrate_piece(&self.settings, &q.at, outline, occ, acc);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// A sphere light's cap `outline` as one piece, its occluders clipped to the silhouette
+    /// circle's plane (exact: see [`Objects::enters_ball`]); false when an occluder reaches into
+    /// the sphere (then it is taken triangle by triangle).
+    fn sphere_light(
+        &self,
+        scene: &Scene,
+        q: &mut PointQuery,
+        geom: &LightGroup,
+        s: &SphereShape,
+        outline: &[DVec3],
+        acc: &mut Accum,
+    ) -> bool {
+        let p = q.at.p;
+        let occ = if q.shadows {
+            let axis = s.center - p;
+            let d = axis.length();
+            let axis = axis / d;
+            // The silhouette circle's plane: at d − r²/d from p along the axis; normal towards p.
+            let plane = (p + axis * (d - s.radius * s.radius / d), -axis);
+            let pq = PieceQuery {
+                p,
+                skip: Skip::Mesh(geom.mesh),
+                piece: outline,
+                plane: Some(plane),
+                separate: None,
+                ball: Some((s.center, s.radius)),
                 receiver: q.receiver,
             };
             self.objects.occluders(scene, &pq, q.scratch)
@@ -583,15 +689,33 @@ impl LtcShader {
                     piece: &pv,
                     plane: Some((pv[0], ln)),
                     separate: None,
+                    ball: None,
                     receiver: q.receiver,
                 };
                 self.objects.occluders(scene, &pq, q.scratch).unwrap_or_default()
             } else {
                 Occluders::default()
             };
+            self.counters.light_triangles.fetch_add(1, Ordering::Relaxed);
             integrate_piece(&self.settings, &q.at, &pv, occ, acc);
         }
     }
+}
+
+/// How many of the light's triangles [`LtcShader::light_triangles`] would integrate at `p`
+/// (all of a two-sided light's; those of a one-sided light whose emitting side faces `p`).
+fn facing_triangles(scene: &Scene, p: DVec3, geom: &LightGroup) -> usize {
+    let Some(mesh) = scene.meshes.get(geom.mesh) else { return 0 };
+    if geom.two_sided {
+        return geom.tris.len();
+    }
+    geom.tris
+        .iter()
+        .filter(|&&t| {
+            let t = t as usize;
+            t < mesh.triangle_count() && d3(emitting_normal(mesh, t)).dot(p - d3(mesh.vertices(t)[0])) > 0.0
+        })
+        .count()
 }
 
 /// The shading frame at `si` for `desc` (its normal turned to ωo's side: pbrt-v3's BSDFs

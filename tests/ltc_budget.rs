@@ -1,0 +1,83 @@
+//! Issue 42: `ltc`'s cost per shading point is bounded. A light that cannot be taken whole (here
+//! a tessellated sphere light sunk into the floor: the floor reaches into the ball, so its cap
+//! minus occluders is not exact) would be integrated triangle by triangle, each triangle with its
+//! own occluder search; over `LIGHT_TRIANGLE_BUDGET` facing triangles the point is shaded by
+//! `directlighting`'s estimator instead, counted in the stats and reported once.
+//!
+//! The checks are counters, not times: without the bound, `ltc_light_triangles` counts thousands
+//! of triangles per point (6 300 of the sphere's 12 600 face a point on the wall), and no point is
+//! counted over budget.
+
+mod common;
+
+use common::{render_path, root, Opts};
+use penumbra_integrators::common::ltc_shading::LIGHT_TRIANGLE_BUDGET;
+
+fn counter(r: &common::Render, name: &str) -> f64 {
+    *r.stats.counters.get(name).unwrap_or_else(|| panic!("no counter {name}"))
+}
+
+#[test]
+fn sunk_sphere_light_is_bounded_and_falls_back_to_directlighting() {
+    let path = root().join("tests/data/ltc-budget/sunk-sphere.pbrt");
+    let o = Opts { integrator: Some("ltc"), resolution: Some((32, 24)), threads: 2, ..Opts::default() };
+    let r = render_path(&path, &o);
+    let points = counter(&r, "ltc_points");
+    let over = counter(&r, "ltc_over_budget_points");
+    let tris = counter(&r, "ltc_light_triangles");
+    assert!(over > 0.0, "no point counted over budget (points {points})");
+    // Every analytic point stays within the budget.
+    assert!(
+        tris <= LIGHT_TRIANGLE_BUDGET as f64 * points,
+        "{tris} light triangles integrated one by one over {points} points"
+    );
+    // The floor's own points still take the cap whole (the floor cannot shadow a point on it).
+    assert!(counter(&r, "ltc_whole_lights") > 0.0);
+    let warned: Vec<_> = r.warnings.iter().filter(|w| w.contains("directlighting's estimator shaded them")).collect();
+    assert_eq!(warned.len(), 1, "{:?}", r.warnings);
+    assert!(warned[0].contains(&format!("{over} shading points")), "{}", warned[0]);
+    // The fallback is directlighting's estimator: the image agrees with directlighting's. Both at
+    // 64 spp on 32×24; the tolerance is 4 standard errors of the two means' difference, from the
+    // per-pixel variances both renders report.
+    let dl = render_path(&path, &Opts { integrator: Some("directlighting"), spp: Some(64), ..o });
+    let ours = render_path(&path, &Opts { spp: Some(64), ..o });
+    let n = ours.image.data.len() as f64;
+    let var_mean = |v: &common::Render| v.variance.data.iter().map(|x| *x as f64).sum::<f64>() / (n * n);
+    let se = (var_mean(&dl) + var_mean(&ours)).sqrt();
+    let (a, b) = (common::mean(&ours.image), common::mean(&dl.image));
+    assert!((a - b).abs() <= 4.0 * se + 1e-9, "ltc mean {a} vs directlighting {b} (se {se})");
+}
+
+/// The mean of rows `y0..y1` of `img` (all channels).
+fn rows_mean(img: &penumbra_core::image::Image, y0: usize, y1: usize) -> f64 {
+    let w = img.width as usize * 3;
+    let v = &img.data[y0 * w..y1 * w];
+    v.iter().map(|x| *x as f64).sum::<f64>() / v.len() as f64
+}
+
+/// Veach's MIS plates (`scenes/mis-plates`, the scene of issue 42): every shading point takes
+/// every sphere light whole (its cap, occluders clipped to the silhouette plane), none goes
+/// triangle by triangle or over budget; the plates α 0.05 and 0.1 and the floor (the image's
+/// lower half) agree with pbrt-v3 (`tests/data/mis-plates/reference-blocks8.pfm`, 128 spp at
+/// 256×192, 8×8 block means) within 1 % — the issue's goal; measured −0.0 % at 64×48 (the whole
+/// 256×192 image: +0.33 %, see docs/integrators/ltc.md). The upper half is not compared at
+/// 64×48: the lights seen directly (r 0.033 at L 902 covers a twentieth of a pixel) and their
+/// highlights on the α 0.005 and 0.02 plates are sub-pixel, and 16 camera samples leave them
+/// ±3–12 % noisy at this resolution (`directlighting` at 64 spp: ±0.6–1.8 %).
+#[test]
+fn mis_plates_lights_are_taken_whole_and_match_pbrt_v3() {
+    let path = common::scene("mis-plates/mis-plates.pbrt");
+    let o = Opts { integrator: Some("ltc"), resolution: Some((64, 48)), spp: Some(16), threads: 2, ..Opts::default() };
+    let r = render_path(&path, &o);
+    for c in ["ltc_by_triangles_shape", "ltc_by_triangles_loops", "ltc_by_triangles_occluder", "ltc_over_budget_points"]
+    {
+        assert_eq!(counter(&r, c), 0.0, "{c}");
+    }
+    assert_eq!(counter(&r, "ltc_whole_lights"), 4.0 * counter(&r, "ltc_points"));
+    let reference =
+        penumbra_core::image::read(root().join("tests/data/mis-plates/reference-blocks8.pfm")).expect("ref");
+    assert_eq!((reference.width, reference.height), (32, 24));
+    let (ours, theirs) = (rows_mean(&r.image, 24, 48), rows_mean(&reference, 12, 24));
+    let rel = ours / theirs - 1.0;
+    assert!(rel.abs() < 0.01, "lower half: ltc {ours} vs pbrt-v3 {theirs} ({:+.2} %)", rel * 100.0);
+}
