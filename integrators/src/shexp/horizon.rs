@@ -397,10 +397,9 @@ mod tests {
         ]
     }
 
-    #[test]
-    fn gap_light_matches_ray_casting() {
-        // A square, an L-shaped outline (concave) and a square with a square hole.
-        let l_shape = quad_mesh(
+    /// An L-shaped (concave) outline in the plane y = 0.
+    fn l_shape() -> TriangleMesh {
+        quad_mesh(
             &[
                 [-3.0, 0.0, -3.0],
                 [-3.0, 0.0, 3.0],
@@ -411,8 +410,12 @@ mod tests {
                 [0.0, 0.0, -3.0],
             ],
             &[[0, 1, 2], [0, 2, 3], [0, 3, 6], [6, 3, 4], [6, 4, 5]],
-        );
-        let holed = quad_mesh(
+        )
+    }
+
+    /// A square with a square hole, in the plane y = 0.
+    fn holed_square() -> TriangleMesh {
+        quad_mesh(
             &[
                 [-3.0, 0.0, -3.0],
                 [-3.0, 0.0, 3.0],
@@ -424,7 +427,13 @@ mod tests {
                 [1.0, 0.0, -1.0],
             ],
             &[[0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]],
-        );
+        )
+    }
+
+    #[test]
+    fn gap_light_matches_ray_casting() {
+        // A square, an L-shaped outline (concave) and a square with a square hole.
+        let (l_shape, holed) = (l_shape(), holed_square());
         let mut worst: f64 = 0.0;
         for mesh in [square(3.0), l_shape, holed] {
             for sources in [white(), gradient()] {
@@ -457,31 +466,7 @@ mod tests {
                 (s0 >= 0.0 && s1 >= 0.0 && s2 >= 0.0) || (s0 <= 0.0 && s1 <= 0.0 && s2 <= 0.0)
             })
         };
-        let l_shape = quad_mesh(
-            &[
-                [-3.0, 0.0, -3.0],
-                [-3.0, 0.0, 3.0],
-                [0.0, 0.0, 3.0],
-                [0.0, 0.0, 0.0],
-                [3.0, 0.0, 0.0],
-                [3.0, 0.0, -3.0],
-                [0.0, 0.0, -3.0],
-            ],
-            &[[0, 1, 2], [0, 2, 3], [0, 3, 6], [6, 3, 4], [6, 4, 5]],
-        );
-        let holed = quad_mesh(
-            &[
-                [-3.0, 0.0, -3.0],
-                [-3.0, 0.0, 3.0],
-                [3.0, 0.0, 3.0],
-                [3.0, 0.0, -3.0],
-                [-1.0, 0.0, -1.0],
-                [-1.0, 0.0, 1.0],
-                [1.0, 0.0, 1.0],
-                [1.0, 0.0, -1.0],
-            ],
-            &[[0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]],
-        );
+        let (l_shape, holed) = (l_shape(), holed_square());
         let (mut tested, mut missed) = (0, 0);
         for mesh in [square(3.0), l_shape, holed] {
             let gap = HorizonGap::build(&white(), ground(), &mesh).unwrap();

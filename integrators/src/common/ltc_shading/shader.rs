@@ -603,6 +603,12 @@ impl LtcShader {
         } else {
             Some(Occluders::default())
         };
+        self.integrate_if_found(q, outline, occ, acc)
+    }
+
+    /// Integrates `outline` against its occluders when they were found (`false` otherwise: the
+    /// caller takes the light triangle by triangle).
+    fn integrate_if_found(&self, q: &PointQuery, outline: &[DVec3], occ: Option<Occluders>, acc: &mut Accum) -> bool {
         match occ {
             Some(occ) => {
                 integrate_piece(&self.settings, &q.at, outline, occ, acc);
@@ -644,13 +650,7 @@ impl LtcShader {
         } else {
             Some(Occluders::default())
         };
-        match occ {
-            Some(occ) => {
-                integrate_piece(&self.settings, &q.at, outline, occ, acc);
-                true
-            }
-            None => false,
-        }
+        self.integrate_if_found(q, outline, occ, acc)
     }
 
     /// The light's triangles one by one (those of a one-sided light facing the point).
