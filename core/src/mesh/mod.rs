@@ -143,6 +143,11 @@ pub struct TriangleMesh {
     pub shadow_alpha: Option<AlphaSpec>,
     /// Which pbrt-v3 shape the mesh stands for, as far as its normals go.
     pub normal_rule: NormalRule,
+    /// The hit's geometric normal is the analytic normal (the per-vertex `normals`), not the
+    /// triangle's: pbrt-v3's hyperboloid, whose `∂p/∂u × ∂p/∂v` uses the segment `p1 → p2`
+    /// and so is not normal to the surface it intersects (up to 160° off on public scenes);
+    /// BSDFs decide reflection against it, as pbrt-v3's do.
+    pub analytic_ng: bool,
     /// For a sphere, disk or cylinder: its parameters, for what pbrt-v3 computes on the
     /// analytic shape (area-light sampling).
     pub quadric: Option<Quadric>,

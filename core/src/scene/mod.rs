@@ -366,7 +366,7 @@ impl Scene {
                 // The analytic shape's frame: its normal (flipped as pbrt-v3 flips it) and its
                 // own ∂p/∂u, ∂p/∂v, made tangent to that normal.
                 let ns = ns0 * mesh.hit_normal_sign();
-                si.n = face_forward(ng, ns);
+                si.n = if mesh.analytic_ng && ns != Vec3::ZERO { ns } else { face_forward(ng, ns) };
                 si.shading = Frame::from_zx(ns, dpdu);
                 si.shading_dpdu = dpdu - ns * ns.dot(dpdu);
                 si.shading_dpdv = dpdv - ns * ns.dot(dpdv);

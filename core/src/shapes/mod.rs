@@ -114,6 +114,7 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
     let mut mesh = finish(obj, desc)?;
     if matches!(kind, "sphere" | "disk" | "cylinder" | "cone" | "paraboloid" | "hyperboloid") {
         mesh.normal_rule = NormalRule::Quadric;
+        mesh.analytic_ng = kind == "hyperboloid";
     }
     Ok(Some(mesh))
 }
@@ -229,6 +230,7 @@ fn finish(obj: ObjMesh, desc: &ShapeDesc) -> Result<TriangleMesh, Diagnostic> {
         alpha: obj.alpha,
         shadow_alpha: obj.shadow_alpha,
         normal_rule: NormalRule::Triangle,
+        analytic_ng: false,
         quadric: obj.quadric.map(|(shape, deviation)| Quadric { shape, world_from_object: *t, deviation }),
     })
 }

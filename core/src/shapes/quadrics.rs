@@ -4,8 +4,16 @@
 //! analytic per-vertex normals `∂p/∂u × ∂p/∂v` (pbrt-v3's unflipped normal).
 //!
 //! Every quadric is a surface of revolution `p(u, v) = Rz(u φmax) m(v)` for a
-//! "meridian" `m(v)` (for the hyperboloid, the segment `p1 → p2`). See the parent
-//! module for the error bound.
+//! "meridian" `m(v)`. See the parent module for the error bound.
+//!
+//! The hyperboloid is pbrt-v3's, which is not the surface swept by the segment
+//! `p1 → p2`: pbrt-v3 fits the implicit quadric `a (x² + y²) − c z² = 1` (no linear term,
+//! so its waist is at z = 0) through `p2` and a point further along the line, clips it to
+//! `z ∈ [min z, max z]`, and measures φ from the segment's point at the hit's height. The
+//! two agree only when the segment's waist is at z = 0; otherwise pbrt-v3's surface has
+//! other radii and may be two separate sheets or an ellipsoid. penumbra renders pbrt-v3's
+//! surface (with pbrt-v3's normal `∂p/∂u × Rz(φ)(p2 − p1)` and uv), and the swept segment
+//! only where pbrt-v3's fit never terminates (a segment through the axis, i.e. a cone).
 
 use super::{loc_or_entity, ObjMesh, ShapeContext, MAX_SEGMENTS};
 use crate::mesh::QuadricShape;
@@ -44,9 +52,18 @@ enum Meridian {
         z1: f64,
     },
     /// m = (1 - v) p1 + v p2.
+    Ruled {
+        p1: V3,
+        p2: V3,
+    },
+    /// pbrt-v3's hyperboloid: at height z = p1.z + v (p2.z − p1.z), the point of radius
+    /// ρ = sqrt((1 + c z²) / a) in the direction of `(1 - v) p1 + v p2`; ∂m/∂v is the
+    /// segment's `p2 - p1`, as pbrt-v3's ∂p/∂v.
     Hyperboloid {
         p1: V3,
         p2: V3,
+        a: f64,
+        c: f64,
     },
 }
 
@@ -68,12 +85,60 @@ impl Meridian {
                 // dρ/dv = r (z1 - z0) / (2 sqrt(z z1)); infinite at the apex (handled by the caller).
                 ([rho, 0.0, z], [r * (z1 - z0) / (2.0 * (z * z1).sqrt()), 0.0, z1 - z0])
             }
-            Meridian::Hyperboloid { p1, p2 } => {
+            Meridian::Ruled { p1, p2 } => {
                 let m = [0, 1, 2].map(|i| (1.0 - v) * p1[i] + v * p2[i]);
                 (m, [0, 1, 2].map(|i| p2[i] - p1[i]))
             }
+            Meridian::Hyperboloid { p1, p2, a, c } => {
+                let pr = [0, 1, 2].map(|i| (1.0 - v) * p1[i] + v * p2[i]);
+                let z = pr[2];
+                let rho = ((1.0 + c * z * z) / a).max(0.0).sqrt();
+                let rr = pr[0].hypot(pr[1]);
+                let (dx, dy) = if rr > 0.0 { (pr[0] / rr, pr[1] / rr) } else { (1.0, 0.0) };
+                ([rho * dx, rho * dy, z], [0, 1, 2].map(|i| p2[i] - p1[i]))
+            }
         }
     }
+}
+
+/// pbrt-v3's implicit hyperboloid coefficients `(a, c)` for the segment `p1 → p2` (after
+/// pbrt-v3's swap when `p2.z = 0`): the quadric through `p2` and `p1 + 2k (p2 − p1)` for the
+/// first k = 1, 2, … that gives finite coefficients. `None` where pbrt-v3's search would
+/// never end (a segment through the axis: a cone, which the quadric cannot represent).
+fn hyperboloid_coefficients(p1: V3, p2: V3) -> Option<(f64, f64)> {
+    let xy2 = p2[0] * p2[0] + p2[1] * p2[1];
+    let z2 = p2[2] * p2[2];
+    for k in 1..=64 {
+        let pp = [0, 1, 2].map(|i| p1[i] + 2.0 * k as f64 * (p2[i] - p1[i]));
+        let xy1 = pp[0] * pp[0] + pp[1] * pp[1];
+        let a = (1.0 / xy1 - pp[2] * pp[2] / (xy1 * z2)) / (1.0 - xy2 * pp[2] * pp[2] / (xy1 * z2));
+        let c = (a * xy2 - 1.0) / z2;
+        if a.is_finite() && c.is_finite() && a != 0.0 {
+            return Some((a, c));
+        }
+    }
+    None
+}
+
+/// The v-intervals of `[0, 1]` where pbrt-v3's hyperboloid exists (`(1 + c z²) / a ≥ 0`):
+/// all of it for a hyperboloid of one sheet; around z = 0 for an ellipsoid; away from it for
+/// two sheets. At an interval's end strictly inside (0, 1) the radius is 0 (a pole).
+fn hyperboloid_intervals(p1: V3, p2: V3, a: f64, c: f64) -> Vec<(f64, f64)> {
+    let (z1, z2) = (p1[2], p2[2]);
+    let v_of = |z: f64| ((z - z1) / (z2 - z1)).clamp(0.0, 1.0);
+    let exists = |z: f64| (1.0 + c * z * z) / a >= 0.0;
+    if c >= 0.0 {
+        return if a > 0.0 { vec![(0.0, 1.0)] } else { vec![] };
+    }
+    // c < 0: the sign of 1 + c z² changes at |z| = z0.
+    let z0 = (-1.0 / c).sqrt();
+    let mut cuts = vec![0.0, 1.0, v_of(-z0), v_of(z0)];
+    cuts.sort_by(f64::total_cmp);
+    cuts.dedup();
+    cuts.windows(2)
+        .filter(|w| w[1] > w[0] && exists(z1 + 0.5 * (w[0] + w[1]) * (z2 - z1)))
+        .map(|w| (w[0], w[1]))
+        .collect()
 }
 
 fn rot(m: V3, (s, c): (f64, f64)) -> V3 {
@@ -294,7 +359,20 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
                 std::mem::swap(&mut p1, &mut p2); // as pbrt-v3 does
             }
             let r_ref = p1[0].hypot(p1[1]).max(p2[0].hypot(p2[1]));
-            (Meridian::Hyperboloid { p1, p2 }, phi, 0.0, r_ref)
+            let m = match hyperboloid_coefficients(p1, p2) {
+                _ if p1[2] == p2[2] => Meridian::Ruled { p1, p2 }, // degenerate: skipped below
+                Some((a, c)) => Meridian::Hyperboloid { p1, p2, a, c },
+                None => {
+                    ctx.warnings.warn(
+                        Some(desc.entity.loc.clone()),
+                        "hyperboloid: the segment p1 → p2 passes through the z axis (a cone); pbrt-v3's \
+                         implicit fit never terminates for it; rendered as the surface the segment sweeps"
+                            .to_string(),
+                    );
+                    Meridian::Ruled { p1, p2 }
+                }
+            };
+            (m, phi, 0.0, r_ref)
         }
         _ => return Ok(None),
     };
@@ -310,7 +388,7 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
         Meridian::Disk { r, ri, .. } => !(ri >= 0.0 && ri < r),
         Meridian::Cone { h, .. } => h == 0.0,
         Meridian::Paraboloid { z1, .. } => z1.is_nan() || z1 <= 0.0 || v_lo >= 1.0,
-        Meridian::Hyperboloid { p1, p2 } => p1[2] == p2[2],
+        Meridian::Ruled { p1, p2 } | Meridian::Hyperboloid { p1, p2, .. } => p1[2] == p2[2],
     };
     if degenerate {
         ctx.warnings.warn(Some(desc.entity.loc.clone()), format!("{kind}: degenerate parameters (zero area); skipped"));
@@ -318,7 +396,49 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
     }
     let eps = ctx.tessellation.max_rel_error as f64;
     let quadric = quadric.map(|q| (q, eps * r_ref));
+    if let Meridian::Hyperboloid { p1, p2, a, c } = m {
+        let pieces = hyperboloid_intervals(p1, p2, a, c);
+        if pieces.is_empty() {
+            ctx.warnings.warn(
+                Some(desc.entity.loc.clone()),
+                format!("hyperboloid: pbrt-v3's implicit surface ({a} (x² + y²) − {c} z² = 1) has no point between z = {} and z = {}; skipped", p1[2].min(p2[2]), p1[2].max(p2[2])),
+            );
+            return Ok(None);
+        }
+        // pbrt-v3 bounds the shape by the radius of p1 and p2; where its fitted surface reaches
+        // further, rays that miss that box never test it and pbrt-v3's image loses parts of it
+        // (depending on the view). penumbra renders the whole surface and says so.
+        let reach = [p1[2], p2[2], 0.0]
+            .into_iter()
+            .filter(|z| *z >= p1[2].min(p2[2]) && *z <= p1[2].max(p2[2]))
+            .map(|z| ((1.0 + c * z * z) / a).max(0.0).sqrt())
+            .fold(0.0, f64::max);
+        if reach > r_ref * (1.0 + 1e-6) {
+            ctx.warnings.warn(
+                Some(desc.entity.loc.clone()),
+                format!(
+                    "hyperboloid: pbrt-v3's fitted surface reaches radius {reach:.4} but pbrt-v3 bounds it by \
+                     {r_ref:.4} (the radius of p1/p2), so pbrt-v3's image misses parts of it seen past that \
+                     box; penumbra renders the whole surface"
+                ),
+            );
+        }
+        let mut mesh = ObjMesh::default();
+        for (v_lo, v_hi) in pieces {
+            append(&mut mesh, Surface { v_lo, v_hi, ..surf }.tessellate(eps));
+        }
+        return Ok(Some(mesh));
+    }
     Ok(Some(ObjMesh { quadric, ..surf.tessellate(eps) }))
+}
+
+/// Appends `b`'s vertices and triangles to `a` (both with normals and uv, as tessellated).
+fn append(a: &mut ObjMesh, b: ObjMesh) {
+    let base = a.p.len() as u32;
+    a.p.extend(b.p);
+    a.n.get_or_insert_with(Vec::new).extend(b.n.unwrap_or_default());
+    a.uv.get_or_insert_with(Vec::new).extend(b.uv.unwrap_or_default());
+    a.tris.extend(b.tris.into_iter().map(|t| t.map(|i| i + base)));
 }
 
 #[cfg(test)]
@@ -423,34 +543,85 @@ mod tests {
         check_area(&m, area(0.5, 2.0));
     }
 
+    /// pbrt-v3's hyperboloid: the quadric a ρ² − c z² = 1 through p2 and 2 p2 − p1, solved
+    /// here as a 2×2 linear system (independently of the code's closed form).
+    fn implicit_through(p1: [f64; 3], p2: [f64; 3]) -> (f64, f64) {
+        let q = [0, 1, 2].map(|i| 2.0 * p2[i] - p1[i]);
+        let (r2, rq) = (p2[0] * p2[0] + p2[1] * p2[1], q[0] * q[0] + q[1] * q[1]);
+        let (z2, zq) = (p2[2] * p2[2], q[2] * q[2]);
+        // [r2 -z2; rq -zq] (a, c) = (1, 1)
+        let det = -r2 * zq + z2 * rq;
+        ((z2 - zq) / det, (r2 - rq) / det)
+    }
+
     #[test]
-    fn hyperboloid_area_by_numeric_integration() {
+    fn hyperboloid_is_pbrt_v3s_implicit_surface_with_its_area() {
         for (p1, p2, phimax) in [
-            ([1.0f64, 0.0, -1.0], [0.0, 1.0, 1.0], 360.0f64),
-            ([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], 360.0),
+            ([1.0f64, 0.0, -1.0], [0.0, 1.0, 1.0], 360.0f64), // waist at z = 0: the swept segment
+            ([1.0, 0.0, -0.5], [0.2, 1.0, 0.5], 360.0),
             ([0.5, 0.3, 0.2], [-1.0, 0.8, 1.5], 200.0),
         ] {
             let pf = |p: [f64; 3]| ParamValue::Point3(p.iter().map(|x| *x as f32).collect());
             let m = build("hyperboloid", vec![("p1", pf(p1)), ("p2", pf(p2)), ("phimax", fl(phimax as f32))]);
-            // Surface of revolution of the meridian (ρ(v), z(v)): A = φmax ∫ ρ sqrt(ρ'² + z'²) dv (Simpson).
-            let rho = |v: f64| {
-                let x = p1[0] + v * (p2[0] - p1[0]);
-                let y = p1[1] + v * (p2[1] - p1[1]);
-                x.hypot(y)
-            };
-            let n = 20000;
-            let h = 1.0 / n as f64;
-            let g = |v: f64| {
-                let d =
-                    (rho((v + 1e-7).min(1.0)) - rho((v - 1e-7).max(0.0))) / ((v + 1e-7).min(1.0) - (v - 1e-7).max(0.0));
-                rho(v) * (d * d + (p2[2] - p1[2]).powi(2)).sqrt()
-            };
-            let mut s = g(0.0) + g(1.0);
-            for i in 1..n {
-                s += g(i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+            let (a, c) = implicit_through(p1, p2);
+            for p in &m.positions {
+                let (x, y, z) = (p.x as f64, p.y as f64, p.z as f64);
+                let f = a * (x * x + y * y) - c * z * z;
+                assert!((f - 1.0).abs() < 1e-4, "{p} on {a} ρ² − {c} z²: {f}");
             }
-            check_area(&m, phimax.to_radians() * s * h / 3.0);
+            // Surface of revolution of ρ(z) = sqrt((1 + c z²) / a): A = φmax ∫ ρ sqrt(ρ'² + 1) dz
+            // = φmax ∫ sqrt(ρ² + (c z / a)²) dz (Simpson) over the z where ρ² ≥ 0.
+            let rho2 = |z: f64| (1.0 + c * z * z) / a;
+            let g = |z: f64| (rho2(z).max(0.0) + (c * z / a).powi(2)).sqrt();
+            let (z0, z1) = (p1[2].min(p2[2]), p1[2].max(p2[2]));
+            let mut cuts = vec![z0, z1];
+            if c < 0.0 {
+                cuts.extend([-(-1.0 / c).sqrt(), (-1.0 / c).sqrt()].into_iter().filter(|z| *z > z0 && *z < z1));
+            }
+            cuts.sort_by(f64::total_cmp);
+            let mut area = 0.0;
+            for w in cuts.windows(2).filter(|w| rho2(0.5 * (w[0] + w[1])) >= 0.0) {
+                let n = 20000;
+                let h = (w[1] - w[0]) / n as f64;
+                let mut s = g(w[0]) + g(w[1]);
+                for i in 1..n {
+                    s += g(w[0] + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+                }
+                area += s * h / 3.0;
+            }
+            check_area(&m, phimax.to_radians() * area);
         }
+    }
+
+    #[test]
+    fn hyperboloid_of_two_sheets_as_pbrt_v3_fits_it() {
+        // hackmad's all-shapes.pbrt: pbrt-v3's fit is two sheets with no surface for |z| < z0.
+        let (p1, p2) = ([3.0f64, 1.2, 1.0], [0.65f64, -0.5, -1.0]);
+        let pf = |p: [f64; 3]| ParamValue::Point3(p.iter().map(|x| *x as f32).collect());
+        let m = build("hyperboloid", vec![("p1", pf(p1)), ("p2", pf(p2))]);
+        let (a, c) = implicit_through(p1, p2);
+        assert!(a < 0.0 && c < 0.0, "{a} {c}");
+        let z0 = (-1.0 / c).sqrt();
+        assert!(m.positions.iter().all(|p| (p.z as f64).abs() >= z0 * (1.0 - 1e-6)));
+        assert!(m.positions.iter().any(|p| p.z > 0.0) && m.positions.iter().any(|p| p.z < 0.0));
+        let rmax = m.positions.iter().map(|p| p.x.hypot(p.y) as f64).fold(0.0, f64::max);
+        // At z = ±1, ρ = sqrt((1 + c) / a) (≈ 0.82), far from p1's 3.23.
+        assert!((rmax - ((1.0 + c) / a).sqrt()).abs() < 1e-4, "{rmax}");
+    }
+
+    #[test]
+    fn hyperboloid_through_the_axis_warns_and_sweeps_the_segment() {
+        let sink = DiagSink::new();
+        let ctx = ShapeContext::new(Path::new("."), &sink);
+        let pf = |p: [f32; 3]| ParamValue::Point3(p.to_vec());
+        let d = shape("hyperboloid", vec![("p1", pf([0.0, 0.0, 0.0])), ("p2", pf([1.0, 1.0, 1.0]))]);
+        let m = build_shape(&d, &ctx).unwrap().unwrap();
+        let w = sink.take();
+        assert!(w.iter().any(|d| d.message.contains("passes through the z axis")), "{w:?}");
+        // The cone ρ = √2 z, 0 ≤ z ≤ 1: lateral area π r s = π √2 √3.
+        let expect = std::f64::consts::PI * 2f64.sqrt() * 3f64.sqrt();
+        let rel = (m.total_area() - expect).abs() / expect;
+        assert!(rel < 1e-2, "{rel}");
     }
 
     #[test]
