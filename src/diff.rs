@@ -136,71 +136,38 @@ fn select(img: Image, which: &Path, args: &DiffArgs) -> Result<Image, Failure> {
     Ok(img)
 }
 
-/// A data window `[x0, x1, y0, y1]` in its frame's pixels.
-type Window = [i64; 4];
-
-fn window(img: &Image) -> Window {
-    let f = img.frame_or_whole();
-    let (x, y) = (f.origin.0 as i64, f.origin.1 as i64);
-    [x, x + img.width as i64, y, y + img.height as i64]
-}
-
-/// The pixels both images hold, where they sit in their common frame: a cropped EXR keeps its
-/// place (its data window in the full display window, as pbrt-v3 writes a crop), so a crop is
-/// compared with the same pixels of a whole image or of another crop. `--crop` is in the frame's
-/// pixels. Returns the two parts and the compared window, or `None` where the images are whole
-/// and the same size (then nothing is cut).
+/// The pixels both images hold, where they sit in their common frame ([`image::overlap`]: a
+/// crop is compared with the same pixels of a whole image or of another crop); `--crop` is in
+/// the frame's pixels. Returns the two parts and the compared window, or `None` where the images
+/// are whole and `--crop` is not given (then nothing is cut).
 fn overlap(
     a: Image,
     b: Image,
     args: &DiffArgs,
     crop: Option<[u32; 4]>,
-) -> Result<(Image, Image, Option<Window>), Failure> {
-    let (fa, fb) = (a.frame_or_whole(), b.frame_or_whole());
-    if a.frame.is_none() && b.frame.is_none() && crop.is_none() {
-        return Ok((a, b, None)); // compare() refuses different sizes (exit 3)
-    }
-    if fa.full != fb.full {
-        return Err(fail(
+) -> Result<(Image, Image, Option<image::Window>), Failure> {
+    image::overlap(a, b, crop).map_err(|e| match e {
+        image::OverlapError::DifferentFrames { a: fa, b: fb } => fail(
             EXIT_DIFFERENT_SIZE,
             format!(
                 "{} is (part of) a {}×{} image, {} of a {}×{} image",
                 args.a.display(),
-                fa.full.0,
-                fa.full.1,
+                fa.0,
+                fa.1,
                 args.b.display(),
-                fb.full.0,
-                fb.full.1
+                fb.0,
+                fb.1
             ),
-        ));
-    }
-    let (wa, wb) = (window(&a), window(&b));
-    let mut w = [wa[0].max(wb[0]), wa[1].min(wb[1]), wa[2].max(wb[2]), wa[3].min(wb[3])];
-    if let Some(c) = crop {
-        let (fw, fh) = (fa.full.0, fa.full.1);
-        if c[0] >= c[1] || c[2] >= c[3] || c[1] > fw || c[3] > fh {
-            return Err(fail(
-                EXIT_FILE,
-                format!("--crop [{},{})×[{},{}) is empty or outside the {fw}×{fh} image", c[0], c[1], c[2], c[3]),
-            ));
-        }
-        w = [w[0].max(c[0] as i64), w[1].min(c[1] as i64), w[2].max(c[2] as i64), w[3].min(c[3] as i64)];
-    }
-    if w[0] >= w[1] || w[2] >= w[3] {
-        return Err(fail(
+        ),
+        image::OverlapError::BadWithin { within: c, full: (fw, fh) } => fail(
+            EXIT_FILE,
+            format!("--crop [{},{})×[{},{}) is empty or outside the {fw}×{fh} image", c[0], c[1], c[2], c[3]),
+        ),
+        image::OverlapError::Disjoint => fail(
             EXIT_DIFFERENT_SIZE,
             format!("{} and {} (within --crop) share no pixel of their frame", args.a.display(), args.b.display()),
-        ));
-    }
-    let part = |img: Image, at: Window, which: &Path| -> Result<Image, Failure> {
-        if at == w {
-            return Ok(img);
-        }
-        let c = |v: i64, o: i64| (v - o) as u32;
-        img.crop(c(w[0], at[0]), c(w[1], at[0]), c(w[2], at[2]), c(w[3], at[2]))
-            .map_err(|e| fail(EXIT_FILE, format!("{}: {e}", which.display())))
-    };
-    Ok((part(a, wa, &args.a)?, part(b, wb, &args.b)?, Some(w)))
+        ),
+    })
 }
 
 fn run_inner(args: &DiffArgs) -> Result<u8, Failure> {
@@ -320,7 +287,7 @@ fn report_json(
     status: Status,
     flip: &FlipValue,
     heatmap: Option<&(PathBuf, f64, f64)>,
-    region: Option<Window>,
+    region: Option<image::Window>,
 ) -> Value {
     json!({
         "a": args.a,

@@ -206,3 +206,71 @@ fn a_cropped_exr_keeps_its_place_in_the_frame_and_diff_and_merge_honour_it() {
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// Item 6 for `check`: a cropped render (pbrt-v3's frame: the crop as the data window in the
+/// full display window) is judged against the same pixels of a whole reference. Before, `check`
+/// compared the data windows' sizes and refused (exit 3, "the images differ in size").
+#[test]
+fn check_judges_a_cropped_render_on_the_pixels_of_the_whole_reference() {
+    let d = dir("check-crop-frame");
+    std::fs::write(d.join("s.pbrt"), scene("", "WorldEnd\n")).unwrap();
+    let base = ["render", "s.pbrt", "-i", "directlighting", "--variance", "-q"];
+    let run = |extra: &[&str]| {
+        let args: Vec<&str> = base.iter().chain(extra).copied().collect();
+        let o = penumbra(&d, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    run(&["--resolution", "16x12", "--spp", "64", "--seed", "1", "-o", "ref.exr"]);
+    run(&["--resolution", "16x12", "--spp", "16", "--crop", "4,12,2,9", "-o", "crop.exr"]);
+    let o = penumbra(&d, &["check", "crop.exr", "ref.exr", "--json"]);
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    assert_eq!(o.status.code(), Some(0), "{out}{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    // The 8×7 crop's pixels were judged.
+    assert_eq!((v["width"].as_u64(), v["height"].as_u64()), (Some(8), Some(7)), "{v}");
+    // The crop's pixels differ from the reference's at another place: a wrong alignment fails.
+    let shifted = penumbra_core::image::read(d.join("crop.exr")).unwrap().with_frame((16, 12), (0, 0));
+    penumbra_core::image::write(&shifted, d.join("shifted.exr")).unwrap();
+    std::fs::copy(d.join("crop.stats.json"), d.join("shifted.stats.json")).unwrap();
+    let o = penumbra(&d, &["check", "shifted.exr", "ref.exr"]);
+    assert_eq!(o.status.code(), Some(2), "{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    // Crops that share no pixel, or frames of different sizes, are a size mismatch (3).
+    run(&["--resolution", "16x12", "--spp", "16", "--crop", "0,4,0,2", "-o", "corner.exr"]);
+    assert_eq!(penumbra(&d, &["check", "corner.exr", "crop.exr"]).status.code(), Some(3));
+    run(&["--spp", "16", "--resolution", "8x6", "-o", "small.exr"]);
+    assert_eq!(penumbra(&d, &["check", "crop.exr", "small.exr"]).status.code(), Some(3));
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Item 9: a scene that asks for minutes of tessellation is refused at once with a located
+/// error. The scene's triangle budget (PENUMBRA_MAX_TRIANGLES, default 2^26) is charged by
+/// loopsubdiv with 4^nlevels × faces before it subdivides, and by every other shape (each object
+/// instance counted) as it is built. Before, nothing bounded the sum: this scene rendered.
+#[test]
+fn a_scene_over_the_triangle_budget_is_a_located_error() {
+    let d = dir("triangle-budget");
+    let subdiv = "AttributeBegin\n  Shape \"loopsubdiv\" \"integer nlevels\" [ 6 ] \"integer indices\" [ 0 1 2 0 3 1 0 2 3 1 3 2 ]\n\
+                  \"point P\" [ 1 1 1 1 -1 -1 -1 1 -1 -1 -1 1 ]\nAttributeEnd\nWorldEnd\n";
+    std::fs::write(d.join("s.pbrt"), scene("", subdiv)).unwrap();
+    let render = |budget: Option<&str>| {
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"));
+        c.current_dir(&d).args(["render", "s.pbrt", "-q", "-o", "out.exr"]);
+        if let Some(b) = budget {
+            c.env("PENUMBRA_MAX_TRIANGLES", b);
+        }
+        c.output().unwrap()
+    };
+    // 4 × 4^6 = 16384 triangles: within the default budget, over a budget of 10000.
+    let o = render(None);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = render(Some("10000"));
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    // At the nlevels parameter: line 10 of the file, column 22.
+    assert!(err.contains("s.pbrt:10:22"), "{err}");
+    assert!(err.contains("16384 triangles") && err.contains("triangle budget of 10000"), "{err}");
+    // A malformed budget is an error, not the default.
+    let o = render(Some("lots"));
+    assert!(!o.status.success() && stderr(&o).contains("PENUMBRA_MAX_TRIANGLES"), "{}", stderr(&o));
+    std::fs::remove_dir_all(&d).ok();
+}

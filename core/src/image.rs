@@ -200,6 +200,75 @@ pub struct Frame {
     pub origin: (i32, i32),
 }
 
+/// A window `[x0, x1, y0, y1]` (half-open) in a frame's pixels.
+pub type Window = [i64; 4];
+
+/// Why two images have no pixels to compare (see [`overlap`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum OverlapError {
+    /// They are (parts of) frames of different sizes.
+    DifferentFrames { a: (u32, u32), b: (u32, u32) },
+    /// The `within` window is empty or leaves the frame.
+    BadWithin { within: [u32; 4], full: (u32, u32) },
+    /// Their data windows (within `within`) share no pixel.
+    Disjoint,
+}
+
+impl std::fmt::Display for OverlapError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            OverlapError::DifferentFrames { a, b } => {
+                write!(f, "(part of) a {}×{} image against (part of) a {}×{} image", a.0, a.1, b.0, b.1)
+            }
+            OverlapError::BadWithin { within: c, full } => {
+                write!(f, "[{},{})×[{},{}) is empty or outside the {}×{} image", c[0], c[1], c[2], c[3], full.0, full.1)
+            }
+            OverlapError::Disjoint => write!(f, "the images share no pixel of their frame"),
+        }
+    }
+}
+
+/// The pixels both `a` and `b` hold, where they sit in their common frame: a cropped EXR keeps
+/// its place (its data window inside the full display window, as pbrt-v3 writes a render with a
+/// crop window), so a crop is compared with the same pixels of the whole image or of another
+/// crop. `within` (in the frame's pixels) narrows the window further. Returns the two images cut
+/// to the common window and that window, or the images untouched and `None` when both are whole
+/// and no `within` is given (then they may differ in size: the caller's comparison decides).
+pub fn overlap(a: Image, b: Image, within: Option<[u32; 4]>) -> Result<(Image, Image, Option<Window>), OverlapError> {
+    let (fa, fb) = (a.frame_or_whole(), b.frame_or_whole());
+    if a.frame.is_none() && b.frame.is_none() && within.is_none() {
+        return Ok((a, b, None));
+    }
+    if fa.full != fb.full {
+        return Err(OverlapError::DifferentFrames { a: fa.full, b: fb.full });
+    }
+    let window = |img: &Image, f: Frame| -> Window {
+        let (x, y) = (f.origin.0 as i64, f.origin.1 as i64);
+        [x, x + img.width as i64, y, y + img.height as i64]
+    };
+    let (wa, wb) = (window(&a, fa), window(&b, fb));
+    let mut w = [wa[0].max(wb[0]), wa[1].min(wb[1]), wa[2].max(wb[2]), wa[3].min(wb[3])];
+    if let Some(c) = within {
+        let (fw, fh) = fa.full;
+        if c[0] >= c[1] || c[2] >= c[3] || c[1] > fw || c[3] > fh {
+            return Err(OverlapError::BadWithin { within: c, full: fa.full });
+        }
+        w = [w[0].max(c[0] as i64), w[1].min(c[1] as i64), w[2].max(c[2] as i64), w[3].min(c[3] as i64)];
+    }
+    if w[0] >= w[1] || w[2] >= w[3] {
+        return Err(OverlapError::Disjoint);
+    }
+    let part = |img: Image, at: Window| -> Image {
+        if at == w {
+            return img;
+        }
+        let c = |v: i64, o: i64| (v - o) as u32;
+        img.crop(c(w[0], at[0]), c(w[1], at[0]), c(w[2], at[2]), c(w[3], at[2]))
+            .expect("the common window lies inside each data window")
+    };
+    Ok((part(a, wa), part(b, wb), Some(w)))
+}
+
 /// A floating-point image with named channels, interleaved, row-major from the
 /// top row: value `(x, y, c)` is at `data[(y * width + x) * channels.len() + c]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -1058,6 +1127,34 @@ mod tests {
         assert_eq!(c.box_downsample(2).unwrap().frame, Some(Frame { full: (4, 3), origin: (1, 2) }));
         assert_eq!(img.crop(1, 3, 0, 2).unwrap().box_downsample(2).unwrap().frame, None);
         assert_eq!(c.select_channels(&["G"]).unwrap().frame, c.frame);
+    }
+
+    /// `overlap` cuts two images of one frame to the pixels both hold, where they sit: a crop
+    /// against the whole image, two overlapping crops, a `within` window; different frames and
+    /// disjoint crops are refused, and two whole images are left alone.
+    #[test]
+    fn overlap_places_crops_in_their_frame() {
+        let img = ramp(8, 6, &["R", "G", "B"]);
+        let (a, b, w) = overlap(img.crop(2, 6, 1, 5).unwrap(), img.clone(), None).unwrap();
+        assert_eq!(w, Some([2, 6, 1, 5]));
+        assert_eq!((a.data == b.data, a.frame, b.frame), (true, b.frame, Some(Frame { full: (8, 6), origin: (2, 1) })));
+        let (a, b, w) =
+            overlap(img.crop(0, 4, 0, 3).unwrap(), img.crop(2, 8, 2, 6).unwrap(), Some([0, 8, 0, 6])).unwrap();
+        assert_eq!(
+            (w, a.data == b.data, a.data == img.crop(2, 4, 2, 3).unwrap().data),
+            (Some([2, 4, 2, 3]), true, true)
+        );
+        let (_, _, w) = overlap(img.clone(), img.clone(), Some([1, 3, 1, 2])).unwrap();
+        assert_eq!(w, Some([1, 3, 1, 2]));
+        let other = ramp(4, 3, &["R", "G", "B"]);
+        assert_eq!(overlap(img.clone(), other.clone(), None).unwrap().2, None);
+        assert_eq!(
+            overlap(img.crop(0, 2, 0, 2).unwrap(), other, None).unwrap_err(),
+            OverlapError::DifferentFrames { a: (8, 6), b: (4, 3) }
+        );
+        let disjoint = overlap(img.crop(0, 2, 0, 2).unwrap(), img.crop(4, 8, 0, 6).unwrap(), None);
+        assert_eq!(disjoint.unwrap_err(), OverlapError::Disjoint);
+        assert!(matches!(overlap(img.clone(), img, Some([0, 9, 0, 6])), Err(OverlapError::BadWithin { .. })));
     }
 
     /// Parallel compression writes the bytes a sequential write does, and reads back the same

@@ -39,6 +39,9 @@ QMC samplers and filters wider than a pixel correlate pixels; per-value tests th
 value's noise (usually conservatively), the block and whole-image means stay right.
 --abs/--rel: an allowed difference |d| <= abs + rel*|ref| subtracted before the noise is weighed;
 for noise-free images (no variance anywhere) it is the whole test, and one of them is required.
+A cropped EXR (render --crop) keeps its place in the full frame as pbrt-v3 writes it (the crop is
+the data window inside the full display window): images of one frame are judged on the pixels both
+hold, so a cropped render is checked against the same pixels of a whole reference.
 
 Exit codes (as diff): 0 pass, 2 failure, 3 different sizes or no R,G,B channels, 4 unreadable file,
 unwritable output or an option that does not fit the images, 64 usage error, 130 interrupted (suite).
@@ -202,6 +205,30 @@ pub fn read_side(path: &Path, spp: Option<f64>) -> Result<(Image, Side), Failure
     Ok((img, side))
 }
 
+/// The pixels a test and a reference image both hold ([`image::overlap`]): a cropped EXR (render
+/// `--crop`) keeps its place in the full frame as pbrt-v3 writes it, so it is judged against the
+/// same pixels of a whole reference (or of another crop); images of different frames, or crops
+/// that share no pixel, are a size mismatch (exit 3).
+pub fn common_window(test: Image, reference: Image) -> Result<(Image, Image), Failure> {
+    image::overlap(test, reference, None)
+        .map(|(t, r, _)| (t, r))
+        .map_err(|e| fail(EXIT_DIFFERENT_SIZE, format!("test against reference: {e}")))
+}
+
+/// Reads a test and a reference image and cuts them to their [`common_window`].
+pub fn read_pair(
+    (tp, test_spp): (&Path, Option<f64>),
+    (rp, reference_spp): (&Path, Option<f64>),
+) -> Result<(Side, Side), Failure> {
+    let read = |p: &Path| image::read(p).map_err(|e| fail(EXIT_FILE, e.to_string()));
+    let (t, r) = common_window(read(tp)?, read(rp)?)?;
+    let side = |img: &Image, p: &Path, spp: Option<f64>| {
+        Side::from_image(img, spp.or_else(|| spp_from_stats(p)))
+            .map_err(|e| fail(EXIT_DIFFERENT_SIZE, format!("{}: {e}", p.display())))
+    };
+    Ok((side(&t, tp, test_spp)?, side(&r, rp, reference_spp)?))
+}
+
 /// Runs the gate, turning its refusals into exit codes: a size mismatch is 3, anything the
 /// images lack for the chosen test is 4. Noise-free comparisons need a tolerance.
 pub fn judge(test: &Side, reference: &Side, o: &GateOptions, tolerance_given: bool) -> Result<Outcome, Failure> {
@@ -245,8 +272,9 @@ pub fn judge_images(
     let side = |img: &Image, spp: Option<f64>, which: &str| {
         Side::from_image(img, spp).map_err(|e| fail(EXIT_DIFFERENT_SIZE, format!("{which}: {e}")))
     };
-    let t = side(test, test_spp.or(args.test_spp), "test")?;
-    let r = side(reference, reference_spp.or(args.reference_spp), "reference")?;
+    let (test, reference) = common_window(test.clone(), reference.clone())?;
+    let t = side(&test, test_spp.or(args.test_spp), "test")?;
+    let r = side(&reference, reference_spp.or(args.reference_spp), "reference")?;
     let out = judge(&t, &r, &o, args.abs_tol.is_some() || args.rel_tol.is_some())?;
     let mut v = report::json(&out, &o);
     v["exit_code"] = serde_json::json!(if out.passed { EXIT_OK } else { EXIT_FAIL });
@@ -263,8 +291,7 @@ fn run_pair(args: &CheckArgs) -> Result<u8, Failure> {
             return Err(fail(EXIT_FILE, format!("--maps {}: not a directory", d.display())));
         }
     }
-    let (_, test) = read_side(tp, args.test_spp)?;
-    let (_, reference) = read_side(rp, args.reference_spp)?;
+    let (test, reference) = read_pair((tp, args.test_spp), (rp, args.reference_spp))?;
     let out = judge(&test, &reference, &o, args.abs_tol.is_some() || args.rel_tol.is_some())?;
     let maps = match &args.maps {
         Some(dir) if !out.passed || args.maps_always => {

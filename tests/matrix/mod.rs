@@ -85,6 +85,16 @@ pub fn reference_samples() -> BTreeMap<(String, String), f64> {
         .collect()
 }
 
+/// The sample count pbrt-v3 rendered `cell`'s `kind` reference with (`pbrt_spp` in
+/// timings.tsv: per pixel of its own, possibly doubled, resolution).
+pub fn reference_pbrt_spp(cell: &Cell, kind: &str) -> Option<u32> {
+    let text = std::fs::read_to_string(dir().join("timings.tsv")).ok()?;
+    text.lines().skip(1).find_map(|l| {
+        let f: Vec<&str> = l.split('\t').collect();
+        (f.first() == Some(&cell.name.as_str()) && f.get(1) == Some(&kind)).then(|| f.get(4)?.parse().ok())?
+    })
+}
+
 pub fn reference(cell: &Cell, kind: &str, samples: &BTreeMap<(String, String), f64>) -> Option<Reference> {
     let path = dir().join("ref").join(format!("{}.{kind}.pfm", cell.name));
     let img = image::read(&path).ok()?;

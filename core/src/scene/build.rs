@@ -13,7 +13,7 @@ use crate::light::Lights;
 use crate::material::Materials;
 use crate::mesh::{EdgeAdjacency, TriangleMesh};
 use crate::sampler::{create_sampler, Sampler};
-use crate::shapes::{build_shape, ShapeContext, Tessellation};
+use crate::shapes::{build_shape, ShapeContext, Tessellation, TriangleBudget};
 use crate::texture::Textures;
 use glam::IVec2;
 use penumbra_parser::{DiagSink, Diagnostic, SceneDescription, ShapeDesc};
@@ -252,7 +252,8 @@ fn warn_media(desc: &SceneDescription, warnings: &DiagSink) {
 /// Every shape directive, then every shape of every object instance (with the instance's
 /// transform), as world-space meshes with one [`SceneObject`] each.
 fn shapes(desc: &SceneDescription, warnings: &DiagSink) -> Result<(Vec<TriangleMesh>, Vec<SceneObject>), Diagnostic> {
-    let ctx = ShapeContext::for_scene(desc, warnings, Tessellation::default());
+    let mut ctx = ShapeContext::for_scene(desc, warnings, Tessellation::default());
+    ctx.budget = TriangleBudget::from_env().map_err(|e| Diagnostic::error(None, e))?;
     let mut meshes = Vec::new();
     let mut objects = Vec::new();
     for s in &desc.shapes {

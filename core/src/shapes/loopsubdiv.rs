@@ -340,7 +340,7 @@ pub(crate) fn loop_subdivide(p: &[V3], faces: &[[u32; 3]], levels: u32) -> Resul
     Ok((limit, normals, faces))
 }
 
-pub(crate) fn build(desc: &ShapeDesc, _ctx: &ShapeContext) -> Result<Option<ObjMesh>, Diagnostic> {
+pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMesh>, Diagnostic> {
     let ps = &desc.entity.params;
     let levels_v4 = ps.get_one_int("levels", 3);
     let levels = ps.get_one_int("nlevels", levels_v4).max(0) as u32;
@@ -356,6 +356,14 @@ pub(crate) fn build(desc: &ShapeDesc, _ctx: &ShapeContext) -> Result<Option<ObjM
     if tris.is_empty() {
         return Ok(Some(ObjMesh::default()));
     }
+    // Every level splits each triangle in four: the count is known before any work is done.
+    let made = tris.len().saturating_mul(1usize.checked_shl(2 * levels).unwrap_or(usize::MAX));
+    let at = if ps.get_ints("nlevels").is_some() { "nlevels" } else { "levels" };
+    ctx.budget.charge(
+        made,
+        &format!("loopsubdiv: {levels} levels of subdivision of {} triangles", tris.len()),
+        loc_or_entity(desc, at),
+    )?;
     let (p, n, tris) = loop_subdivide(&p, &tris, levels)
         .map_err(|e| Diagnostic::error(loc_or_entity(desc, "indices"), format!("loopsubdiv: {e}")))?;
     Ok(Some(ObjMesh { p, n: Some(n), tris, ..Default::default() }))
@@ -501,5 +509,31 @@ mod tests {
             assert!(q[2] == 0.0 && q[0] >= -1e-12 && q[1] >= -1e-12 && q[0] + q[1] <= 1.0 + 1e-12);
             assert!(n[0].abs() < 1e-9 && n[1].abs() < 1e-9);
         }
+    }
+
+    /// The scene's triangle budget is charged with 4^nlevels × faces before any subdivision:
+    /// nlevels 12 of a tetrahedron (4 × 4^12 = 2^26 triangles, minutes and gigabytes to make) is
+    /// refused at once, at the `nlevels` parameter, and what fits is charged exactly.
+    #[test]
+    fn the_triangle_budget_is_charged_before_subdividing() {
+        let sink = DiagSink::new();
+        let mut ctx = ShapeContext::new(Path::new("."), &sink);
+        ctx.budget = TriangleBudget::new(1000);
+        let t0 = std::time::Instant::now();
+        let e = build_shape(&tet(12), &ctx).unwrap_err();
+        // Nothing was subdivided (a 12-level build takes minutes; the refusal is immediate).
+        assert!(t0.elapsed().as_secs_f64() < 5.0);
+        assert!(e.message.contains("triangle budget of 1000") && e.message.contains("67108864"), "{}", e.message);
+        assert!(e.message.contains("PENUMBRA_MAX_TRIANGLES"), "{}", e.message);
+        // Located at the nlevels parameter (line 10 of the test shape's parameters).
+        assert_eq!(e.loc.as_ref().map(|l| l.line), Some(10));
+        // A fresh budget: 3 levels (256 triangles) twice fit, a third copy does not (768 + 256).
+        let mut ctx = ShapeContext::new(Path::new("."), &sink);
+        ctx.budget = TriangleBudget::new(1000);
+        for _ in 0..3 {
+            build_shape(&tet(3), &ctx).unwrap().unwrap();
+        }
+        assert_eq!(ctx.budget.used(), 768);
+        assert!(build_shape(&tet(3), &ctx).is_err());
     }
 }

@@ -34,6 +34,7 @@ use crate::mesh::{AlphaSpec, NormalRule, Quadric, QuadricShape, TriangleMesh};
 use crate::parser::{DiagSink, Diagnostic, FileLoc, SceneDescription, ShapeDesc};
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// At most this many segments around a quadric's axis and this many rows along it.
 pub const MAX_SEGMENTS: usize = 4096;
@@ -52,6 +53,67 @@ impl Default for Tessellation {
     }
 }
 
+/// The scene's triangle budget when [`MAX_TRIANGLES_ENV`] is not set: 2^26 (67 million).
+pub const DEFAULT_MAX_TRIANGLES: usize = 1 << 26;
+/// The environment variable that sets the scene's triangle budget.
+pub const MAX_TRIANGLES_ENV: &str = "PENUMBRA_MAX_TRIANGLES";
+
+/// How many triangles the scene's shapes may make together (every object instance counted,
+/// as it is built): a small scene file can ask for minutes of tessellation and gigabytes (a
+/// 260-byte `loopsubdiv` with `nlevels` 9), so shapes whose tessellation grows beyond their
+/// input charge their count *before* making it, and the build stops at the first shape over
+/// the budget with an error at its location.
+#[derive(Debug)]
+pub struct TriangleBudget {
+    limit: usize,
+    used: AtomicUsize,
+}
+
+impl TriangleBudget {
+    pub fn new(limit: usize) -> Self {
+        TriangleBudget { limit, used: AtomicUsize::new(0) }
+    }
+
+    /// [`MAX_TRIANGLES_ENV`] if set (a positive integer), else [`DEFAULT_MAX_TRIANGLES`].
+    pub fn from_env() -> Result<Self, String> {
+        match std::env::var(MAX_TRIANGLES_ENV) {
+            Err(std::env::VarError::NotPresent) => Ok(TriangleBudget::new(DEFAULT_MAX_TRIANGLES)),
+            Ok(v) => match v.trim().parse::<usize>() {
+                Ok(n) if n > 0 => Ok(TriangleBudget::new(n)),
+                _ => Err(format!("{MAX_TRIANGLES_ENV}={v:?}: expected a positive number of triangles")),
+            },
+            Err(e) => Err(format!("{MAX_TRIANGLES_ENV}: {e}")),
+        }
+    }
+
+    pub fn limit(&self) -> usize {
+        self.limit
+    }
+
+    /// Triangles charged so far.
+    pub fn used(&self) -> usize {
+        self.used.load(Ordering::Relaxed)
+    }
+
+    /// Charges `n` triangles that `what` makes (or is about to make), or refuses with an error
+    /// at `loc` when the scene's total would exceed the budget.
+    pub fn charge(&self, n: usize, what: &str, loc: Option<FileLoc>) -> Result<(), Diagnostic> {
+        let before = self.used.fetch_add(n, Ordering::Relaxed);
+        let total = before.saturating_add(n);
+        if total > self.limit {
+            return Err(Diagnostic::error(
+                loc,
+                format!(
+                    "{what} makes {n} triangles, {before} already made: over the scene's triangle budget of {} \
+                     (set {MAX_TRIANGLES_ENV} to allow more; default 2^26)",
+                    self.limit
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// What shape building needs besides the shape itself.
 pub struct ShapeContext<'a> {
     /// Directory relative asset names (`"string filename"`) resolve against.
@@ -59,15 +121,20 @@ pub struct ShapeContext<'a> {
     /// Where warnings go (skipped shapes, dropped attributes, skipped faces…).
     pub warnings: &'a DiagSink,
     pub tessellation: Tessellation,
+    /// The scene's triangle budget, shared by every shape built with this context
+    /// ([`DEFAULT_MAX_TRIANGLES`] unless set).
+    pub budget: TriangleBudget,
 }
 
 impl<'a> ShapeContext<'a> {
     pub fn new(base_dir: &'a Path, warnings: &'a DiagSink) -> Self {
-        ShapeContext { base_dir, warnings, tessellation: Tessellation::default() }
+        let budget = TriangleBudget::new(DEFAULT_MAX_TRIANGLES);
+        ShapeContext { base_dir, warnings, tessellation: Tessellation::default(), budget }
     }
     /// Resolves asset paths against the scene's `base_dir` (as `SceneDescription::resolve_path`).
     pub fn for_scene(scene: &'a SceneDescription, warnings: &'a DiagSink, tessellation: Tessellation) -> Self {
-        ShapeContext { base_dir: &scene.base_dir, warnings, tessellation }
+        let budget = TriangleBudget::new(DEFAULT_MAX_TRIANGLES);
+        ShapeContext { base_dir: &scene.base_dir, warnings, tessellation, budget }
     }
     pub fn resolve_path(&self, name: &str) -> PathBuf {
         let p = PathBuf::from(name);
@@ -101,6 +168,10 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
         }
     };
     let Some(obj) = obj else { return Ok(None) };
+    if kind != "loopsubdiv" {
+        // (loopsubdiv charged its count before subdividing.)
+        ctx.budget.charge(obj.tris.len(), &format!("shape \"{kind}\""), Some(desc.entity.loc.clone()))?;
+    }
     if obj.tris.is_empty() {
         ctx.warnings.warn(Some(desc.entity.loc.clone()), format!("shape \"{kind}\" has no triangles; skipped"));
         return Ok(None);

@@ -574,3 +574,79 @@ fn ray_differentials_give_uv_derivatives() {
     si.compute_differentials(&RayDifferential::plain(Ray::new(Vec3::ZERO, down, 1.0)));
     assert_eq!(si.diff, Default::default());
 }
+
+/// pbrt-v3's `MarbleTexture::Evaluate` spline, written as its Bernstein polynomial in f64 (not
+/// de Casteljau, as penumbra and pbrt-v3 do): `first = min(1, ⌊6t⌋)` and parameter `6t − first`,
+/// which runs to 5 at t = 1, so the cubic is extrapolated far past its control points.
+fn pbrt_v3_marble_spline(t: f64) -> [f64; 3] {
+    const C: [[f64; 3]; 9] = [
+        [0.58, 0.58, 0.6],
+        [0.58, 0.58, 0.6],
+        [0.58, 0.58, 0.6],
+        [0.5, 0.5, 0.5],
+        [0.6, 0.59, 0.58],
+        [0.58, 0.58, 0.6],
+        [0.58, 0.58, 0.6],
+        [0.2, 0.2, 0.33],
+        [0.58, 0.58, 0.6],
+    ];
+    let first = ((6.0 * t).floor() as usize).min(1);
+    let u = 6.0 * t - first as f64;
+    let b = [(1.0 - u).powi(3), 3.0 * u * (1.0 - u).powi(2), 3.0 * u * u * (1.0 - u), u.powi(3)];
+    std::array::from_fn(|c| 1.5 * (0..4).map(|i| b[i] * C[first + i][c]).sum::<f64>())
+}
+
+#[test]
+fn marble_follows_pbrt_v3_including_its_extrapolated_spline() {
+    // The closed form's own figures: t = 1 evaluates the cubic at 5 (1.5 × 27.08 = 40.62 in R,
+    // 42.15 in B), and the spline jumps at t = 1/6 where `first` turns from 0 to 1.
+    let at1 = pbrt_v3_marble_spline(1.0);
+    assert!((at1[0] - 40.62).abs() < 1e-9 && (at1[2] - 42.15).abs() < 1e-9, "{at1:?}");
+    assert!((pbrt_v3_marble_spline(0.0)[0] - 0.87).abs() < 1e-12);
+    // With variation 0 the marble is sin(scale · y) of the texture-space point, and pbrt-v3's
+    // 3D mapping applies the texture's CTM itself (not its inverse): a Translate 0 T 0 moves
+    // the lookup to y + T.
+    let (scale, shift) = (0.7f32, -0.4f32);
+    let p = params(vec![("scale", ParamValue::Float(vec![scale])), ("variation", ParamValue::Float(vec![0.0]))]);
+    let mut d = tex("m", TextureKind::Spectrum, "marble", p);
+    d.render_from_texture = AnimatedTransform::fixed(penumbra_parser::Transform::translate([0.0, shift as f64, 0.0]));
+    let desc = scene(vec![d], vec![], PathBuf::new());
+    let mut t = Textures::new(&desc);
+    t.ensure(0, &DiagSink::new()).unwrap();
+    let mut worst = 0.0f64;
+    let mut seen_extrapolated = false;
+    for i in 0..=400 {
+        // y over more than a period of sin(scale·y): every t in [0, 1].
+        let y = -6.0 + i as f32 * 0.03;
+        let ctx = TextureEvalContext { p: Vec3::new(0.3, y, -1.2), ..Default::default() };
+        let got = t.eval_spectrum(SpectrumParam::Tex(0), &ctx);
+        let tt = 0.5 + 0.5 * ((scale * (y + shift)) as f64).sin();
+        if (6.0 * tt - (6.0 * tt).round()).abs() < 1e-3 {
+            continue; // at a segment boundary f32 and f64 may pick different `first`
+        }
+        let want = pbrt_v3_marble_spline(tt);
+        for c in 0..3 {
+            // f32 evaluation of a cubic at up to 5: relative 1e-5 of its magnitude.
+            let err = (got[c] as f64 - want[c]).abs() / want[c].abs().max(1.0);
+            worst = worst.max(err);
+        }
+        seen_extrapolated |= want[2] > 10.0;
+    }
+    assert!(seen_extrapolated);
+    assert!(worst < 2e-4, "marble differs from pbrt-v3's spline by {worst:e} (relative)");
+    // With variation, the fbm term (scaled point and differentials) is added before the sine.
+    let p = params(vec![("scale", ParamValue::Float(vec![2.0])), ("octaves", ParamValue::Int(vec![4]))]);
+    let desc = scene(vec![tex("m", TextureKind::Spectrum, "marble", p)], vec![], PathBuf::new());
+    let mut t = Textures::new(&desc);
+    t.ensure(0, &DiagSink::new()).unwrap();
+    for q in [Vec3::new(0.3, 0.2, 1.7), Vec3::new(-2.1, 0.05, 4.4), Vec3::new(1.0, 1.1, 3.0)] {
+        let (dx, dy) = (Vec3::new(0.01, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.02));
+        let ctx = TextureEvalContext { p: q, dpdx: dx, dpdy: dy, ..Default::default() };
+        let m = 2.0 * q.y + 0.2 * fbm(2.0 * q, 2.0 * dx, 2.0 * dy, 0.5, 4);
+        let want = pbrt_v3_marble_spline(0.5 + 0.5 * (m as f64).sin());
+        let got = t.eval_spectrum(SpectrumParam::Tex(0), &ctx);
+        for c in 0..3 {
+            assert!((got[c] as f64 - want[c]).abs() <= 2e-4 * want[c].abs().max(1.0), "{q}: {got} vs {want:?}");
+        }
+    }
+}
