@@ -157,7 +157,7 @@ impl RatioIntegrator {
 }
 
 /// Extra film channels, in this order.
-pub const CHANNELS: [&str; 26] = [
+pub const CHANNELS: [&str; 32] = [
     "U.R",
     "U.G",
     "U.B",
@@ -184,6 +184,12 @@ pub const CHANNELS: [&str; 26] = [
     "chain.UN.R",
     "chain.UN.G",
     "chain.UN.B",
+    "spread.UU.R",
+    "spread.UU.G",
+    "spread.UU.B",
+    "spread.RU.R",
+    "spread.RU.G",
+    "spread.RU.B",
 ];
 const C_U: usize = 0;
 const C_S: usize = 3;
@@ -197,6 +203,8 @@ const C_PLANE: usize = 16;
 const C_CHAIN_U: usize = 17;
 const C_CHAIN_S: usize = 20;
 const C_CHAIN_UN: usize = 23;
+const C_SPREAD_UU: usize = 26;
+const C_SPREAD_RU: usize = 29;
 
 /// What one camera sample writes to the extra channels (the film averages them per pixel).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -216,6 +224,11 @@ pub(crate) struct RatioSample {
     pub(crate) plane: f32,
     /// The specular chains' `U`, `S_N`, `U_N`, weighted by their throughput.
     pub(crate) chain: ChainTerms,
+    /// The camera-sample spread of the pixel: `U²` and `rest · U` per channel (their pixel
+    /// means with `U`'s and `rest`'s give the variance of `rest + U·ratio` over the pixel's
+    /// camera samples).
+    pub(crate) spread_uu: Rgb,
+    pub(crate) spread_ru: Rgb,
 }
 
 /// `U`, `S_N` and `U_N` of the surfaces a camera sample's specular chains reach, each weighted
@@ -245,6 +258,14 @@ impl RatioSample {
         aov[C_CHAIN_U..C_CHAIN_U + 3].copy_from_slice(&self.chain.u.to_array());
         aov[C_CHAIN_S..C_CHAIN_S + 3].copy_from_slice(&self.chain.s.to_array());
         aov[C_CHAIN_UN..C_CHAIN_UN + 3].copy_from_slice(&self.chain.un.to_array());
+        aov[C_SPREAD_UU..C_SPREAD_UU + 3].copy_from_slice(&self.spread_uu.to_array());
+        aov[C_SPREAD_RU..C_SPREAD_RU + 3].copy_from_slice(&self.spread_ru.to_array());
+    }
+
+    /// Sets the spread terms for this camera sample's `rest`.
+    pub(crate) fn with_spread(self, rest: Rgb) -> RatioSample {
+        let finite = |c: Rgb| if c.is_finite() { c } else { Rgb::ZERO };
+        RatioSample { spread_uu: finite(self.u * self.u), spread_ru: finite(rest * self.u), ..self }
     }
 
     /// From [`CHANNELS`]-ordered values.
@@ -261,6 +282,8 @@ impl RatioSample {
             n: Vec3::new(ch[C_N], ch[C_N + 1], ch[C_N + 2]),
             plane: ch[C_PLANE],
             chain: ChainTerms { u: rgb(C_CHAIN_U), s: rgb(C_CHAIN_S), un: rgb(C_CHAIN_UN) },
+            spread_uu: rgb(C_SPREAD_UU),
+            spread_ru: rgb(C_SPREAD_RU),
         }
     }
 }
@@ -338,7 +361,7 @@ impl RatioIntegrator {
         let (d, reduction) = cross_bilateral(&guides, &radius, &su, &self.filter);
         let (mut rsum, mut rcount) = (0.0f64, 0usize);
         for (i, p) in film.pixel_bounds().iter().enumerate() {
-            let FilmPixel { rest, rest_var: mut var, mean, .. } = px[i];
+            let FilmPixel { rest, rest_var: mut var, mean, count } = px[i];
             let mut out = rest;
             if mean.u != Rgb::ZERO {
                 rsum += radius[i] as f64;
@@ -347,7 +370,8 @@ impl RatioIntegrator {
                     let ratio = guarded_ratio(d[i][c], d[i][3 + c], mean.s[c], mean.un[c]);
                     out[c] += mean.u[c] * ratio;
                     let sr = sigma[i] as f64 * mean.u[c] as f64;
-                    var[c] += sr * sr * reduction[i] as f64;
+                    let spread = camera_spread(rest[c], mean.u[c], mean.spread_uu[c], mean.spread_ru[c], ratio, count);
+                    var[c] = (var[c] + spread).max(0.0) + sr * sr * reduction[i] as f64;
                 }
             }
             let chain = mean.chain;
@@ -395,6 +419,26 @@ fn read_film(film: &Film) -> ImageBuffer<FilmPixel> {
         q.mean = RatioSample::read(&ch);
     }
     px
+}
+
+/// What `U · ratio` adds to the variance of a pixel's mean over its `count` camera samples (the
+/// variance of `rest` is the film's): `(r² var(U) + 2r cov(rest, U)) / count` from the pixel
+/// means of `U`, `U²` and `rest·U`, Bessel-corrected (0 for a single sample). Without it the
+/// variance written for `ratio` missed the camera samples' spread of `U` — a pixel over a
+/// silhouette, a texture or an opacity edge — which `ltc`'s and `directlighting`'s carry.
+fn camera_spread(rest: f32, u: f32, uu: f32, ru: f32, ratio: f32, count: f64) -> f64 {
+    if !(count > 1.0) {
+        return 0.0;
+    }
+    let (rest, u, r) = (rest as f64, u as f64, ratio as f64);
+    let var_u = (uu as f64 - u * u).max(0.0);
+    let cov = ru as f64 - rest * u;
+    let v = (r * r * var_u + 2.0 * r * cov) / (count - 1.0);
+    if v.is_finite() {
+        v
+    } else {
+        0.0
+    }
 }
 
 /// Delta-method standard deviation of a pixel's ratio estimate (luminance), over its camera
