@@ -26,7 +26,9 @@
 //! single-sample estimates `n · (contribution of stochastic sample k)` (summed over the
 //! lights; the noise estimate, over camera × stochastic samples, so that one camera sample
 //! per pixel still has one), the depth, the normal facing the viewer and the plane offset
-//! `n·p`. After the pass the
+//! `n·p`, and the camera samples' spread (`spread.UU`: `U²`, `spread.RU`: `rest·U`, RGB), from
+//! which the variance written for a pixel gets what its camera samples' different `U` add (a
+//! pixel over a silhouette, a texture or an opacity edge). After the pass the
 //! image is `rest + U · D(S_N) / D(U_N)` per channel, where `rest` is everything else
 //! (emission seen directly, delta lights with one shadow ray, infinite lights and
 //! materials without LTC form through `directlighting`'s estimator, as in `ltc`) and `D`
@@ -472,5 +474,43 @@ fn guide(m: &RatioSample, sigma: f32) -> Guide {
         u: luminance(m.u),
         ratio: guarded_ratio(f32::NAN, 0.0, luminance(m.s), luminance(m.un)),
         ratio_sigma: sigma,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::camera_spread;
+
+    /// The variance of the mean of `rest_k + r·U_k` over the camera samples, by its definition
+    /// (Bessel-corrected sample variance over `m`), minus `rest`'s alone: what
+    /// [`camera_spread`] adds from the pixel means of `U`, `U²` and `rest·U`.
+    #[test]
+    fn camera_spread_is_the_variance_u_adds_to_the_pixel_mean() {
+        let rest = [0.3f64, 0.0, 0.1, 0.7, 0.2];
+        let u = [2.0f64, 0.5, 1.5, 0.0, 3.0];
+        let m = rest.len() as f64;
+        let mean = |v: &dyn Fn(usize) -> f64| (0..rest.len()).map(v).sum::<f64>() / m;
+        let var_of_mean = |v: &dyn Fn(usize) -> f64| {
+            let mu = mean(v);
+            (0..rest.len()).map(|k| (v(k) - mu).powi(2)).sum::<f64>() / (m - 1.0) / m
+        };
+        for r in [0.0f64, 0.25, 0.6, 1.0] {
+            let want = var_of_mean(&|k| rest[k] + r * u[k]) - var_of_mean(&|k| rest[k]);
+            let got = camera_spread(
+                mean(&|k| rest[k]) as f32,
+                mean(&|k| u[k]) as f32,
+                mean(&|k| u[k] * u[k]) as f32,
+                mean(&|k| rest[k] * u[k]) as f32,
+                r as f32,
+                m,
+            );
+            assert!((got - want).abs() <= 1e-6 * (1.0 + want.abs()), "r = {r}: {got} vs {want}");
+        }
+        // Every camera sample on one surface with one U: nothing added.
+        assert!(camera_spread(0.2, 1.5, 2.25, 0.3, 0.5, 16.0).abs() < 1e-8);
+        // One camera sample: no spread to estimate.
+        assert_eq!(camera_spread(0.2, 1.5, 9.0, 0.3, 0.5, 1.0), 0.0);
+        // Not finite in, not finite out.
+        assert!(camera_spread(0.2, f32::NAN, 9.0, 0.3, 0.5, 4.0).is_finite());
     }
 }
