@@ -231,23 +231,9 @@ struct Known {
 const KNOWN: &[Known] = &[
     Known {
         run: "ltc",
-        cells: &["room/room-glossy"],
-        issue: 43,
-        what: "a glossy room: +1.42 % mean, a block +9.8 % (after the α > 1 table and exact lobes fixed the \
-               roughness sweeps; measured 2026-12-03 on main)",
-    },
-    Known {
-        run: "ltc",
         cells: &["light/light-cylinder"],
         issue: 42,
         what: "ltc's per-triangle fallback on a tessellated cylinder light: over the 60 s budget",
-    },
-    Known {
-        run: "ratio",
-        cells: &["material/metal-a3", "material/uber-opacity", "texture/tex-scale-mix", "texture/tex-dots", "room/room-glossy"],
-        issue: 43,
-        what: "LTC × denoised ratio: metal-a3 −1.63 % / block 12.0 %, tex-dots −2.34 % / 9.8 %, room-glossy \
-               +1.38 % / 9.7 %, uber-opacity and tex-scale-mix blocks 3.9 % (the roughness sweeps now pass)",
     },
     Known {
         run: "silhouette mode=ao",

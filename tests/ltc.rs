@@ -252,31 +252,37 @@ fn coincident_geometry_has_no_speckles() {
     assert!(checked > 500, "too few smooth pixels ({checked})");
 }
 
-/// Glossy receivers (pbrt-v3 plastic, metal): LTC approximates the GGX lobe, so `ltc` is close
-/// to, not equal to, pbrt-v3. With the material's exact Fresnel at the LTC-weighted mean
-/// direction ("average", the default) the image mean is within 2 % of pbrt-v3's; Heitz et al.'s
-/// Schlick split misses pbrt-v3 plastic's dielectric Fresnel (η 1.5 → 1) by about 6 %.
+/// Glossy receivers (pbrt-v3 plastic, metal): with `"glossy" "exact"` (the default: the LTC
+/// integral plus the residual of pbrt-v3's own lobe by quadrature) the image mean is pbrt-v3's
+/// to its noise: measured −0.03 % (quad-cube), +0.14 % (torus-nonconvex), +0.02 %
+/// (two-lights-metal) at 8 spp, 2026-12-04 — asserted within 0.5 % (the measurement plus the
+/// references' and 8 spp's anti-aliasing noise). The LTC alone (`"glossy" "ltc"`, the paper's
+/// approximation) with the material's exact Fresnel at the LTC-weighted mean direction
+/// (`"average"`) measured −0.05 %, −0.14 %, +0.02 % (asserted within 0.5 % as well), and must
+/// not be worse than Heitz et al.'s Schlick split, which misses pbrt-v3 plastic's dielectric
+/// Fresnel (η 1.5 → 1): −6.4 %, −6.7 %, −0.10 %.
 #[test]
 fn glossy_scenes_are_close_to_pbrt_v3() {
     for name in ["quad-cube", "torus-nonconvex", "two-lights-metal"] {
         let reference = reference(&format!("ltc/{name}.exr"));
         let mut rels = Vec::new();
-        for fresnel in ["average", "schlick"] {
-            let param = format!("fresnel={fresnel}");
+        for params in [&["glossy=exact"][..], &["glossy=ltc", "fresnel=average"], &["glossy=ltc", "fresnel=schlick"]] {
             let r = render_path(
                 &scene(&format!("suite/ltc/{name}.pbrt")),
-                &Opts { integrator: Some("ltc"), params: &[param.as_str()], spp: Some(8), ..Default::default() },
+                &Opts { integrator: Some("ltc"), params, spp: Some(8), ..Default::default() },
             );
             let rel = mean(&r.image) / mean(&reference) - 1.0;
             eprintln!(
-                "{name}: ltc ({fresnel}) vs pbrt-v3: mean {:+.3}%, RMSE {:.3e}",
+                "{name}: ltc ({}) vs pbrt-v3: mean {:+.3}%, RMSE {:.3e}",
+                params.join(" "),
                 rel * 100.0,
                 rmse(&r.image, &reference)
             );
             rels.push(rel.abs());
         }
-        assert!(rels[0] < 0.02, "{name}: ltc (average Fresnel) mean off by {:.2}%", rels[0] * 100.0);
-        assert!(rels[0] <= rels[1] + 1e-3, "{name}: the average Fresnel should not be worse than Schlick's split");
+        assert!(rels[0] < 0.005, "{name}: ltc (exact lobes) mean off by {:.2}%", rels[0] * 100.0);
+        assert!(rels[1] < 0.005, "{name}: ltc (LTC alone, average Fresnel) mean off by {:.2}%", rels[1] * 100.0);
+        assert!(rels[1] <= rels[2] + 1e-3, "{name}: the average Fresnel should not be worse than Schlick's split");
     }
 }
 

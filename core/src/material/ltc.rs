@@ -138,6 +138,21 @@ impl LtcLobe {
         }
     }
 
+    /// The lobe as pbrt-v3 evaluates it for `ωo` (and so `ωi`) on the far side of the shading
+    /// normal, in the frame turned to `ωo`'s side: `MicrofacetReflection` takes its Fresnel at
+    /// `ωi·Faceforward(ωh, n)`, negative there, and `FresnelDielectric` then swaps `ηi` and
+    /// `ηt` (plastic's `(1.5, 1)`, with total internal reflection from the front, reflects as
+    /// `(1, 1.5)` from behind). Conductors (`|cos θi|`), Schlick's term and `FresnelBlend`
+    /// (`ωi·ωh ≥ 0`) are the same from either side.
+    pub fn seen_from_behind(self) -> LtcLobe {
+        match self.kind {
+            LtcLobeKind::Microfacet(LtcFresnel::Dielectric { eta_i, eta_t }) => {
+                LtcLobe { kind: LtcLobeKind::Microfacet(LtcFresnel::Dielectric { eta_i: eta_t, eta_t: eta_i }), ..self }
+            }
+            _ => self,
+        }
+    }
+
     /// The lobe's Fresnel, as the LTC's Fresnel treatment takes it (`BlendSpecular`: Schlick with
     /// `Rs`; `BlendDiffuse`: none).
     pub fn fresnel(&self) -> LtcFresnel {

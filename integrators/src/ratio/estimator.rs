@@ -482,6 +482,8 @@ impl Estimator<'_> {
             n: nf,
             plane: nf.dot(si.p),
             chain: ChainTerms::default(),
+            spread_uu: Rgb::ZERO,
+            spread_ru: Rgb::ZERO,
         };
         (rest, sample)
     }
@@ -537,7 +539,7 @@ impl PixelEstimator for Estimator<'_> {
         match first {
             Ok(h) => {
                 let (rest, sample) = self.shade(ray, &h, None, scene, sampler, stats);
-                sample.write(aov);
+                sample.with_spread(rest).write(aov);
                 rest
             }
             Err(escaped) => escaped,
@@ -566,7 +568,7 @@ impl PixelEstimator for Estimator<'_> {
             (Ok(pt), area) => match pt.with_bsdf(scene) {
                 Some(h) => {
                     let (rest, sample) = self.shade(ray, &h, area, scene, sampler, stats);
-                    sample.write(aov);
+                    sample.with_spread(rest).write(aov);
                     rest
                 }
                 None => Rgb::ZERO, // (first_point returns only surfaces with a material)

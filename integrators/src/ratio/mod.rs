@@ -26,7 +26,9 @@
 //! single-sample estimates `n · (contribution of stochastic sample k)` (summed over the
 //! lights; the noise estimate, over camera × stochastic samples, so that one camera sample
 //! per pixel still has one), the depth, the normal facing the viewer and the plane offset
-//! `n·p`. After the pass the
+//! `n·p`, and the camera samples' spread (`spread.UU`: `U²`, `spread.RU`: `rest·U`, RGB), from
+//! which the variance written for a pixel gets what its camera samples' different `U` add (a
+//! pixel over a silhouette, a texture or an opacity edge). After the pass the
 //! image is `rest + U · D(S_N) / D(U_N)` per channel, where `rest` is everything else
 //! (emission seen directly, delta lights with one shadow ray, infinite lights and
 //! materials without LTC form through `directlighting`'s estimator, as in `ltc`) and `D`
@@ -157,7 +159,7 @@ impl RatioIntegrator {
 }
 
 /// Extra film channels, in this order.
-pub const CHANNELS: [&str; 26] = [
+pub const CHANNELS: [&str; 32] = [
     "U.R",
     "U.G",
     "U.B",
@@ -184,6 +186,12 @@ pub const CHANNELS: [&str; 26] = [
     "chain.UN.R",
     "chain.UN.G",
     "chain.UN.B",
+    "spread.UU.R",
+    "spread.UU.G",
+    "spread.UU.B",
+    "spread.RU.R",
+    "spread.RU.G",
+    "spread.RU.B",
 ];
 const C_U: usize = 0;
 const C_S: usize = 3;
@@ -197,6 +205,8 @@ const C_PLANE: usize = 16;
 const C_CHAIN_U: usize = 17;
 const C_CHAIN_S: usize = 20;
 const C_CHAIN_UN: usize = 23;
+const C_SPREAD_UU: usize = 26;
+const C_SPREAD_RU: usize = 29;
 
 /// What one camera sample writes to the extra channels (the film averages them per pixel).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -216,6 +226,11 @@ pub(crate) struct RatioSample {
     pub(crate) plane: f32,
     /// The specular chains' `U`, `S_N`, `U_N`, weighted by their throughput.
     pub(crate) chain: ChainTerms,
+    /// The camera-sample spread of the pixel: `U²` and `rest · U` per channel (their pixel
+    /// means with `U`'s and `rest`'s give the variance of `rest + U·ratio` over the pixel's
+    /// camera samples).
+    pub(crate) spread_uu: Rgb,
+    pub(crate) spread_ru: Rgb,
 }
 
 /// `U`, `S_N` and `U_N` of the surfaces a camera sample's specular chains reach, each weighted
@@ -245,6 +260,14 @@ impl RatioSample {
         aov[C_CHAIN_U..C_CHAIN_U + 3].copy_from_slice(&self.chain.u.to_array());
         aov[C_CHAIN_S..C_CHAIN_S + 3].copy_from_slice(&self.chain.s.to_array());
         aov[C_CHAIN_UN..C_CHAIN_UN + 3].copy_from_slice(&self.chain.un.to_array());
+        aov[C_SPREAD_UU..C_SPREAD_UU + 3].copy_from_slice(&self.spread_uu.to_array());
+        aov[C_SPREAD_RU..C_SPREAD_RU + 3].copy_from_slice(&self.spread_ru.to_array());
+    }
+
+    /// Sets the spread terms for this camera sample's `rest`.
+    pub(crate) fn with_spread(self, rest: Rgb) -> RatioSample {
+        let finite = |c: Rgb| if c.is_finite() { c } else { Rgb::ZERO };
+        RatioSample { spread_uu: finite(self.u * self.u), spread_ru: finite(rest * self.u), ..self }
     }
 
     /// From [`CHANNELS`]-ordered values.
@@ -261,6 +284,8 @@ impl RatioSample {
             n: Vec3::new(ch[C_N], ch[C_N + 1], ch[C_N + 2]),
             plane: ch[C_PLANE],
             chain: ChainTerms { u: rgb(C_CHAIN_U), s: rgb(C_CHAIN_S), un: rgb(C_CHAIN_UN) },
+            spread_uu: rgb(C_SPREAD_UU),
+            spread_ru: rgb(C_SPREAD_RU),
         }
     }
 }
@@ -338,7 +363,7 @@ impl RatioIntegrator {
         let (d, reduction) = cross_bilateral(&guides, &radius, &su, &self.filter);
         let (mut rsum, mut rcount) = (0.0f64, 0usize);
         for (i, p) in film.pixel_bounds().iter().enumerate() {
-            let FilmPixel { rest, rest_var: mut var, mean, .. } = px[i];
+            let FilmPixel { rest, rest_var: mut var, mean, count } = px[i];
             let mut out = rest;
             if mean.u != Rgb::ZERO {
                 rsum += radius[i] as f64;
@@ -347,7 +372,8 @@ impl RatioIntegrator {
                     let ratio = guarded_ratio(d[i][c], d[i][3 + c], mean.s[c], mean.un[c]);
                     out[c] += mean.u[c] * ratio;
                     let sr = sigma[i] as f64 * mean.u[c] as f64;
-                    var[c] += sr * sr * reduction[i] as f64;
+                    let spread = camera_spread(rest[c], mean.u[c], mean.spread_uu[c], mean.spread_ru[c], ratio, count);
+                    var[c] = (var[c] + spread).max(0.0) + sr * sr * reduction[i] as f64;
                 }
             }
             let chain = mean.chain;
@@ -397,6 +423,26 @@ fn read_film(film: &Film) -> ImageBuffer<FilmPixel> {
     px
 }
 
+/// What `U · ratio` adds to the variance of a pixel's mean over its `count` camera samples (the
+/// variance of `rest` is the film's): `(r² var(U) + 2r cov(rest, U)) / count` from the pixel
+/// means of `U`, `U²` and `rest·U`, Bessel-corrected (0 for a single sample). Without it the
+/// variance written for `ratio` missed the camera samples' spread of `U` — a pixel over a
+/// silhouette, a texture or an opacity edge — which `ltc`'s and `directlighting`'s carry.
+fn camera_spread(rest: f32, u: f32, uu: f32, ru: f32, ratio: f32, count: f64) -> f64 {
+    if !(count > 1.0) {
+        return 0.0;
+    }
+    let (rest, u, r) = (rest as f64, u as f64, ratio as f64);
+    let var_u = (uu as f64 - u * u).max(0.0);
+    let cov = ru as f64 - rest * u;
+    let v = (r * r * var_u + 2.0 * r * cov) / (count - 1.0);
+    if v.is_finite() {
+        v
+    } else {
+        0.0
+    }
+}
+
 /// Delta-method standard deviation of a pixel's ratio estimate (luminance), over its camera
 /// samples × `n_stochastic` stochastic samples.
 fn ratio_sigma(p: &FilmPixel, n_stochastic: u32) -> f32 {
@@ -428,5 +474,43 @@ fn guide(m: &RatioSample, sigma: f32) -> Guide {
         u: luminance(m.u),
         ratio: guarded_ratio(f32::NAN, 0.0, luminance(m.s), luminance(m.un)),
         ratio_sigma: sigma,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::camera_spread;
+
+    /// The variance of the mean of `rest_k + r·U_k` over the camera samples, by its definition
+    /// (Bessel-corrected sample variance over `m`), minus `rest`'s alone: what
+    /// [`camera_spread`] adds from the pixel means of `U`, `U²` and `rest·U`.
+    #[test]
+    fn camera_spread_is_the_variance_u_adds_to_the_pixel_mean() {
+        let rest = [0.3f64, 0.0, 0.1, 0.7, 0.2];
+        let u = [2.0f64, 0.5, 1.5, 0.0, 3.0];
+        let m = rest.len() as f64;
+        let mean = |v: &dyn Fn(usize) -> f64| (0..rest.len()).map(v).sum::<f64>() / m;
+        let var_of_mean = |v: &dyn Fn(usize) -> f64| {
+            let mu = mean(v);
+            (0..rest.len()).map(|k| (v(k) - mu).powi(2)).sum::<f64>() / (m - 1.0) / m
+        };
+        for r in [0.0f64, 0.25, 0.6, 1.0] {
+            let want = var_of_mean(&|k| rest[k] + r * u[k]) - var_of_mean(&|k| rest[k]);
+            let got = camera_spread(
+                mean(&|k| rest[k]) as f32,
+                mean(&|k| u[k]) as f32,
+                mean(&|k| u[k] * u[k]) as f32,
+                mean(&|k| rest[k] * u[k]) as f32,
+                r as f32,
+                m,
+            );
+            assert!((got - want).abs() <= 1e-6 * (1.0 + want.abs()), "r = {r}: {got} vs {want}");
+        }
+        // Every camera sample on one surface with one U: nothing added.
+        assert!(camera_spread(0.2, 1.5, 2.25, 0.3, 0.5, 16.0).abs() < 1e-8);
+        // One camera sample: no spread to estimate.
+        assert_eq!(camera_spread(0.2, 1.5, 9.0, 0.3, 0.5, 1.0), 0.0);
+        // Not finite in, not finite out.
+        assert!(camera_spread(0.2, f32::NAN, 9.0, 0.3, 0.5, 4.0).is_finite());
     }
 }

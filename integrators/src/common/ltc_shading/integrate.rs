@@ -130,7 +130,14 @@ pub(super) fn integrate_piece(
     mut occ: Occluders,
     acc: &mut Accum,
 ) {
-    let light = LightLoop::new(spherical::project(at.p, piece));
+    // pbrt-v3's reflection lobes are zero below the shading horizon, while a wide LTC (α of
+    // 1 and more, seen at a slant) reaches under it: the light is cut at the horizon before
+    // anything is integrated (the form factor clips there too), so that neither the LTC nor
+    // the quadrature's residual sees what lies below.
+    let Some(light) = above_horizon(spherical::project(at.p, piece), at.frame.from_local(DVec3::Z)) else {
+        return;
+    };
+    let light = LightLoop::new(light);
     cull_occluders(&mut occ, &light);
     let vis = Visible::of(&light, &occ);
     // The diffuse form factor in the shading frame, then the LTC integral together with
@@ -174,4 +181,14 @@ pub(super) fn integrate_piece(
             );
         }
     }
+}
+
+/// The loop `l` (unit directions) cut to the half-space `d·n ≥ 0` (unchanged when wholly in it;
+/// `None` when nothing is left).
+fn above_horizon(l: Vec<DVec3>, n: DVec3) -> Option<Vec<DVec3>> {
+    if l.iter().all(|d| d.dot(n) >= 0.0) {
+        return Some(l);
+    }
+    let c = spherical::clip_to_halfspace(&l, n);
+    (!c.is_empty()).then_some(c)
 }

@@ -726,7 +726,8 @@ fn piece_frame(si: &SurfaceInteraction, desc: &LtcDescription) -> Option<PieceFr
     if n == Vec3::ZERO {
         return None;
     }
-    let n = if n.dot(si.wo) < 0.0 { -n } else { n };
+    let behind = n.dot(si.wo) < 0.0;
+    let n = if behind { -n } else { n };
     let frame = Frame::toward(d3(n), d3(si.wo));
     let wo_local = frame.to_local(d3(si.wo));
     let cos_o = wo_local.z.clamp(0.0, 1.0) as f32;
@@ -734,12 +735,14 @@ fn piece_frame(si: &SurfaceInteraction, desc: &LtcDescription) -> Option<PieceFr
         .lobes
         .iter()
         .map(|lobe| {
+            // Seen from behind its shading normal, a dielectric's Fresnel has its η swapped.
+            let lobe = if behind { lobe.seen_from_behind() } else { *lobe };
             let coeffs = match lobe.ggx_alpha() {
                 Some(a) => Ltc::lookup(cos_o, a),
                 // The cosine (FresnelBlend's diffuse term).
                 None => LtcCoeffs { minv: glam::DMat3::IDENTITY, magnitude: 1.0, fresnel: 0.0 },
             };
-            LobeLtc { lobe: *lobe, coeffs }
+            LobeLtc { lobe, coeffs }
         })
         .collect();
     Some(PieceFrame { p: d3(si.p), frame, wo_local, lobes })
