@@ -235,12 +235,6 @@ const KNOWN: &[Known] = &[
                roughness sweeps; measured 2026-12-03 on main)",
     },
     Known {
-        run: "ltc",
-        cells: &["light/light-cylinder"],
-        issue: 42,
-        what: "ltc's per-triangle fallback on a tessellated cylinder light: over the 60 s budget",
-    },
-    Known {
         run: "ratio",
         cells: &["material/metal-a3", "material/uber-opacity", "texture/tex-scale-mix", "texture/tex-dots", "room/room-glossy"],
         issue: 43,
