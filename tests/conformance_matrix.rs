@@ -230,12 +230,6 @@ struct Known {
 /// it measured (image mean / worst 8×8 block against pbrt-v3).
 const KNOWN: &[Known] = &[
     Known {
-        run: "ltc",
-        cells: &["light/light-cylinder"],
-        issue: 42,
-        what: "ltc's per-triangle fallback on a tessellated cylinder light: over the 60 s budget",
-    },
-    Known {
         run: "silhouette mode=ao",
         cells: &["camera/camera-orthographic-dof"],
         issue: 37,

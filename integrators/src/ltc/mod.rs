@@ -39,8 +39,9 @@
 //! [`crate::common::ltc_shading`], shared with `ratio`; pixel shading and the lights LTC does
 //! not shade are in [`crate::common`] too. This file: parameters, the estimator, specular chains.
 
+use crate::common::direct::estimate_direct_with;
 use crate::common::direct::{has_specular, specular};
-use crate::common::ltc_shading::{AreaLighting, FresnelMode, Glossy, LtcShader, Mode, ShaderSettings};
+use crate::common::ltc_shading::{BudgetedLighting, FresnelMode, Glossy, LtcShader, Mode, OverBudget, ShaderSettings};
 use crate::common::other_lights::{add_other_lights, warn_infinite_lights, Coverage, FallbackWarning};
 use crate::common::params::{ParamSpec, Params};
 use crate::common::pixel_shading::{parse_shading, SharedPixel, SHADING};
@@ -50,8 +51,8 @@ use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::RayDifferential;
 use penumbra_core::integrator::{
-    render_pixels, Integrator, PixelEstimator, RadianceBound, RenderContext, RenderError, RenderStats, SampleContext,
-    ThreadStats,
+    render_pixels, Integrator, PixelEstimator, Preparation, RadianceBound, RenderContext, RenderError, RenderStats,
+    SampleContext, ThreadStats,
 };
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
@@ -120,7 +121,7 @@ impl LtcIntegrator {
 
 struct Estimator<'a> {
     ltc: &'a LtcIntegrator,
-    shader: LtcShader,
+    shader: &'a LtcShader,
     fallback: FallbackWarning<'a>,
     /// The scene has lights other than area lights.
     other_lights: bool,
@@ -150,7 +151,7 @@ impl Estimator<'_> {
         &self,
         ray: &RayDifferential,
         hit: &SurfacePoint,
-        area: Option<(Rgb, Rgb)>,
+        area: Option<BudgetedLighting>,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -160,26 +161,30 @@ impl Estimator<'_> {
         let mut l = *le;
         // With the pixel's lighting integrated already, only the sample's albedo is needed (and
         // whether the material transmits, which the shared value does not say).
-        let (lit, coverage) = match area {
+        let none = OverBudget::default();
+        let (lit, coverage, over) = match area {
             // An alpha cut-out in the scene: every light through directlighting's estimator.
-            _ if self.cutouts => (None, Coverage::None),
-            Some((diffuse, specular)) => {
+            _ if self.cutouts => (None, Coverage::None, none),
+            Some(BudgetedLighting { lighting: (diffuse, specular), over }) => {
                 let lit = LtcShader::diffuse_albedo(scene, si).map(|kd| kd * diffuse + specular);
                 let transmits = lit.is_some()
                     && may_transmit(scene, si)
                     && self.shader.lobes(scene, si).is_some_and(|d| d.transmits);
-                (lit, Coverage::of(lit.is_some(), transmits))
+                (lit, Coverage::of(lit.is_some(), transmits), if lit.is_some() { over } else { none })
             }
             None => match self.shader.lobes(scene, si) {
-                Some(d) => match self.shader.area_lights(scene, si, &d, self.ltc.shadows, &mut Vec::new()) {
-                    Some(v) => (Some(v), Coverage::of(true, d.transmits)),
-                    // Over the cost budget: every light through directlighting's estimator.
+                Some(d) => match self.shader.area_lights_budgeted(scene, si, &d, self.ltc.shadows, &mut Vec::new()) {
+                    Some(BudgetedLighting { lighting: (diffuse, specular), over }) => {
+                        (Some(d.diffuse * diffuse + specular), Coverage::of(true, d.transmits), over)
+                    }
+                    // Over the cost budget on a light without a bit: every light through
+                    // directlighting's estimator.
                     None => {
                         self.shader.count_over_budget();
-                        (None, Coverage::None)
+                        (None, Coverage::None, none)
                     }
                 },
-                None => (None, Coverage::None),
+                None => (None, Coverage::None, none),
             },
         };
         if let Some(v) = lit {
@@ -189,11 +194,12 @@ impl Estimator<'_> {
         // without an LTC form, transmission) and for specular lobes to follow.
         let follow = depth + 1 < self.ltc.max_depth;
         let may_be_specular = || scene.material_of(si).is_some_and(|(m, _, _)| m.may_be_specular());
-        let rest = coverage != Coverage::Area || self.other_lights;
+        let rest = coverage != Coverage::Area || self.other_lights || !over.is_empty();
         if rest || (follow && may_be_specular()) {
             if let Some(hit) = hit.with_bsdf(scene) {
                 if rest {
                     add_other_lights(&mut l, &hit, coverage, scene, sampler, stats, &self.fallback);
+                    self.over_budget_lights(&mut l, &hit, coverage, over, scene, sampler, stats);
                 }
                 if follow && has_specular(&hit.bsdf) {
                     for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
@@ -213,6 +219,38 @@ impl Estimator<'_> {
     }
 }
 
+impl Estimator<'_> {
+    /// Adds the lights the analytic shading left to `directlighting`'s estimator at `hit` (over
+    /// the cost budget: `over`), one sample of it each (two 2D samples), through the lobes the
+    /// analytic shading covers (with `Coverage::Reflection`, [`add_other_lights`] has taken the
+    /// transmission lobes).
+    #[allow(clippy::too_many_arguments)]
+    fn over_budget_lights(
+        &self,
+        l: &mut Rgb,
+        hit: &penumbra_core::scene::SurfaceHit,
+        coverage: Coverage,
+        over: OverBudget,
+        scene: &Scene,
+        sampler: &mut dyn Sampler,
+        stats: &mut ThreadStats,
+    ) {
+        if over.is_empty() || coverage == Coverage::None || hit.bsdf.num_components(BxdfFlags::NON_SPECULAR) == 0 {
+            return;
+        }
+        let flags = match coverage {
+            Coverage::Reflection => BxdfFlags::REFLECTION | BxdfFlags::DIFFUSE | BxdfFlags::GLOSSY,
+            _ => BxdfFlags::NON_SPECULAR,
+        };
+        for (k, light) in scene.light_list().iter().enumerate() {
+            if self.shader.light_group_of(k).is_some_and(|g| over.has(g)) {
+                let (u_light, u_scatter) = (sampler.get_2d(), sampler.get_2d());
+                *l += estimate_direct_with(&hit.si, &hit.bsdf, flags, u_scatter, k, light, u_light, scene, stats);
+            }
+        }
+    }
+}
+
 /// Whether the material at `si` may have transmission lobes its LTC form leaves out (a cheap
 /// test before the full description).
 fn may_transmit(scene: &Scene, si: &penumbra_core::interaction::SurfaceInteraction) -> bool {
@@ -221,7 +259,7 @@ fn may_transmit(scene: &Scene, si: &penumbra_core::interaction::SurfaceInteracti
 }
 
 impl PixelEstimator for Estimator<'_> {
-    type Shared = SharedPixel<AreaLighting>;
+    type Shared = SharedPixel<BudgetedLighting>;
 
     fn li(&self, ray: &RayDifferential, cx: SampleContext) -> Rgb {
         let SampleContext { scene, sampler, stats, aov: _ } = cx;
@@ -244,7 +282,7 @@ impl PixelEstimator for Estimator<'_> {
         scene: &Scene,
         stats: &mut ThreadStats,
     ) -> Option<Self::Shared> {
-        Some(self.shader.trace_pixel(rays, samples, scene, self.ltc.shadows, stats))
+        Some(self.shader.trace_pixel_budgeted(rays, samples, scene, self.ltc.shadows, stats))
     }
 
     fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {
@@ -286,9 +324,22 @@ impl Integrator for LtcIntegrator {
         let mut fallback = FallbackWarning::new("ltc", ctx.warnings);
         // With every light on the estimator, the per-material fallback warning would say less.
         fallback.silent = cutout.is_some();
+        // Prepared with the scene (`build_scene`: one build for every render of it), or built here.
+        let built;
+        let shader = match scene.prepared::<LtcShader>().filter(|s| s.settings == self.shader_settings()) {
+            Some(s) => {
+                s.reset_counters();
+                s
+            }
+            None => {
+                built = LtcShader::new(self.shader_settings(), scene, "ltc");
+                &built
+            }
+        };
+        shader.warn_slow_lights(scene, ctx.warnings);
         let est = Estimator {
             ltc: self,
-            shader: LtcShader::new(self.shader_settings(), scene, "ltc"),
+            shader,
             fallback,
             other_lights: scene.light_list().iter().any(|l| !matches!(l, Light::Area(_))),
             cutouts: cutout.is_some(),
@@ -300,6 +351,19 @@ impl Integrator for LtcIntegrator {
     /// Occluders only remove parts of a light's polygon, whose integrand is non-negative
     /// (form factor, LTC), and the pixel clusters do not depend on shadows: the unshadowed
     /// render bounds every pixel.
+    /// The analytic shading's per-scene data (objects, light shapes), with one line per area
+    /// light for `penumbra info`: how it is taken and when it takes the slow path.
+    fn prepare(&self, scene: &Scene) -> Option<Preparation> {
+        let shader = LtcShader::new(self.shader_settings(), scene, "ltc");
+        let details = shader.light_report(scene);
+        let slow = shader.light_groups().iter().filter(|g| shader.light_plan(scene, g).1.is_some()).count();
+        Some(Preparation {
+            stage: "ltc lights".into(),
+            summary: format!("{} area lights, {slow} may take the slow path", shader.light_groups().len()),
+            details,
+            value: std::sync::Arc::new(shader),
+        })
+    }
     fn radiance_bound(&self) -> Option<RadianceBound> {
         // The glossy lobes' residual quadrature is exact to a relative 1e-3 of each piece, and the
         // shadowed and unshadowed pieces are integrated separately (measured up to 3.1e-4 apart

@@ -25,4 +25,6 @@ mod shader;
 
 pub use fresnel::{fresnel_at, FresnelMode};
 pub use settings::{Glossy, Mode, ShaderSettings};
-pub use shader::{AreaLighting, LightGroup, LtcShader, LIGHT_TRIANGLE_BUDGET};
+pub use shader::{
+    AreaLighting, BudgetedLighting, LightGroup, LtcShader, OverBudget, BUDGET_GROUPS, LIGHT_TRIANGLE_BUDGET,
+};

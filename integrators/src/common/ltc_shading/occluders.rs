@@ -305,7 +305,7 @@ fn classify_triangle(q: &PieceQuery, reach: &Reach, pv: [DVec3; 3], closed: f64)
 }
 
 /// The point of triangle `t` nearest to `x` (by the triangle's Voronoi regions).
-fn closest_on_triangle(x: DVec3, [a, b, c]: [DVec3; 3]) -> DVec3 {
+pub(super) fn closest_on_triangle(x: DVec3, [a, b, c]: [DVec3; 3]) -> DVec3 {
     let (ab, ac, ap) = (b - a, c - a, x - a);
     let (d1, d2) = (ab.dot(ap), ac.dot(ap));
     if d1 <= 0.0 && d2 <= 0.0 {

@@ -5,11 +5,11 @@
 use super::fresnel::{fresnel_weight, FresnelMode};
 use super::integrate::{integrate_piece, Accum, LobeLtc, PieceFrame};
 use super::objects::{object_info, ConvexShape, Objects, Receiver, Skip};
-use super::occluders::{ConvexLight, PieceQuery};
+use super::occluders::{closest_on_triangle, ConvexLight, PieceQuery};
 use super::region::Occluders;
 use super::settings::{Glossy, Mode, ShaderSettings};
 use crate::common::ltc::{Ltc, LtcCoeffs};
-use crate::common::pixel_shading::{rgb_difference, ClusterExtent, Refine, SharedPixel, NEAR_FIELD};
+use crate::common::pixel_shading::{rgb_difference, Blend, ClusterExtent, Refine, SharedPixel, NEAR_FIELD};
 use glam::DVec3;
 use penumbra_core::accel::objects::ObjectBvh;
 use penumbra_core::camera::CameraSample;
@@ -28,6 +28,48 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// What pixel shading computes once per surface a pixel sees: the analytic area lighting
 /// `(Σ L·form factor, glossy)` ([`LtcShader::area_lights_split`]).
 pub type AreaLighting = (Rgb, Rgb);
+
+/// The lights a shading point leaves to `directlighting`'s estimator because taking them
+/// analytically would exceed the cost budget ([`LIGHT_TRIANGLE_BUDGET`]): bit `g` for the
+/// shader's light group `g` ([`LtcShader::light_groups`]; groups from [`BUDGET_GROUPS`] on have
+/// no bit, and a point that would leave one of them is shaded by the estimator whole).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct OverBudget(pub u64);
+
+/// Light groups that can be left to the estimator one by one ([`OverBudget`]'s bits).
+pub const BUDGET_GROUPS: usize = 64;
+
+impl OverBudget {
+    pub fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+    /// Whether group `g` is left to the estimator.
+    pub fn has(self, g: usize) -> bool {
+        g < BUDGET_GROUPS && self.0 >> g & 1 == 1
+    }
+}
+
+/// [`AreaLighting`] of the lights taken analytically, and those left to the estimator.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BudgetedLighting {
+    pub lighting: AreaLighting,
+    pub over: OverBudget,
+}
+
+/// Pixel shading blends a member's lighting with its cluster's only when both leave the same
+/// lights to the estimator; otherwise the member takes its own (a blend would count a light
+/// both analytically, in part, and by the estimator).
+impl Blend for BudgetedLighting {
+    fn blend(&self, other: &Self, w: f32) -> Self {
+        if self.over == other.over {
+            BudgetedLighting { lighting: self.lighting.blend(&other.lighting, w), over: self.over }
+        } else if w <= 0.0 {
+            *self
+        } else {
+            *other
+        }
+    }
+}
 
 /// How an area light's emitting surface is turned into spherical polygons at a shading point.
 enum LightShape {
@@ -102,7 +144,11 @@ fn sphere_outline(p: DVec3, center: DVec3, radius: f64, lobe_width: f64) -> Opti
 }
 
 /// The sphere through all of `vertices` (the centre of their bounding box and the largest
-/// distance from it, all distances within 1e-5 of it), if there is one.
+/// distance from it, all distances within 1e-5 of it plus the `f32` positions' rounding at their
+/// distance from the origin), if there is one. (Without the rounding term a small sphere away
+/// from the origin failed the test — r 0.033 at (−3, 1.2, −2.2): its vertices' f32 rounding,
+/// 2.4e-7, is 7e-6 of its radius — and was taken as a convex mesh of 12 600 triangles, whose
+/// silhouette sent points of issue 42's MIS plates to the cost budget's fallback.)
 fn on_one_sphere(vertices: &[DVec3]) -> Option<(DVec3, f64)> {
     let (lo, hi) = vertices
         .iter()
@@ -110,7 +156,42 @@ fn on_one_sphere(vertices: &[DVec3]) -> Option<(DVec3, f64)> {
     let center = (lo + hi) * 0.5;
     let (near, far) =
         vertices.iter().map(|v| (*v - center).length()).fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r), b.max(r)));
-    (far > 0.0 && near >= far * (1.0 - 1e-5)).then_some((center, far))
+    let rounding = 4.0 * f64::from(f32::EPSILON) * (center.abs().max_element() + far);
+    (far > 0.0 && near >= far * (1.0 - 1e-5) - rounding).then_some((center, far))
+}
+
+/// Whether `mesh` is part of the surface of a convex body, wound outwards, with a boundary (a
+/// cylinder without caps, a partial sphere or cylinder): every edge of one or two consistently
+/// wound triangles, some of one, and every vertex behind (within `rel_tol` of the mesh's extent)
+/// the winding plane of every face. Seen from a point, its faces turned towards the point are
+/// then what the point sees of it, none hiding another (a ray enters the convex body once, through
+/// a face turned towards its origin), so their outline — silhouette edges plus the boundary edges
+/// of those faces ([`SilhouetteMesh::loops`](crate::common::spherical_polygon::SilhouetteMesh::loops))
+/// — bounds exactly the directions in which the light is seen, as a closed convex light's
+/// silhouette does. Refused (false) above 10⁸ plane–vertex tests.
+fn is_open_convex(mesh: &TriangleMesh, adj: &EdgeAdjacency, rel_tol: f64) -> bool {
+    let manifold = adj.edges.iter().all(|e| e.count == 1 || (e.count == 2 && e.consistent));
+    if adj.edges.is_empty() || !manifold || !adj.edges.iter().any(|e| e.count == 1) {
+        return false;
+    }
+    let mut verts = vec![DVec3::ZERO; adj.welded_count];
+    for (i, w) in adj.weld.iter().enumerate() {
+        if let (Some(slot), Some(q)) = (verts.get_mut(*w as usize), mesh.positions.get(i)) {
+            *slot = d3(*q);
+        }
+    }
+    let planes: Vec<(DVec3, DVec3)> = (0..mesh.triangle_count())
+        .filter_map(|t| {
+            let [a, b, c] = mesh.vertices(t).map(d3);
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            (n != DVec3::ZERO).then_some((a, n))
+        })
+        .collect();
+    if planes.is_empty() || (planes.len() as u64) * (verts.len() as u64) > 100_000_000 {
+        return false;
+    }
+    let tol = rel_tol * mesh.extent();
+    tol.is_finite() && planes.iter().all(|(a, n)| verts.iter().all(|v| n.dot(*v - *a) <= tol))
 }
 
 impl LightShape {
@@ -129,7 +210,11 @@ impl LightShape {
         if let Some(s) = Self::planar(mesh, adj, two_sided) {
             return s;
         }
-        if !two_sided && mesh.is_closed_convex_with(adj, 1e-5) {
+        if two_sided {
+            return LightShape::Triangles;
+        }
+        let closed = mesh.is_closed_convex_with(adj, 1e-5);
+        if closed || is_open_convex(mesh, adj, 1e-5) {
             // Outward winding is proven; the emitting side must agree on every face.
             let outward = (0..n).all(|t| {
                 let w = mesh.winding_normal(t);
@@ -137,7 +222,7 @@ impl LightShape {
             });
             if outward {
                 let vertices: Vec<DVec3> = mesh.positions.iter().map(|v| d3(*v)).collect();
-                return match sphere.then(|| on_one_sphere(&vertices)).flatten() {
+                return match (sphere && closed).then(|| on_one_sphere(&vertices)).flatten() {
                     Some((center, radius)) => LightShape::Sphere(SphereShape { center, radius }),
                     None => LightShape::Convex(ConvexShape::new(mesh, adj)),
                 };
@@ -167,6 +252,8 @@ impl LightShape {
 /// The area lights of one emitting mesh with one radiance.
 pub struct LightGroup {
     pub mesh: usize,
+    /// How warnings name it: its shape and where it was declared.
+    pub label: String,
     pub tris: Vec<u32>,
     /// Bounding sphere of the emitting triangles (centred on their vertices' mean).
     pub center: DVec3,
@@ -197,6 +284,8 @@ pub struct LtcShader {
     counters: ShaderCounters,
     /// The integrator's name, for warnings (`ltc` or `ratio`).
     name: &'static str,
+    /// For each of the scene's lights ([`Scene::light_list`]), its group (area lights).
+    light_group: Vec<Option<usize>>,
 }
 
 /// What the shader counts over a render (for `stats.json`).
@@ -221,9 +310,17 @@ struct ShaderCounters {
     by_triangles_occluder: AtomicU64,
     /// Light triangles integrated one by one.
     light_triangles: AtomicU64,
-    /// Points over the cost budget ([`LIGHT_TRIANGLE_BUDGET`]): shaded by `directlighting`'s
-    /// estimator (counted by the integrator through [`LtcShader::count_over_budget`]).
+    /// Points over the cost budget on a light group without an [`OverBudget`] bit: shaded by
+    /// `directlighting`'s estimator whole (counted by the integrator through
+    /// [`LtcShader::count_over_budget`]).
     over_budget: AtomicU64,
+    /// (point, light) pairs over the cost budget ([`LIGHT_TRIANGLE_BUDGET`]), the light left to
+    /// `directlighting`'s estimator, by the light's shape: convex, sphere, no simple shape.
+    over_budget_convex: AtomicU64,
+    over_budget_sphere: AtomicU64,
+    over_budget_triangles: AtomicU64,
+    /// The same per light group (for the warning that names them).
+    over_budget_groups: Vec<AtomicU64>,
 }
 
 /// The cost bound of a shading point: a light whose whole outline cannot be used (an occluder
@@ -251,8 +348,10 @@ struct PointQuery<'s> {
     receiver: Receiver,
     shadows: bool,
     scratch: &'s mut Vec<usize>,
-    /// A light would exceed [`LIGHT_TRIANGLE_BUDGET`]: the point is not shaded analytically.
-    over_budget: bool,
+    /// The lights that would exceed [`LIGHT_TRIANGLE_BUDGET`]: left to the estimator.
+    over: OverBudget,
+    /// One of them has no [`OverBudget`] bit: the point is not shaded analytically.
+    over_all: bool,
 }
 
 impl LtcShader {
@@ -291,7 +390,20 @@ impl LtcShader {
         }
         let objects =
             Objects { info: objects, bvh: ObjectBvh::build(&boxes), merge_occluders: settings.merge_occluders };
-        LtcShader { settings, objects, groups, counters: ShaderCounters::default(), name }
+        let counters = ShaderCounters {
+            over_budget_groups: groups.iter().map(|_| AtomicU64::new(0)).collect(),
+            ..ShaderCounters::default()
+        };
+        let light_group = scene
+            .light_list()
+            .iter()
+            .map(|l| {
+                l.area().and_then(|a| {
+                    groups.iter().position(|g| g.mesh == a.mesh as usize && g.l == a.l && g.two_sided == a.two_sided)
+                })
+            })
+            .collect();
+        LtcShader { settings, objects, groups, counters, name, light_group }
     }
 
     /// Traces a pixel's camera `rays` and shades each surface they see once (with or without
@@ -315,6 +427,37 @@ impl LtcShader {
             |h, _| {
                 let desc = self.lobes(scene, &h.si)?;
                 self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch)
+            },
+        )
+    }
+
+    /// [`Self::trace_pixel`] with the cost budget: each surface's analytic lighting and the
+    /// lights it leaves to `directlighting`'s estimator (`ltc`'s `begin_pixel`).
+    pub fn trace_pixel_budgeted(
+        &self,
+        rays: &[RayDifferential],
+        samples: &[CameraSample],
+        scene: &Scene,
+        shadows: bool,
+        stats: &mut ThreadStats,
+    ) -> SharedPixel<BudgetedLighting> {
+        let mut scratch = Vec::new();
+        SharedPixel::trace(
+            rays,
+            samples,
+            scene,
+            stats,
+            |p, extent| self.refine(scene, p, extent),
+            Some(|a: &BudgetedLighting, b: &BudgetedLighting| {
+                if a.over != b.over {
+                    return f32::INFINITY; // different lights left to the estimator
+                }
+                let (a, b) = (a.lighting, b.lighting);
+                rgb_difference(a.0, b.0).max(rgb_difference(a.1, b.1))
+            }),
+            |h, _| {
+                let desc = self.lobes(scene, &h.si)?;
+                self.area_lights_budgeted(scene, &h.si, &desc, shadows, &mut scratch)
             },
         )
     }
@@ -357,17 +500,41 @@ impl LtcShader {
             ("ltc_by_triangles_occluder", get(&c.by_triangles_occluder)),
             ("ltc_light_triangles", get(&c.light_triangles)),
             ("ltc_over_budget_points", get(&c.over_budget)),
+            ("ltc_over_budget_lights_convex", get(&c.over_budget_convex)),
+            ("ltc_over_budget_lights_sphere", get(&c.over_budget_sphere)),
+            ("ltc_over_budget_lights_triangles", get(&c.over_budget_triangles)),
         ] {
             stats.counters.insert(k.into(), v as f64);
+        }
+        let lights: Vec<String> = self
+            .groups
+            .iter()
+            .zip(&c.over_budget_groups)
+            .filter(|(_, n)| get(n) > 0)
+            .map(|(g, n)| format!("{} ({} points)", g.label, get(n)))
+            .collect();
+        if !lights.is_empty() {
+            warnings.warn(
+                None,
+                format!(
+                    "{}: {} (shading point, light) pairs would have taken the light triangle by triangle with \
+                     more than {LIGHT_TRIANGLE_BUDGET} of its triangles facing the point (an occluder inside a \
+                     sphere light or a convex light's box, a light mesh of no simple shape): directlighting's \
+                     estimator shaded those lights there, to bound the cost; lights: {}",
+                    self.name,
+                    c.over_budget_groups.iter().map(get).sum::<u64>(),
+                    lights.join(", ")
+                ),
+            );
         }
         let over = get(&c.over_budget);
         if over > 0 {
             warnings.warn(
                 None,
                 format!(
-                    "{}: {over} shading points would have taken a light triangle by triangle with more than \
-                     {LIGHT_TRIANGLE_BUDGET} of its triangles facing them (an occluder inside a sphere light, a \
-                     light mesh of no simple shape): directlighting's estimator shaded them, to bound the cost",
+                    "{}: {over} shading points would have taken a light (beyond the first {BUDGET_GROUPS} area \
+                     lights) triangle by triangle with more than {LIGHT_TRIANGLE_BUDGET} of its triangles facing \
+                     them: directlighting's estimator shaded every light there, to bound the cost",
                     self.name
                 ),
             );
@@ -391,6 +558,112 @@ impl LtcShader {
     /// cost budget): the integrator calls it once per such point it shades.
     pub fn count_over_budget(&self) {
         self.counters.over_budget.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Zeroes the counters (a shader prepared with the scene is reused by each of its renders,
+    /// one after another: each reports its own counts).
+    pub fn reset_counters(&self) {
+        let c = &self.counters;
+        for a in [
+            &c.points,
+            &c.quadrature_evals,
+            &c.quadrature_splits,
+            &c.beyond_table,
+            &c.whole_lights,
+            &c.by_triangles_shape,
+            &c.by_triangles_loops,
+            &c.by_triangles_occluder,
+            &c.light_triangles,
+            &c.over_budget,
+            &c.over_budget_convex,
+            &c.over_budget_sphere,
+            &c.over_budget_triangles,
+        ]
+        .into_iter()
+        .chain(&c.over_budget_groups)
+        {
+            a.store(0, Ordering::Relaxed);
+        }
+    }
+
+    /// How group `g` is taken at a shading point, and why points may take its slow path
+    /// (triangle by triangle, or `directlighting`'s estimator over [`LIGHT_TRIANGLE_BUDGET`]
+    /// facing triangles), if they may: predicted from the light's shape and the occluders' boxes.
+    pub fn light_plan(&self, scene: &Scene, g: &LightGroup) -> (String, Option<String>) {
+        let n = g.tris.len();
+        let shadows = self.settings.shadows;
+        // An occluder with a triangle inside the light's bounding sphere: it may reach into a
+        // sphere light or fail a convex light's separation tests.
+        let (c, r) = match &g.shape {
+            LightShape::Sphere(sp) => (sp.center, sp.radius),
+            _ => (g.center, g.radius),
+        };
+        let reaching = || {
+            self.objects.info.iter().enumerate().find(|(o, info)| {
+                let near = c.clamp(info.bounds.min.as_dvec3(), info.bounds.max.as_dvec3());
+                *o != g.mesh
+                    && info.occluder
+                    && (near - c).length_squared() < r * r
+                    && scene.meshes.get(*o).is_some_and(|m| {
+                        (0..m.triangle_count())
+                            .any(|t| (closest_on_triangle(c, m.vertices(t).map(d3)) - c).length_squared() < r * r)
+                    })
+            })
+        };
+        let beyond = if n > LIGHT_TRIANGLE_BUDGET {
+            format!("by directlighting's estimator where more than {LIGHT_TRIANGLE_BUDGET} of its {n} triangles face the point")
+        } else {
+            format!("triangle by triangle ({n} triangles)")
+        };
+        let whole = |what: &str| -> (String, Option<String>) {
+            let why = shadows.then(reaching).flatten().map(|(o, _)| {
+                let o = match scene.objects.get(o) {
+                    Some(o) => format!("shape \"{}\" at {}", o.kind, o.loc),
+                    None => format!("mesh {o}"),
+                };
+                format!(
+                    "where {o}, which reaches into the light's bounding sphere, is not proven in front of it: {beyond}"
+                )
+            });
+            (what.to_string(), why)
+        };
+        match &g.shape {
+            LightShape::Planar { outline, .. } => (format!("planar outline ({} corners)", outline.len()), None),
+            LightShape::Sphere(_) => whole("sphere: its silhouette circle as one polygon"),
+            LightShape::Convex(_) => whole("convex: its outline (silhouette and boundary) as one polygon"),
+            LightShape::Triangles if self.settings.mode == Mode::PerTriangle => (
+                "triangle by triangle (mode per-triangle)".into(),
+                (shadows && n > LIGHT_TRIANGLE_BUDGET).then_some(beyond),
+            ),
+            LightShape::Triangles => (
+                "no simple shape: triangle by triangle".into(),
+                (shadows && n > LIGHT_TRIANGLE_BUDGET).then_some(beyond),
+            ),
+        }
+    }
+
+    /// One line per area light for `penumbra info` and the render's start: how it is taken, and
+    /// when it takes the slow path.
+    pub fn light_report(&self, scene: &Scene) -> Vec<String> {
+        self.groups
+            .iter()
+            .map(|g| {
+                let (how, slow) = self.light_plan(scene, g);
+                match slow {
+                    Some(why) => format!("light {}: {how}; slow path {why}", g.label),
+                    None => format!("light {}: {how}", g.label),
+                }
+            })
+            .collect()
+    }
+
+    /// Warns, once per light, about the lights whose slow path [`Self::light_plan`] predicts.
+    pub fn warn_slow_lights(&self, scene: &Scene, warnings: &DiagSink) {
+        for g in &self.groups {
+            if let (how, Some(why)) = self.light_plan(scene, g) {
+                warnings.warn(None, format!("{}: light {} ({how}) may take the slow path {why}", self.name, g.label));
+            }
+        }
     }
 
     /// The area lights, one per emitting mesh and radiance.
@@ -440,7 +713,8 @@ impl LtcShader {
     }
 
     /// [`area_lights`](Self::area_lights) as the light reaching the Lambertian lobe (to be
-    /// multiplied by the albedo: `Σ L · form factor`) and the glossy lobe's radiance.
+    /// multiplied by the albedo: `Σ L · form factor`) and the glossy lobe's radiance; `None`
+    /// when a light is over the cost budget (never without shadows).
     pub fn area_lights_split(
         &self,
         scene: &Scene,
@@ -449,28 +723,77 @@ impl LtcShader {
         shadows: bool,
         scratch: &mut Vec<usize>,
     ) -> Option<(Rgb, Rgb)> {
+        match self.area_lights_budgeted(scene, si, desc, shadows, scratch)? {
+            BudgetedLighting { lighting, over } if over.is_empty() => Some(lighting),
+            BudgetedLighting { over, .. } => {
+                // The analytic part is dropped: every light goes to the estimator.
+                self.uncount_over_budget(over);
+                None
+            }
+        }
+    }
+
+    /// [`area_lights_split`](Self::area_lights_split) of the lights within the cost budget
+    /// ([`LIGHT_TRIANGLE_BUDGET`], with shadows), and the lights over it, which the caller
+    /// shades with `directlighting`'s estimator ([`Self::light_group_of`]); `None` when one of
+    /// those has no [`OverBudget`] bit (every light to the estimator).
+    pub fn area_lights_budgeted(
+        &self,
+        scene: &Scene,
+        si: &SurfaceInteraction,
+        desc: &LtcDescription,
+        shadows: bool,
+        scratch: &mut Vec<usize>,
+    ) -> Option<BudgetedLighting> {
         let (mut d, mut s) = (Rgb::ZERO, Rgb::ZERO);
         let facing = mesh_winding_normal(scene, si).dot(si.wo) as f64;
         let receiver = Receiver { mesh: si.mesh as usize, tri: si.tri as usize, facing };
-        let Some(at) = piece_frame(si, desc) else { return Some((d, s)) };
-        let mut q = PointQuery { at, receiver, shadows, scratch, over_budget: false };
+        let Some(at) = piece_frame(si, desc) else {
+            return Some(BudgetedLighting { lighting: (d, s), over: OverBudget::default() });
+        };
+        let mut q = PointQuery { at, receiver, shadows, scratch, over: OverBudget::default(), over_all: false };
         self.counters.points.fetch_add(1, Ordering::Relaxed);
-        for g in &self.groups {
+        for (gi, g) in self.groups.iter().enumerate() {
             if scene.meshes.get(g.mesh).is_none() {
                 continue;
             }
-            let (gd, gs) = self.area_group(scene, &mut q, g);
-            if q.over_budget {
+            let (gd, gs) = self.area_group(scene, &mut q, gi, g);
+            if q.over_all {
+                self.uncount_over_budget(q.over);
                 return None;
             }
             d += gd;
             s += gs;
         }
-        Some((d, s))
+        Some(BudgetedLighting { lighting: (d, s), over: q.over })
     }
 
-    /// The same for the lights of one mesh.
-    fn area_group(&self, scene: &Scene, q: &mut PointQuery, geom: &LightGroup) -> (Rgb, Rgb) {
+    /// Takes back the per-light counts of `over` (the point went to the estimator whole).
+    fn uncount_over_budget(&self, over: OverBudget) {
+        for (gi, g) in self.groups.iter().enumerate().filter(|(gi, _)| over.has(*gi)) {
+            self.counters.over_budget_groups[gi].fetch_sub(1, Ordering::Relaxed);
+            self.over_budget_counter(g).fetch_sub(1, Ordering::Relaxed);
+        }
+    }
+
+    /// The counter of (point, light) pairs over budget for `g`'s shape.
+    fn over_budget_counter(&self, g: &LightGroup) -> &AtomicU64 {
+        let c = &self.counters;
+        match g.shape {
+            LightShape::Sphere(_) => &c.over_budget_sphere,
+            LightShape::Convex(_) | LightShape::Planar { .. } => &c.over_budget_convex,
+            LightShape::Triangles => &c.over_budget_triangles,
+        }
+    }
+
+    /// The light group of the scene's light `k` ([`Scene::light_list`]), if it is an area light
+    /// the shader takes: bit `g` of [`OverBudget`] says whether a point left it to the estimator.
+    pub fn light_group_of(&self, k: usize) -> Option<usize> {
+        self.light_group.get(k).copied().flatten()
+    }
+
+    /// The same for the lights of one mesh (group `gi`).
+    fn area_group(&self, scene: &Scene, q: &mut PointQuery, gi: usize, geom: &LightGroup) -> (Rgb, Rgb) {
         let mut acc = Accum::default();
         let c = &self.counters;
         let by_triangles = match &geom.shape {
@@ -500,7 +823,13 @@ impl LtcShader {
         };
         match by_triangles {
             Some(_) if q.shadows && facing_triangles(scene, q.at.p, geom) > LIGHT_TRIANGLE_BUDGET => {
-                q.over_budget = true;
+                if gi < BUDGET_GROUPS {
+                    q.over.0 |= 1 << gi;
+                    self.counters.over_budget_groups[gi].fetch_add(1, Ordering::Relaxed);
+                    self.over_budget_counter(geom).fetch_add(1, Ordering::Relaxed);
+                } else {
+                    q.over_all = true;
+                }
                 return (Rgb::ZERO, Rgb::ZERO);
             }
             Some(counter) => {
@@ -765,6 +1094,10 @@ fn gather_lights(scene: &Scene) -> Vec<LightGroup> {
                 tris: geom.tris.clone(),
                 l: geom.l,
                 two_sided: geom.two_sided,
+                label: match scene.objects.get(geom.mesh as usize) {
+                    Some(o) => format!("\"{}\" at {}", o.kind, o.loc),
+                    None => format!("mesh {}", geom.mesh),
+                },
                 shape: LightShape::Triangles,
                 center: DVec3::ZERO,
                 radius: 0.0,
@@ -786,4 +1119,38 @@ fn gather_lights(scene: &Scene) -> Vec<LightGroup> {
         }
     }
     groups
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The f32 vertices of a UV sphere (`n` rings) of radius `r` around `c`, as a scene holds them.
+    fn sphere_vertices(c: Vec3, r: f32, n: usize) -> Vec<DVec3> {
+        let mut v = Vec::new();
+        for i in 0..=n {
+            let theta = std::f32::consts::PI * i as f32 / n as f32;
+            for j in 0..2 * n {
+                let phi = std::f32::consts::PI * j as f32 / n as f32;
+                let d = Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+                v.push(d3(c + d * r));
+            }
+        }
+        v
+    }
+
+    /// Issue 42's smallest sphere light (r 0.033) away from the origin is one sphere: the f32
+    /// rounding of its vertices (7e-6 of its radius) is not a departure from it; a vertex moved
+    /// by 1e-4 of the radius is.
+    #[test]
+    fn on_one_sphere_allows_f32_rounding_only() {
+        for (c, r) in [(Vec3::new(-3.0, 1.2, -2.2), 0.033), (Vec3::new(-3.75, 0.0, 0.0), 0.0333), (Vec3::ZERO, 1.0)] {
+            let mut v = sphere_vertices(c, r, 60);
+            let (center, radius) = on_one_sphere(&v).unwrap_or_else(|| panic!("{c} {r}"));
+            assert!((center - d3(c)).length() < 1e-6 && (radius / r as f64 - 1.0).abs() < 1e-5);
+            let k = v.len() / 3;
+            v[k] = d3(c) + (v[k] - d3(c)) * (1.0 - 1e-4);
+            assert!(on_one_sphere(&v).is_none(), "{c} {r}");
+        }
+    }
 }

@@ -679,6 +679,8 @@ pub struct SilhouetteMesh {
     faces: Vec<([DVec3; 3], DVec3)>,
     /// Edges shared by two triangles: (welded ends in the first triangle's winding, triangles).
     edges: Vec<([u32; 2], [u32; 2])>,
+    /// Edges of one triangle (an open mesh's boundary): (welded ends in its winding, triangle).
+    boundary: Vec<([u32; 2], u32)>,
 }
 
 impl SilhouetteMesh {
@@ -696,10 +698,13 @@ impl SilhouetteMesh {
             })
             .collect();
         let edges = adj.edges.iter().filter(|e| e.count == 2 && e.tris[1] != BOUNDARY).map(|e| (e.v, e.tris)).collect();
-        SilhouetteMesh { positions, faces, edges }
+        let boundary = adj.edges.iter().filter(|e| e.count == 1).map(|e| (e.v, e.tris[0])).collect();
+        SilhouetteMesh { positions, faces, edges, boundary }
     }
 
-    /// [`silhouette_loops`] from `p`.
+    /// [`silhouette_loops`] from `p`. For an open mesh, the boundary edges of the faces turned
+    /// towards `p` close the loops: the outline of what `p` sees of an open convex surface (a
+    /// cylinder without caps: its two silhouette lines and the front arcs of its rims).
     pub fn loops(&self, p: DVec3, eps: f64) -> Vec<Vec<DVec3>> {
         let front: Vec<bool> = self
             .faces
@@ -717,6 +722,11 @@ impl SilhouetteMesh {
             let f1 = front.get(tris[1] as usize).copied().unwrap_or(false);
             if f0 != f1 {
                 next.push(if f0 { (v[0], v[1]) } else { (v[1], v[0]) });
+            }
+        }
+        for (v, t) in &self.boundary {
+            if front.get(*t as usize).copied().unwrap_or(false) {
+                next.push((v[0], v[1]));
             }
         }
         next.sort_by_key(|e| e.0);

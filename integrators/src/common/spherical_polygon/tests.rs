@@ -521,6 +521,52 @@ fn silhouette_of_cube_and_icosphere_matches_brute_force() {
     }
 }
 
+/// An open cylinder (no caps) of `n` sides along z, radius `r`, from `z0` to `z1`, wound outwards,
+/// its seam welded.
+fn open_cylinder(c: Vec3, r: f32, z0: f32, z1: f32, n: u32) -> TriangleMesh {
+    let mut p = Vec::new();
+    for k in 0..n {
+        let phi = std::f32::consts::TAU * k as f32 / n as f32;
+        let (s, co) = phi.sin_cos();
+        p.push(c + Vec3::new(r * co, r * s, z0));
+        p.push(c + Vec3::new(r * co, r * s, z1));
+    }
+    let mut indices = Vec::new();
+    for k in 0..n {
+        let (a, b) = (2 * k, 2 * k + 1);
+        let (c2, d) = (2 * ((k + 1) % n), 2 * ((k + 1) % n) + 1);
+        indices.push([a, c2, d]);
+        indices.push([a, d, b]);
+    }
+    TriangleMesh { positions: p, indices, ..Default::default() }
+}
+
+/// An open convex mesh (a cylinder without caps): what a point outside sees of it is bounded by
+/// its silhouette edges and the boundary edges of its faces turned towards the point, one loop
+/// whose form factor is the front faces' (none hides another).
+#[test]
+fn outline_of_open_cylinder_matches_front_faces() {
+    let mut rng = Rng::new(9);
+    let mesh = open_cylinder(Vec3::new(0.1, -0.2, 3.0), 0.6, -1.0, 1.0, 24);
+    let adj = mesh.build_adjacency();
+    assert!(adj.boundary_edges() == 48 && !adj.is_closed_manifold());
+    let mut checked = 0;
+    for _ in 0..60 {
+        let p = DVec3::new(6.0 * rng.uniform_f64() - 3.0, 6.0 * rng.uniform_f64() - 3.0, 6.0 * rng.uniform_f64());
+        let want = brute_silhouette_form_factor(&mesh, p);
+        let loops = silhouette_loops(&mesh, &adj, p, 1e-9);
+        if want == 0.0 {
+            continue; // inside the cylinder's hull, or no face turned towards p
+        }
+        assert_eq!(loops.len(), 1, "p = {p}");
+        let proj = project(p, &loops[0]);
+        assert!(solid_angle(&proj) > 0.0, "loop must be positive as seen from p");
+        assert!((form_factor(&proj) - want).abs() < 1e-9, "p = {p}: {} vs {want}", form_factor(&proj));
+        checked += 1;
+    }
+    assert!(checked > 20, "{checked}");
+}
+
 #[test]
 fn silhouette_with_exactly_edge_on_faces() {
     // a point in the plane of the cube's top face (z = 4) and of its side x = 1.2: those faces are edge-on
