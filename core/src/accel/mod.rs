@@ -20,7 +20,9 @@ mod embree;
 pub mod objects;
 
 use crate::geometry::{gamma, Bounds3, Ray};
+use crate::mesh::curve::Curves;
 use crate::mesh::TriangleMesh;
+use std::sync::Arc;
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::CwBvh;
@@ -32,7 +34,9 @@ use std::time::Duration;
 /// of two so that backing up adds no rounding of its own beyond one subtraction.
 const BACKUP: f32 = 1.0 / 1024.0;
 
-/// A closest hit: the mesh, the triangle and the barycentrics of the hit point.
+/// A closest hit: the mesh, the triangle and the barycentrics of the hit point. On a curve
+/// (a mesh with [`TriangleMesh::curves`]), `tri` is the curve's piece and `b` holds pbrt-v3's
+/// `[u, v, hit width]` ([`crate::mesh::curve::CurveHit`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
     pub t: f32,
@@ -102,7 +106,20 @@ pub struct Accel {
     cutout: Vec<bool>,
     /// The alpha test of the `cutout` meshes (none: every hit counts).
     filter: Option<std::sync::Arc<dyn HitFilter>>,
+    /// Per mesh, its curve (empty when no mesh has one): the BVH slots of a curve mesh hold its
+    /// pieces (`tris` holds each piece's box as a degenerate triangle; `refs.tri` is the piece).
+    curves: Vec<Option<Arc<Curves>>>,
     pub build_seconds: f64,
+}
+
+/// A query: the triangle test's constants and the world-space ray (curves are intersected
+/// against it, as pbrt-v3 does, in the curve's object space).
+struct Query {
+    pre: RayPrecomp,
+    o: Vec3,
+    d: Vec3,
+    /// World ray parameter × `to_bvh` + [`BACKUP`] = BVH ray parameter.
+    to_bvh: f32,
 }
 
 /// Per-ray constants of the watertight test.
@@ -209,8 +226,18 @@ impl Accel {
                     bounds.extend(*p);
                 }
             }
+            if let Some(c) = &m.curves {
+                let b = c.world_bounds();
+                if b.min.is_finite() && b.max.is_finite() {
+                    bounds.extend(b.min);
+                    bounds.extend(b.max);
+                }
+            }
         }
         let scale = power_of_two_scale(&bounds);
+        let has_curves = meshes.iter().any(|m| m.curves.is_some());
+        let curves: Vec<Option<Arc<Curves>>> =
+            if has_curves { meshes.iter().map(|m| m.curves.clone()).collect() } else { Vec::new() };
         let cutout: Vec<bool> = meshes.iter().map(|m| m.alpha.is_some() || m.shadow_alpha.is_some()).collect();
         let mut tris = Vec::new();
         let mut refs = Vec::new();
@@ -223,9 +250,21 @@ impl Accel {
                 tris.push(Tri(v.map(|p| Vec3A::from(p * scale))));
                 refs.push(TriRef { mesh: mi as u32, tri: ti as u32 });
             }
+            if let Some(c) = &m.curves {
+                for piece in 0..c.prim_count() {
+                    let b = c.world_bound(piece);
+                    if !(b.min.is_finite() && b.max.is_finite()) {
+                        continue;
+                    }
+                    let (lo, hi) = (Vec3A::from(b.min * scale), Vec3A::from(b.max * scale));
+                    tris.push(Tri([lo, hi, hi]));
+                    refs.push(TriRef { mesh: mi as u32, tri: piece as u32 });
+                }
+            }
         }
+        // Embree gets triangles only: a scene with curves is the BVH's (the caller warns).
         #[cfg(feature = "embree")]
-        if kind == AccelKind::Embree {
+        if kind == AccelKind::Embree && !has_curves {
             // Opaque triangles first, then the cut-out ones: Embree gets them as two geometries,
             // the second with the alpha test as its filter.
             let mut order: Vec<usize> = (0..tris.len()).collect();
@@ -245,6 +284,7 @@ impl Accel {
                     bounds,
                     cutout,
                     filter: None,
+                    curves,
                     build_seconds: start.elapsed().as_secs_f64(),
                 };
             }
@@ -268,8 +308,33 @@ impl Accel {
             bounds,
             cutout,
             filter: None,
+            curves,
             build_seconds: start.elapsed().as_secs_f64(),
         }
+    }
+
+    /// Whether candidate slot `slot` is hit before `t_max` (BVH parameter): the BVH parameter
+    /// of the hit and its barycentrics (a curve's `[u, v, width]`), after the alpha test.
+    #[inline(always)]
+    fn hit_slot(&self, slot: usize, q: &Query, t_max: f32, shadow: bool) -> Option<(f32, [f32; 3])> {
+        if !self.curves.is_empty() {
+            let r = self.refs[slot];
+            if let Some(Some(c)) = self.curves.get(r.mesh as usize) {
+                let h = c.intersect(r.tri as usize, q.o, q.d, (t_max - BACKUP) / q.to_bvh, shadow)?;
+                let t = h.t * q.to_bvh + BACKUP;
+                return (t < t_max).then_some((t, [h.u, h.v, h.width]));
+            }
+        }
+        let (t, b) = q.pre.intersect(&self.tris[slot], BACKUP, t_max)?;
+        self.accepts(slot, (t - BACKUP) / q.to_bvh, b, shadow).then_some((t, b))
+    }
+
+    /// The number of curve pieces in the hierarchy (0 without curves).
+    pub fn curve_piece_count(&self) -> usize {
+        if self.curves.is_empty() {
+            return 0;
+        }
+        self.refs.iter().filter(|r| matches!(self.curves.get(r.mesh as usize), Some(Some(_)))).count()
     }
 
     /// The alpha test of the cut-out meshes (see [`HitFilter`]).
@@ -320,7 +385,7 @@ impl Accel {
         !(self.tris.is_empty() || !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO || ray.t_max.is_nan())
     }
 
-    fn prepare(&self, ray: &Ray) -> Option<(obvhs::ray::Ray, RayPrecomp, f32)> {
+    fn prepare(&self, ray: &Ray) -> Option<(obvhs::ray::Ray, Query)> {
         if !self.valid_query(ray) {
             return None;
         }
@@ -329,7 +394,8 @@ impl Accel {
         let o = Vec3A::from(ray.o * self.scale) - dn * BACKUP;
         // A parameter along the world ray maps to (t * len * scale) + BACKUP along the BVH ray.
         let t_max = if ray.t_max.is_finite() { ray.t_max * len * self.scale + BACKUP } else { f32::INFINITY };
-        Some((obvhs::ray::Ray::new(o, dn, 0.0, t_max), RayPrecomp::new(o, dn), len * self.scale))
+        let q = Query { pre: RayPrecomp::new(o, dn), o: ray.o, d: ray.d, to_bvh: len * self.scale };
+        Some((obvhs::ray::Ray::new(o, dn, 0.0, t_max), q))
     }
 
     /// The closest hit along `ray` with `0 < t < ray.t_max`.
@@ -345,27 +411,26 @@ impl Accel {
             let r = self.refs[slot as usize];
             return Some(Hit { t, mesh: r.mesh, tri: r.tri, b });
         }
-        let (bray, pre, to_bvh) = self.prepare(ray)?;
+        let (bray, q) = self.prepare(ray)?;
         if !traversable(bray.direction) {
-            let (slot, t, b) = self.traverse_exact(&bray, &pre, to_bvh, false)?;
+            let (slot, t, b) = self.traverse_exact(&bray, &q, false)?;
             let r = self.refs[slot as usize];
-            return Some(Hit { t: (t - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b });
+            return Some(Hit { t: (t - BACKUP) / q.to_bvh, mesh: r.mesh, tri: r.tri, b });
         }
         let mut hit = RayHit::none();
         let mut best_b = [0.0f32; 3];
-        let found =
-            self.bvh.ray_traverse(bray, &mut hit, |r, id| match pre.intersect(&self.tris[id], BACKUP, r.tmax) {
-                Some((t, b)) if self.accepts(id, (t - BACKUP) / to_bvh, b, false) => {
-                    best_b = b;
-                    t
-                }
-                _ => f32::INFINITY,
-            });
+        let found = self.bvh.ray_traverse(bray, &mut hit, |r, id| match self.hit_slot(id, &q, r.tmax, false) {
+            Some((t, b)) => {
+                best_b = b;
+                t
+            }
+            None => f32::INFINITY,
+        });
         if !found {
             return None;
         }
         let r = self.refs[hit.primitive_id as usize];
-        Some(Hit { t: (hit.t - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b: best_b })
+        Some(Hit { t: (hit.t - BACKUP) / q.to_bvh, mesh: r.mesh, tri: r.tri, b: best_b })
     }
 
     /// The triangles (BVH slots) that rays of a bundle sharing one origin — a pixel's camera
@@ -437,21 +502,21 @@ impl Accel {
     /// [`intersect`](Self::intersect) testing only the triangles `slots` (from
     /// [`bundle_candidates`](Self::bundle_candidates) for a bundle holding `ray`): the same hit.
     pub fn intersect_among(&self, ray: &Ray, slots: &[u32]) -> Option<Hit> {
-        let (bray, pre, to_bvh) = self.prepare(ray)?;
+        let (bray, q) = self.prepare(ray)?;
         let mut t_max = bray.tmax;
         let mut best = None;
         for &slot in slots {
-            let Some(tri) = self.tris.get(slot as usize) else { continue };
-            if let Some((t, b)) = pre.intersect(tri, BACKUP, t_max) {
-                if self.accepts(slot as usize, (t - BACKUP) / to_bvh, b, false) {
-                    t_max = t;
-                    best = Some((slot, b));
-                }
+            if slot as usize >= self.tris.len() {
+                continue;
+            }
+            if let Some((t, b)) = self.hit_slot(slot as usize, &q, t_max, false) {
+                t_max = t;
+                best = Some((slot, b));
             }
         }
         let (slot, b) = best?;
         let r = self.refs[slot as usize];
-        Some(Hit { t: (t_max - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b })
+        Some(Hit { t: (t_max - BACKUP) / q.to_bvh, mesh: r.mesh, tri: r.tri, b })
     }
 
     /// The closest hit (or with `any`, the first found) of a BVH-space ray by a traversal of
@@ -466,8 +531,7 @@ impl Accel {
     fn traverse_exact(
         &self,
         bray: &obvhs::ray::Ray,
-        pre: &RayPrecomp,
-        to_bvh: f32,
+        q: &Query,
         any: bool,
     ) -> Option<(u32, f32, [f32; 3])> {
         let (o, d) = (bray.origin, bray.direction);
@@ -500,11 +564,10 @@ impl Accel {
                 if node.is_leaf(c) {
                     let (start, count) = node.child_primitives(c);
                     for slot in start..start + count {
-                        let Some(tri) = self.tris.get(slot as usize) else { continue };
-                        if let Some((t, bary)) = pre.intersect(tri, BACKUP, t_max) {
-                            if !self.accepts(slot as usize, (t - BACKUP) / to_bvh, bary, any) {
-                                continue;
-                            }
+                        if slot as usize >= self.tris.len() {
+                            continue;
+                        }
+                        if let Some((t, bary)) = self.hit_slot(slot as usize, q, t_max, any) {
                             t_max = t;
                             best = Some((slot, t, bary));
                             if any {
@@ -528,14 +591,11 @@ impl Accel {
             let accept: Option<embree::Accept> = if self.filter.is_some() { Some(&accept) } else { None };
             return self.valid_query(ray) && e.occluded(o, d, t_max, accept);
         }
-        let Some((bray, pre, to_bvh)) = self.prepare(ray) else { return false };
+        let Some((bray, q)) = self.prepare(ray) else { return false };
         if !traversable(bray.direction) {
-            return self.traverse_exact(&bray, &pre, to_bvh, true).is_some();
+            return self.traverse_exact(&bray, &q, true).is_some();
         }
-        !self.bvh.ray_traverse_miss(bray, |r, id| match pre.intersect(&self.tris[id], BACKUP, r.tmax) {
-            Some((t, b)) if self.accepts(id, (t - BACKUP) / to_bvh, b, true) => t,
-            _ => f32::INFINITY,
-        })
+        !self.bvh.ray_traverse_miss(bray, |r, id| self.hit_slot(id, &q, r.tmax, true).map_or(f32::INFINITY, |h| h.0))
     }
 }
 
