@@ -282,6 +282,57 @@ fn curves_match_pbrt_v3() {
     }
 }
 
+/// Every integrator meets curves through the shared ray queries: `path` with one bounce sees
+/// `directlighting`'s expected image; `ltc` cannot outline a curve in its analytic visibility,
+/// so it lights the scene with directlighting's estimator (same expected image) and says so;
+/// `silhouette` and `shexp` refuse, naming the curve and its location, and write nothing. An
+/// area light on a curve (pbrt-v3 aborts: `Curve::Sample` is unimplemented) warns and emits
+/// nothing; `Accelerator "embree"` with curves falls back to the BVH.
+#[test]
+fn curves_through_every_integrator() {
+    check_with("curve-flat", "path", &["maxdepth=1"]);
+    let ltc = check_with("curve-flat", "ltc", &[]);
+    assert!(
+        ltc.warnings
+            .iter()
+            .any(|w| w.contains("ltc: shape \"curve\" is a curve") && w.contains("directlighting's estimator")),
+        "{:?}",
+        ltc.warnings
+    );
+    let dir = cli_dir("real-curves-integrators");
+    let path = scene("real/curve-flat.pbrt");
+    let line =
+        std::fs::read_to_string(&path).unwrap().lines().position(|l| l.starts_with("Shape \"curve\"")).unwrap() + 1;
+    for integrator in ["silhouette", "shexp"] {
+        let out = dir.join(format!("{integrator}.exr"));
+        let o = penumbra(
+            &dir,
+            &["render", "-q", "--spp", "1", "-i", integrator, path.to_str().unwrap(), "-o", out.to_str().unwrap()],
+        );
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{integrator}: {err}");
+        assert!(
+            err.contains(&format!("curve-flat.pbrt:{line}:1"))
+                && err.contains("is a curve")
+                && err.contains("bool occluder"),
+            "{integrator}: {err}"
+        );
+        assert!(!out.exists(), "{integrator}");
+    }
+    let text = std::fs::read_to_string(&path).unwrap();
+    let lit = dir.join("lit.pbrt");
+    let lit_text = text
+        .replacen("Material \"matte\" \"rgb Kd\" [0.8 0.3 0.1]", "AreaLightSource \"diffuse\" \"rgb L\" [5 5 5]", 1)
+        .replacen("WorldBegin", "Accelerator \"embree\"\nWorldBegin", 1);
+    std::fs::write(&lit, lit_text).unwrap();
+    let out = dir.join("lit.exr");
+    let o = penumbra(&dir, &["render", "-q", "--spp", "1", lit.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("area light on a \"curve\"") && err.contains("does not emit"), "{err}");
+    assert!(err.contains("Accelerator \"embree\"") && err.contains("\"bvh\""), "{err}");
+}
+
 /// Malformed curves are errors located at the parameter; an unknown type is pbrt-v3's
 /// `cylinder` with a warning; normals on a non-ribbon are ignored with a warning; `splitdepth`
 /// beyond 10 is clamped with a warning; `penumbra info` counts the curves.
@@ -297,9 +348,11 @@ fn curve_parameters_as_pbrt_v3_reads_them() {
     assert!(!o.status.success(), "{err}");
     assert!(err.contains(&format!("bad.pbrt:{line}:")) && err.contains("6 control points"), "{err}");
     let odd = dir.join("odd.pbrt");
-    let odd_text = text
-        .replacen("\"string type\" \"ribbon\"", "\"string type\" \"tube\"", 1)
-        .replacen("\"string type\" \"ribbon\"", "\"string type\" \"flat\" \"integer splitdepth\" [40]", 1);
+    let odd_text = text.replacen("\"string type\" \"ribbon\"", "\"string type\" \"tube\"", 1).replacen(
+        "\"string type\" \"ribbon\"",
+        "\"string type\" \"flat\" \"integer splitdepth\" [40]",
+        1,
+    );
     std::fs::write(&odd, odd_text).unwrap();
     let o = penumbra(&dir, &["info", odd.to_str().unwrap()]);
     let out = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);

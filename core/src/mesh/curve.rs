@@ -187,7 +187,12 @@ fn box_misses(cp: &[Vec3], half: f32, z_max: f32) -> bool {
         lo = lo.min(*p);
         hi = hi.max(*p);
     }
-    hi.y + half < 0.0 || lo.y - half > 0.0 || hi.x + half < 0.0 || lo.x - half > 0.0 || hi.z + half < 0.0 || lo.z - half > z_max
+    hi.y + half < 0.0
+        || lo.y - half > 0.0
+        || hi.x + half < 0.0
+        || lo.x - half > 0.0
+        || hi.z + half < 0.0
+        || lo.z - half > z_max
 }
 
 /// Per-query state of one piece's intersection.
@@ -269,7 +274,12 @@ impl Curves {
         let i = (prim & ((1usize << self.split_depth) - 1)) as f32;
         let (u0, u1) = (i / n, (i + 1.0) / n);
         let c = &seg.cp;
-        Some((seg, u0, u1, [blossom(c, u0, u0, u0), blossom(c, u0, u0, u1), blossom(c, u0, u1, u1), blossom(c, u1, u1, u1)]))
+        Some((
+            seg,
+            u0,
+            u1,
+            [blossom(c, u0, u0, u0), blossom(c, u0, u0, u1), blossom(c, u0, u1, u1), blossom(c, u1, u1, u1)],
+        ))
     }
 
     /// pbrt-v3's `Curve::ObjectBound` carried to world space (the box of its eight corners).
@@ -339,7 +349,14 @@ impl Curves {
         let fallback_n = -d_world.normalize_or_zero();
         let Some((seg, _, _, _, _, d, frame)) = self.setup(prim, o_world, d_world) else {
             let f = crate::geometry::Frame::from_z(fallback_n);
-            return CurveGeometry { p, p_error: Vec3::ZERO, n: fallback_n, dpdu: f.x, dpdv: f.y, uv: Vec2::new(hit.u, hit.v) };
+            return CurveGeometry {
+                p,
+                p_error: Vec3::ZERO,
+                n: fallback_n,
+                dpdu: f.x,
+                dpdv: f.y,
+                uv: Vec2::new(hit.u, hit.v),
+            };
         };
         let _ = d;
         let (u, v, width) = (hit.u, hit.v, hit.width);
@@ -388,5 +405,123 @@ impl Curves {
             }
         }
         b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A straight curve along x from -1 to 1 (control points evenly spaced: u = (x + 1) / 2).
+    fn straight(kind: CurveType, width: f32, n: Option<[Vec3; 2]>, world_from_object: Mat4) -> Curves {
+        let cp = [-1.0, -1.0 / 3.0, 1.0 / 3.0, 1.0].map(|x| Vec3::new(x, 0.0, 0.0));
+        Curves {
+            kind,
+            segments: vec![CurveSegment::new(cp, [width; 2], n)],
+            split_depth: 0,
+            world_from_object,
+            object_from_world: world_from_object.inverse(),
+            reverse_orientation: false,
+            swaps_handedness: false,
+        }
+    }
+
+    /// A flat curve seen from above: hit exactly within half its width of the axis, at the
+    /// axis' depth, with u along it, v = 0.5 ± offset / width across it, and pbrt-v3's normal
+    /// `∂p/∂u × ∂p/∂v` along the ray; missed beyond the ends and past `t_max`.
+    #[test]
+    fn flat_curve_is_its_width_wide_facing_the_ray() {
+        let c = straight(CurveType::Flat, 0.2, None, Mat4::IDENTITY);
+        let d = Vec3::new(0.0, 0.0, -2.0);
+        for (x, y, hit) in
+            [(0.3, 0.0, true), (-0.5, 0.099, true), (0.2, -0.099, true), (0.0, 0.101, false), (1.2, 0.0, false)]
+        {
+            let o = Vec3::new(x, y, 3.0);
+            let h = c.intersect(0, o, d, f32::INFINITY, false);
+            assert_eq!(h.is_some(), hit, "({x}, {y}): {h:?}");
+            let Some(h) = h else { continue };
+            assert!((h.t - 1.5).abs() < 1e-5 && (h.u - (x + 1.0) / 2.0).abs() < 1e-3, "{h:?}");
+            assert!((h.width - 0.2).abs() < 1e-6 && ((h.v - 0.5).abs() - y.abs() / 0.2).abs() < 1e-3, "{h:?}");
+            let g = c.geometry(0, o, d, &h);
+            assert!((g.p - Vec3::new(x, y, 0.0)).length() < 1e-5 && g.n.z.abs() > 0.9999, "{g:?}");
+            assert!(g.p_error.min_element() >= 0.4, "pbrt-v3's bound: twice the width");
+        }
+        assert!(c.intersect(0, Vec3::new(0.0, 0.0, 3.0), d, 1.4, false).is_none());
+        assert!(c.intersect(0, Vec3::new(0.0, 0.0, 3.0), -d, f32::INFINITY, false).is_none());
+    }
+
+    /// A ribbon whose normal is z, seen by rays turned by θ about the curve's axis: its width
+    /// is `w · |cos θ|` (pbrt-v3 narrows it edge-on); a flat curve keeps `w` at every θ.
+    #[test]
+    fn ribbon_narrows_edge_on() {
+        let ribbon = straight(CurveType::Ribbon, 0.2, Some([Vec3::Z, Vec3::new(0.0, 1e-3, 1.0)]), Mat4::IDENTITY);
+        let flat = straight(CurveType::Flat, 0.2, None, Mat4::IDENTITY);
+        for deg in [0.0f32, 30.0, 60.0, 80.0] {
+            let (s, cs) = deg.to_radians().sin_cos();
+            let d = Vec3::new(0.0, s, -cs);
+            // The half-width across the ray is the distance in the plane perpendicular to d.
+            let across = Vec3::new(0.0, cs, s);
+            let edge = |c: &Curves, half: f32| {
+                let inside = c.intersect(0, -3.0 * d + across * half * 0.98, d, f32::INFINITY, false).is_some();
+                let outside = c.intersect(0, -3.0 * d + across * half * 1.02, d, f32::INFINITY, false).is_some();
+                inside && !outside
+            };
+            assert!(edge(&ribbon, 0.1 * cs), "ribbon at {deg}°");
+            assert!(edge(&flat, 0.1), "flat at {deg}°");
+        }
+    }
+
+    /// A cylinder curve's normal bends across its width as a cylinder's: facing the ray on the
+    /// axis, turned by (v − ½)·180° about the axis off it.
+    #[test]
+    fn cylinder_normal_bends_across_the_width() {
+        let c = straight(CurveType::Cylinder, 0.2, None, Mat4::IDENTITY);
+        let d = Vec3::new(0.0, 0.0, -1.0);
+        for y in [-0.09f32, -0.05, 0.0, 0.05, 0.09] {
+            let o = Vec3::new(0.1, y, 2.0);
+            let h = c.intersect(0, o, d, f32::INFINITY, false).unwrap();
+            let g = c.geometry(0, o, d, &h);
+            let angle = (h.v - 0.5) * std::f32::consts::PI;
+            assert!((g.n.z.abs() - angle.cos()).abs() < 1e-3 && g.n.x.abs() < 1e-3, "y {y}: {g:?}");
+            assert!(g.n.y.abs() > 0.0 || y == 0.0);
+        }
+    }
+
+    /// The width is in object space: scaled by 3 (and moved), the curve is 3 × as wide in the
+    /// world, at the moved place; reverse orientation negates the normal.
+    #[test]
+    fn width_and_normal_follow_the_transform() {
+        let m = Mat4::from_translation(Vec3::new(0.0, 5.0, 0.0)) * Mat4::from_scale(Vec3::splat(3.0));
+        let mut c = straight(CurveType::Flat, 0.2, None, m);
+        let d = Vec3::new(0.0, 0.0, -1.0);
+        assert!(c.intersect(0, Vec3::new(1.0, 5.29, 2.0), d, f32::INFINITY, false).is_some());
+        assert!(c.intersect(0, Vec3::new(1.0, 5.31, 2.0), d, f32::INFINITY, false).is_none());
+        let o = Vec3::new(1.0, 5.0, 2.0);
+        let h = c.intersect(0, o, d, f32::INFINITY, false).unwrap();
+        assert!((h.t - 2.0).abs() < 1e-5);
+        let n = c.geometry(0, o, d, &h).n;
+        c.reverse_orientation = true;
+        assert_eq!(c.geometry(0, o, d, &h).n, -n);
+        let b = c.world_bounds();
+        assert!(
+            (b.min - Vec3::new(-3.3, 4.7, -0.3)).length() < 1e-4 && (b.max - Vec3::new(3.3, 5.3, 0.3)).length() < 1e-4
+        );
+    }
+
+    /// Split pieces cover the curve: every ray hitting the whole segment hits exactly the piece
+    /// holding its u, with the same hit.
+    #[test]
+    fn pieces_partition_the_segment() {
+        let whole = straight(CurveType::Flat, 0.1, None, Mat4::IDENTITY);
+        let split = Curves { split_depth: 3, ..whole.clone() };
+        assert_eq!(split.prim_count(), 8);
+        let d = Vec3::new(0.0, 0.0, -1.0);
+        for i in 0..50 {
+            let o = Vec3::new(-0.98 + 1.96 * i as f32 / 49.0, 0.01, 1.0);
+            let h = whole.intersect(0, o, d, f32::INFINITY, false).unwrap();
+            let hits: Vec<CurveHit> = (0..8).filter_map(|p| split.intersect(p, o, d, f32::INFINITY, false)).collect();
+            assert!(!hits.is_empty() && hits.len() <= 2, "{hits:?}");
+            assert!(hits.iter().all(|s| (s.t - h.t).abs() < 1e-5 && (s.u - h.u).abs() < 2e-3), "{h:?} {hits:?}");
+        }
     }
 }

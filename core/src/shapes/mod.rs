@@ -304,7 +304,10 @@ mod tests {
     fn curve_is_intersected_and_unknown_is_skipped_with_a_warning() {
         let sink = DiagSink::new();
         let ctx = ShapeContext::new(Path::new("."), &sink);
-        let d = shape("curve", vec![("P", ParamValue::Point3(vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 2.0, 1.0, 0.0, 3.0, 0.0, 0.0]))]);
+        let d = shape(
+            "curve",
+            vec![("P", ParamValue::Point3(vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 2.0, 1.0, 0.0, 3.0, 0.0, 0.0]))],
+        );
         let m = build_shape(&d, &ctx).unwrap().unwrap();
         assert_eq!(m.triangle_count(), 0);
         let c = m.curves.as_ref().unwrap();
