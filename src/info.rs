@@ -133,6 +133,23 @@ pub fn triangles(s: &ShapeDesc) -> Option<u64> {
     }
 }
 
+/// Cubic Bézier segments a `curve` shape stands for, as pbrt-v3's `CreateCurveShape` counts
+/// them (`None` for other shapes or a malformed curve; the build reports those).
+pub fn curve_segments(s: &ShapeDesc) -> Option<u64> {
+    let e = &s.entity;
+    if e.kind != "curve" {
+        return None;
+    }
+    let n = match &e.params.find("P")?.value {
+        ParamValue::Point3(v) => (v.len() / 3) as i64,
+        _ => return None,
+    };
+    let degree = one_int(e, "degree", 3) as i64;
+    let bspline = matches!(&e.params.find("basis").map(|p| &p.value), Some(ParamValue::String(v)) if v.first().is_some_and(|b| b == "bspline"));
+    let segments = if bspline { n - degree } else { (n - 1) / degree.max(1) };
+    (segments > 0).then_some(segments as u64)
+}
+
 fn counts<'a>(it: impl Iterator<Item = &'a str>) -> String {
     let mut m: BTreeMap<&str, usize> = BTreeMap::new();
     for k in it {
@@ -161,6 +178,14 @@ pub fn summary(scene: &SceneDescription) -> String {
     let tri_top: u64 = scene.shapes.iter().filter_map(triangles).sum();
     let tri_inst: u64 = inst_shapes.iter().filter_map(|s| triangles(s)).sum();
     let _ = writeln!(o, "triangles (from the text): {tri_top} (+{tri_inst} in instance definitions)");
+    let seg_top: u64 = scene.shapes.iter().filter_map(curve_segments).sum();
+    let seg_inst: u64 = inst_shapes.iter().filter_map(|s| curve_segments(s)).sum();
+    if seg_top + seg_inst > 0 {
+        let _ = writeln!(
+            o,
+            "curve segments (from the text): {seg_top} (+{seg_inst} in instance definitions), intersected as curves"
+        );
+    }
     let _ =
         writeln!(o, "lights: {} ({})", scene.lights.len(), counts(scene.lights.iter().map(|l| l.entity.kind.as_str())));
     let emitters = scene.shapes.iter().filter(|s| s.area_light.is_some()).count();

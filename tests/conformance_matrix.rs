@@ -237,10 +237,9 @@ const KNOWN: &[Known] = &[
     },
     Known {
         run: "*",
-        cells: &["shape/shape-curve", "camera/camera-realistic"],
+        cells: &["camera/camera-realistic"],
         issue: 34,
-        what: "curve: ribbons as tessellated strips (pbrt-v3 narrows them edge-on), flat/cylinder skipped, \
-               +2.3..+7.0 % mean, blocks to +43 %; the realistic camera renders as perspective: +78 % (each with a warning)",
+        what: "the realistic camera renders as perspective: +78 % (with a warning)",
     },
 ];
 

@@ -250,8 +250,6 @@ fn public_scenes_render() {
         "is not implemented by penumbra",
         // A BSSRDF (subsurface) seen by an integrator other than path: docs/materials.md.
         "is rendered by \"path\" only",
-        // Ribbon curves as tessellated strips (issue 34; docs/real-scenes.md).
-        "rendered as the strip it approximates",
     ];
     for f in &files {
         let parsed = match penumbra_parser::parse_file(f) {

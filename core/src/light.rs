@@ -1007,6 +1007,14 @@ impl Lights {
                 continue;
             }
             let mesh = &meshes[oi];
+            if mesh.curves.is_some() {
+                // pbrt-v3's `Curve::Sample` is unimplemented (it aborts the render).
+                warnings.warn(
+                    Some(obj.loc.clone()),
+                    "area light on a \"curve\": pbrt-v3 cannot sample curves (it aborts); the curve does not emit",
+                );
+                continue;
+            }
             let over = |tris: &mut dyn Iterator<Item = u32>| {
                 DiffuseAreaLight::over_triangles(oi as u32, mesh, tris, l, two_sided, n_samples)
             };

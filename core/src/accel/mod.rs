@@ -20,19 +20,23 @@ mod embree;
 pub mod objects;
 
 use crate::geometry::{gamma, Bounds3, Ray};
+use crate::mesh::curve::Curves;
 use crate::mesh::TriangleMesh;
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::RayHit;
 use obvhs::{aabb::Aabb, Boundable, BvhBuildParams};
+use std::sync::Arc;
 use std::time::Duration;
 
 /// How far (normalised units) each query is started behind its origin; a power
 /// of two so that backing up adds no rounding of its own beyond one subtraction.
 const BACKUP: f32 = 1.0 / 1024.0;
 
-/// A closest hit: the mesh, the triangle and the barycentrics of the hit point.
+/// A closest hit: the mesh, the triangle and the barycentrics of the hit point. On a curve
+/// (a mesh with [`TriangleMesh::curves`]), `tri` is the curve's piece and `b` holds pbrt-v3's
+/// `[u, v, hit width]` ([`crate::mesh::curve::CurveHit`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
     pub t: f32,
@@ -102,7 +106,20 @@ pub struct Accel {
     cutout: Vec<bool>,
     /// The alpha test of the `cutout` meshes (none: every hit counts).
     filter: Option<std::sync::Arc<dyn HitFilter>>,
+    /// Per mesh, its curve (empty when no mesh has one): the BVH slots of a curve mesh hold its
+    /// pieces (`tris` holds each piece's box as a degenerate triangle; `refs.tri` is the piece).
+    curves: Vec<Option<Arc<Curves>>>,
     pub build_seconds: f64,
+}
+
+/// A query: the triangle test's constants and the world-space ray (curves are intersected
+/// against it, as pbrt-v3 does, in the curve's object space).
+struct Query {
+    pre: RayPrecomp,
+    o: Vec3,
+    d: Vec3,
+    /// World ray parameter × `to_bvh` + [`BACKUP`] = BVH ray parameter.
+    to_bvh: f32,
 }
 
 /// Per-ray constants of the watertight test.
@@ -209,8 +226,18 @@ impl Accel {
                     bounds.extend(*p);
                 }
             }
+            if let Some(c) = &m.curves {
+                let b = c.world_bounds();
+                if b.min.is_finite() && b.max.is_finite() {
+                    bounds.extend(b.min);
+                    bounds.extend(b.max);
+                }
+            }
         }
         let scale = power_of_two_scale(&bounds);
+        let has_curves = meshes.iter().any(|m| m.curves.is_some());
+        let curves: Vec<Option<Arc<Curves>>> =
+            if has_curves { meshes.iter().map(|m| m.curves.clone()).collect() } else { Vec::new() };
         let cutout: Vec<bool> = meshes.iter().map(|m| m.alpha.is_some() || m.shadow_alpha.is_some()).collect();
         let mut tris = Vec::new();
         let mut refs = Vec::new();
@@ -223,9 +250,21 @@ impl Accel {
                 tris.push(Tri(v.map(|p| Vec3A::from(p * scale))));
                 refs.push(TriRef { mesh: mi as u32, tri: ti as u32 });
             }
+            if let Some(c) = &m.curves {
+                for piece in 0..c.prim_count() {
+                    let b = c.world_bound(piece);
+                    if !(b.min.is_finite() && b.max.is_finite()) {
+                        continue;
+                    }
+                    let (lo, hi) = (Vec3A::from(b.min * scale), Vec3A::from(b.max * scale));
+                    tris.push(Tri([lo, hi, hi]));
+                    refs.push(TriRef { mesh: mi as u32, tri: piece as u32 });
+                }
+            }
         }
+        // Embree gets triangles only: a scene with curves is the BVH's (the caller warns).
         #[cfg(feature = "embree")]
-        if kind == AccelKind::Embree {
+        if kind == AccelKind::Embree && !has_curves {
             // Opaque triangles first, then the cut-out ones: Embree gets them as two geometries,
             // the second with the alpha test as its filter.
             let mut order: Vec<usize> = (0..tris.len()).collect();
@@ -245,6 +284,7 @@ impl Accel {
                     bounds,
                     cutout,
                     filter: None,
+                    curves,
                     build_seconds: start.elapsed().as_secs_f64(),
                 };
             }
@@ -268,8 +308,33 @@ impl Accel {
             bounds,
             cutout,
             filter: None,
+            curves,
             build_seconds: start.elapsed().as_secs_f64(),
         }
+    }
+
+    /// Whether candidate slot `slot` is hit before `t_max` (BVH parameter): the BVH parameter
+    /// of the hit and its barycentrics (a curve's `[u, v, width]`), after the alpha test.
+    #[inline(always)]
+    fn hit_slot(&self, slot: usize, q: &Query, t_max: f32, shadow: bool) -> Option<(f32, [f32; 3])> {
+        if !self.curves.is_empty() {
+            let r = self.refs[slot];
+            if let Some(Some(c)) = self.curves.get(r.mesh as usize) {
+                let h = c.intersect(r.tri as usize, q.o, q.d, (t_max - BACKUP) / q.to_bvh, shadow)?;
+                let t = h.t * q.to_bvh + BACKUP;
+                return (t < t_max).then_some((t, [h.u, h.v, h.width]));
+            }
+        }
+        let (t, b) = q.pre.intersect(&self.tris[slot], BACKUP, t_max)?;
+        self.accepts(slot, (t - BACKUP) / q.to_bvh, b, shadow).then_some((t, b))
+    }
+
+    /// The number of curve pieces in the hierarchy (0 without curves).
+    pub fn curve_piece_count(&self) -> usize {
+        if self.curves.is_empty() {
+            return 0;
+        }
+        self.refs.iter().filter(|r| matches!(self.curves.get(r.mesh as usize), Some(Some(_)))).count()
     }
 
     /// The alpha test of the cut-out meshes (see [`HitFilter`]).
@@ -320,7 +385,7 @@ impl Accel {
         !(self.tris.is_empty() || !ray.o.is_finite() || !ray.d.is_finite() || ray.d == Vec3::ZERO || ray.t_max.is_nan())
     }
 
-    fn prepare(&self, ray: &Ray) -> Option<(obvhs::ray::Ray, RayPrecomp, f32)> {
+    fn prepare(&self, ray: &Ray) -> Option<(obvhs::ray::Ray, Query)> {
         if !self.valid_query(ray) {
             return None;
         }
@@ -329,7 +394,8 @@ impl Accel {
         let o = Vec3A::from(ray.o * self.scale) - dn * BACKUP;
         // A parameter along the world ray maps to (t * len * scale) + BACKUP along the BVH ray.
         let t_max = if ray.t_max.is_finite() { ray.t_max * len * self.scale + BACKUP } else { f32::INFINITY };
-        Some((obvhs::ray::Ray::new(o, dn, 0.0, t_max), RayPrecomp::new(o, dn), len * self.scale))
+        let q = Query { pre: RayPrecomp::new(o, dn), o: ray.o, d: ray.d, to_bvh: len * self.scale };
+        Some((obvhs::ray::Ray::new(o, dn, 0.0, t_max), q))
     }
 
     /// The closest hit along `ray` with `0 < t < ray.t_max`.
@@ -345,27 +411,26 @@ impl Accel {
             let r = self.refs[slot as usize];
             return Some(Hit { t, mesh: r.mesh, tri: r.tri, b });
         }
-        let (bray, pre, to_bvh) = self.prepare(ray)?;
+        let (bray, q) = self.prepare(ray)?;
         if !traversable(bray.direction) {
-            let (slot, t, b) = self.traverse_exact(&bray, &pre, to_bvh, false)?;
+            let (slot, t, b) = self.traverse_exact(&bray, &q, false)?;
             let r = self.refs[slot as usize];
-            return Some(Hit { t: (t - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b });
+            return Some(Hit { t: (t - BACKUP) / q.to_bvh, mesh: r.mesh, tri: r.tri, b });
         }
         let mut hit = RayHit::none();
         let mut best_b = [0.0f32; 3];
-        let found =
-            self.bvh.ray_traverse(bray, &mut hit, |r, id| match pre.intersect(&self.tris[id], BACKUP, r.tmax) {
-                Some((t, b)) if self.accepts(id, (t - BACKUP) / to_bvh, b, false) => {
-                    best_b = b;
-                    t
-                }
-                _ => f32::INFINITY,
-            });
+        let found = self.bvh.ray_traverse(bray, &mut hit, |r, id| match self.hit_slot(id, &q, r.tmax, false) {
+            Some((t, b)) => {
+                best_b = b;
+                t
+            }
+            None => f32::INFINITY,
+        });
         if !found {
             return None;
         }
         let r = self.refs[hit.primitive_id as usize];
-        Some(Hit { t: (hit.t - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b: best_b })
+        Some(Hit { t: (hit.t - BACKUP) / q.to_bvh, mesh: r.mesh, tri: r.tri, b: best_b })
     }
 
     /// The triangles (BVH slots) that rays of a bundle sharing one origin — a pixel's camera
@@ -437,21 +502,21 @@ impl Accel {
     /// [`intersect`](Self::intersect) testing only the triangles `slots` (from
     /// [`bundle_candidates`](Self::bundle_candidates) for a bundle holding `ray`): the same hit.
     pub fn intersect_among(&self, ray: &Ray, slots: &[u32]) -> Option<Hit> {
-        let (bray, pre, to_bvh) = self.prepare(ray)?;
+        let (bray, q) = self.prepare(ray)?;
         let mut t_max = bray.tmax;
         let mut best = None;
         for &slot in slots {
-            let Some(tri) = self.tris.get(slot as usize) else { continue };
-            if let Some((t, b)) = pre.intersect(tri, BACKUP, t_max) {
-                if self.accepts(slot as usize, (t - BACKUP) / to_bvh, b, false) {
-                    t_max = t;
-                    best = Some((slot, b));
-                }
+            if slot as usize >= self.tris.len() {
+                continue;
+            }
+            if let Some((t, b)) = self.hit_slot(slot as usize, &q, t_max, false) {
+                t_max = t;
+                best = Some((slot, b));
             }
         }
         let (slot, b) = best?;
         let r = self.refs[slot as usize];
-        Some(Hit { t: (t_max - BACKUP) / to_bvh, mesh: r.mesh, tri: r.tri, b })
+        Some(Hit { t: (t_max - BACKUP) / q.to_bvh, mesh: r.mesh, tri: r.tri, b })
     }
 
     /// The closest hit (or with `any`, the first found) of a BVH-space ray by a traversal of
@@ -463,13 +528,7 @@ impl Accel {
     /// whole line when the origin lies within the box's range (inclusive) and empty otherwise;
     /// the far slab distance is widened by pbrt-v3's 1 + 2γ(3). Returns the BVH slot, the
     /// BVH-space `t` and the barycentrics.
-    fn traverse_exact(
-        &self,
-        bray: &obvhs::ray::Ray,
-        pre: &RayPrecomp,
-        to_bvh: f32,
-        any: bool,
-    ) -> Option<(u32, f32, [f32; 3])> {
+    fn traverse_exact(&self, bray: &obvhs::ray::Ray, q: &Query, any: bool) -> Option<(u32, f32, [f32; 3])> {
         let (o, d) = (bray.origin, bray.direction);
         let widen = 1.0 + 2.0 * gamma(3);
         let mut t_max = bray.tmax;
@@ -500,11 +559,10 @@ impl Accel {
                 if node.is_leaf(c) {
                     let (start, count) = node.child_primitives(c);
                     for slot in start..start + count {
-                        let Some(tri) = self.tris.get(slot as usize) else { continue };
-                        if let Some((t, bary)) = pre.intersect(tri, BACKUP, t_max) {
-                            if !self.accepts(slot as usize, (t - BACKUP) / to_bvh, bary, any) {
-                                continue;
-                            }
+                        if slot as usize >= self.tris.len() {
+                            continue;
+                        }
+                        if let Some((t, bary)) = self.hit_slot(slot as usize, q, t_max, any) {
                             t_max = t;
                             best = Some((slot, t, bary));
                             if any {
@@ -528,14 +586,11 @@ impl Accel {
             let accept: Option<embree::Accept> = if self.filter.is_some() { Some(&accept) } else { None };
             return self.valid_query(ray) && e.occluded(o, d, t_max, accept);
         }
-        let Some((bray, pre, to_bvh)) = self.prepare(ray) else { return false };
+        let Some((bray, q)) = self.prepare(ray) else { return false };
         if !traversable(bray.direction) {
-            return self.traverse_exact(&bray, &pre, to_bvh, true).is_some();
+            return self.traverse_exact(&bray, &q, true).is_some();
         }
-        !self.bvh.ray_traverse_miss(bray, |r, id| match pre.intersect(&self.tris[id], BACKUP, r.tmax) {
-            Some((t, b)) if self.accepts(id, (t - BACKUP) / to_bvh, b, true) => t,
-            _ => f32::INFINITY,
-        })
+        !self.bvh.ray_traverse_miss(bray, |r, id| self.hit_slot(id, &q, r.tmax, true).map_or(f32::INFINITY, |h| h.0))
     }
 }
 
@@ -907,5 +962,81 @@ mod tests {
             assert!(!accel.occluded(&Ray::new(Vec3::ZERO, Vec3::INFINITY, 1.0)));
             assert!(Accel::build_with(&[], kind).intersect(&Ray::new(Vec3::ZERO, Vec3::Y, 1.0)).is_none());
         }
+    }
+
+    /// Curves beside triangles in one hierarchy: over random rays through a soup of triangles
+    /// and random flat curves, the closest hit and occlusion are a brute-force loop's over every
+    /// triangle and every curve piece (the curve's own test), and a bundle's candidates give the
+    /// same hits; Embree, asked for, still answers (its triangles only) — the scene build falls
+    /// back to the BVH with a warning for scenes with curves.
+    #[test]
+    fn curves_beside_triangles() {
+        use crate::mesh::curve::{CurveSegment, CurveType, Curves};
+        use glam::Mat4;
+        let mut meshes = soup(4, 200, false);
+        let mut rng = crate::rng::Rng::new(21);
+        let mut u = || rng.uniform_f32();
+        let mut curves = Vec::new();
+        for k in 0..6 {
+            let c0 = Vec3::new(u(), u(), u()) * 16.0 - 8.0;
+            let segments = (0..4)
+                .map(|_| {
+                    let cp = [0, 1, 2, 3].map(|i| c0 + Vec3::new(i as f32, u() * 2.0 - 1.0, u() * 2.0 - 1.0) * 1.5);
+                    CurveSegment::new(cp, [0.3, 0.1], None)
+                })
+                .collect();
+            let c = std::sync::Arc::new(Curves {
+                kind: if k % 2 == 0 { CurveType::Flat } else { CurveType::Cylinder },
+                segments,
+                split_depth: 2,
+                world_from_object: Mat4::IDENTITY,
+                object_from_world: Mat4::IDENTITY,
+                reverse_orientation: false,
+                swaps_handedness: false,
+            });
+            curves.push(c.clone());
+            meshes.push(TriangleMesh { curves: Some(c), ..Default::default() });
+        }
+        let accel = Accel::build(&meshes);
+        assert_eq!(accel.curve_piece_count(), 6 * 4 * 4);
+        let (mut curve_hits, mut tri_hits) = (0, 0);
+        for _ in 0..3000 {
+            let o = Vec3::new(u(), u(), u()) * 24.0 - 12.0;
+            let target = Vec3::new(u(), u(), u()) * 16.0 - 8.0;
+            let ray = Ray::new(o, target - o, if u() < 0.3 { 0.7 } else { f32::INFINITY });
+            // Brute force: the nearest triangle (a one-mesh hierarchy per soup mesh) or curve piece.
+            let mut best: Option<(f32, u32)> = None;
+            for (mi, m) in meshes.iter().enumerate() {
+                let t = match &m.curves {
+                    Some(c) => (0..c.prim_count())
+                        .filter_map(|p| c.intersect(p, ray.o, ray.d, ray.t_max, false))
+                        .map(|h| h.t)
+                        .reduce(f32::min),
+                    None => Accel::build(std::slice::from_ref(m)).intersect(&ray).map(|h| h.t),
+                };
+                if let Some(t) = t {
+                    if best.is_none_or(|b| t < b.0) {
+                        best = Some((t, mi as u32));
+                    }
+                }
+            }
+            let got = accel.intersect(&ray);
+            assert_eq!(got.map(|h| h.mesh), best.map(|b| b.1), "ray {ray:?}");
+            if let (Some(g), Some(b)) = (got, best) {
+                assert!((g.t - b.0).abs() <= 1e-4 * b.0.max(1.0), "{g:?} {b:?}");
+                if meshes[g.mesh as usize].curves.is_some() {
+                    curve_hits += 1;
+                } else {
+                    tri_hits += 1;
+                }
+            }
+            assert_eq!(accel.occluded(&ray), best.is_some(), "ray {ray:?}");
+            if let Some(c) = accel.bundle_candidates(std::slice::from_ref(&ray), usize::MAX) {
+                assert_eq!(accel.intersect_among(&ray, &c), got, "ray {ray:?}");
+            }
+        }
+        assert!(curve_hits > 30 && tri_hits > 300, "{curve_hits} curve hits, {tri_hits} triangle hits");
+        let embree = Accel::build_with(&meshes, AccelKind::Embree);
+        assert_eq!(embree.kind(), AccelKind::Bvh, "a hierarchy with curves is the BVH's");
     }
 }

@@ -34,6 +34,7 @@
 use glam::{Vec2, Vec3};
 
 mod adjacency;
+pub mod curve;
 pub mod hash;
 mod predicates;
 
@@ -151,6 +152,9 @@ pub struct TriangleMesh {
     /// For a sphere, disk or cylinder: its parameters, for what pbrt-v3 computes on the
     /// analytic shape (area-light sampling).
     pub quadric: Option<Quadric>,
+    /// For a `curve` shape: the curve, intersected as pbrt-v3 intersects it (the mesh then has
+    /// no triangles; see [`curve`]).
+    pub curves: Option<std::sync::Arc<curve::Curves>>,
 }
 
 impl TriangleMesh {

@@ -80,12 +80,26 @@ impl Scene {
         };
         let textures = (req.materials || cutouts).then(|| Arc::new(textures));
         let accel = if req.accel {
-            let mut a = Accel::build_with(&meshes, accel_kind(desc, warnings));
+            let mut kind = accel_kind(desc, warnings);
+            if kind == AccelKind::Embree && meshes.iter().any(|m| m.curves.is_some()) {
+                warnings.warn(
+                    Some(desc.accelerator.loc.clone()),
+                    "Accelerator \"embree\": the scene has curves, which penumbra gives Embree no geometry for: using \"bvh\"",
+                );
+                kind = AccelKind::Bvh;
+            }
+            let mut a = Accel::build_with(&meshes, kind);
             if let Some(test) = textures.as_ref().and_then(|t| CutoutTest::new(&meshes, t.clone())) {
                 a.set_filter(Arc::new(test));
             }
             let by = if a.kind() == AccelKind::Embree { " (Embree)" } else { "" };
-            report.stages.push(("bvh".into(), a.build_seconds, format!("{} triangles{by}", a.triangle_count())));
+            let pieces = a.curve_piece_count();
+            let what = if pieces > 0 {
+                format!("{} triangles, {pieces} curve pieces{by}", a.triangle_count() - pieces)
+            } else {
+                format!("{} triangles{by}", a.triangle_count())
+            };
+            report.stages.push(("bvh".into(), a.build_seconds, what));
             Some(a)
         } else {
             None

@@ -262,6 +262,19 @@ impl Scene {
             .map(|(_, o)| o)
     }
 
+    /// The first occluding object that visibility built from the meshes' outlines cannot
+    /// represent, and why: an alpha cut-out ([`cutout_occluder`](Self::cutout_occluder)) or a
+    /// `curve` (intersected analytically: it has no triangles to outline).
+    pub fn non_polygonal_occluder(&self) -> Option<(&SceneObject, &'static str)> {
+        self.cutout_occluder().map(|o| (o, "has an \"alpha\"/\"shadowalpha\" cut-out")).or_else(|| {
+            self.meshes
+                .iter()
+                .zip(&self.objects)
+                .find(|(m, o)| o.occluder && m.curves.is_some())
+                .map(|(_, o)| (o, "is a curve (intersected as pbrt-v3 does, with no triangles to outline)"))
+        })
+    }
+
     /// The BSSRDF under `si`, whose BSDF (built with `opts`) is `bsdf`; `None` when its material
     /// has none (see [`Material::bssrdf`]).
     pub fn bssrdf(
@@ -303,6 +316,9 @@ impl Scene {
     /// [`SurfaceInteraction::compute_differentials`]).
     pub fn interaction_after(&self, ray: &Ray, hit: &Hit, prev: Option<&SurfaceInteraction>) -> SurfaceInteraction {
         let mesh = &self.meshes[hit.mesh as usize];
+        if let Some(c) = &mesh.curves {
+            return curve_interaction(c, ray, hit);
+        }
         let tri = hit.tri as usize;
         let pv = mesh.vertices(tri);
         let b = hit.b;
@@ -400,6 +416,30 @@ impl Scene {
             }
         }
         si
+    }
+}
+
+/// pbrt-v3's `Curve::Intersect` surface interaction at a curve hit (`hit.b` = `[u, v, width]`):
+/// one normal for geometry and shading, no normal derivatives.
+fn curve_interaction(c: &crate::mesh::curve::Curves, ray: &Ray, hit: &Hit) -> SurfaceInteraction {
+    let h = crate::mesh::curve::CurveHit { t: hit.t, u: hit.b[0], v: hit.b[1], width: hit.b[2] };
+    let g = c.geometry(hit.tri as usize, ray.o, ray.d, &h);
+    SurfaceInteraction {
+        p: g.p,
+        p_error: g.p_error,
+        n: g.n,
+        uv: g.uv,
+        dpdu: g.dpdu,
+        dpdv: g.dpdv,
+        shading: Frame::from_zx(g.n, g.dpdu),
+        shading_dpdu: g.dpdu,
+        shading_dpdv: g.dpdv,
+        dndu: Vec3::ZERO,
+        dndv: Vec3::ZERO,
+        diff: Differentials::default(),
+        wo: -ray.d.normalize_or_zero(),
+        mesh: hit.mesh,
+        tri: hit.tri,
     }
 }
 

@@ -1,28 +1,22 @@
 //! `Shape "curve"` as pbrt-v3's `CreateCurveShape` reads it: `P` in the `bezier` (degree + 1
 //! points, then `degree` more per segment) or uniform `bspline` basis, degree 2 or 3, each
 //! segment converted to a cubic Bézier as pbrt-v3 does (degree elevation, blossoming), the
-//! width lerped from `width0` to `width1` over the segments.
+//! width lerped from `width0` to `width1` over the segments, `type` `flat`, `ribbon` (with
+//! normals `N` at the segments' ends) or `cylinder` (pbrt-v3's fallback for an unknown type),
+//! each segment split into `2^splitdepth` pieces (`splitdepth` clamped to 0..=10).
 //!
-//! `ribbon` curves: at each u pbrt-v3's `Curve::Intersect` takes the normal `nHit` slerped
-//! between the segment's two `N` (over the angle `acos(clamp(n0·n1, 0, 1))`) and accepts a ray
-//! within `width · |nHit · d̂| / 2` of the curve *projected along the ray*. A strip of width
-//! `width · |nHit|` across `normalize(nHit × ∂p/∂u)` projects to exactly that where the ray is
-//! perpendicular to the curve; where it is not, pbrt-v3's is narrower (by
-//! `sqrt(1 − (t̂ · d̂)²)`, t̂ the tangent), so pbrt-v3's ribbon depends on the ray too. penumbra
-//! tessellates the strip ([`STEPS`] quads per Bézier segment, `nHit` as the vertex normals, u
-//! along the segment, v across: 0 on the `nHit × ∂p/∂u` side, as pbrt-v3 from the side `nHit`
-//! faces) and says so in a warning. Where two neighbouring normals are equal pbrt-v3 divides by
-//! sin 0; penumbra uses the common normal.
-//!
-//! `flat` and `cylinder` curves are strips facing each ray in pbrt-v3 (with, for `cylinder`, a
-//! normal turned across the width): skipped with a warning.
+//! The result is a [`TriangleMesh`] without triangles whose [`Curves`] the hierarchy
+//! intersects as pbrt-v3 does (`crate::mesh::curve`): nothing is tessellated.
 
-use super::{loc_or_entity, ObjMesh, ShapeContext};
+use super::{loc_or_entity, ShapeContext};
+use crate::mesh::curve::{CurveSegment, CurveType, Curves};
+use crate::mesh::TriangleMesh;
 use crate::parser::{Diagnostic, ShapeDesc};
-use glam::DVec3;
+use glam::{DVec3, Mat4, Vec3};
+use std::sync::Arc;
 
-/// Quads per cubic Bézier segment along u.
-pub(crate) const STEPS: usize = 64;
+/// The largest `splitdepth` penumbra takes (pbrt-v3 takes any: 2^depth pieces per segment).
+const MAX_SPLIT_DEPTH: i32 = 10;
 
 fn error(desc: &ShapeDesc, param: &str, msg: String) -> Diagnostic {
     Diagnostic::error(loc_or_entity(desc, param), format!("curve: {msg}"))
@@ -57,25 +51,19 @@ fn bezier_segments(cp: &[DVec3], degree: usize, bspline: bool) -> Vec<[DVec3; 4]
         .collect()
 }
 
-/// The Bézier point at `u` and its derivative (pbrt-v3's `EvalBezier`, with its fallback
-/// `cp[3] − cp[0]` where the derivative vanishes).
-fn eval_bezier(cp: &[DVec3; 4], u: f64) -> (DVec3, DVec3) {
-    let lerp = |a: DVec3, b: DVec3| a + (b - a) * u;
-    let c1 = [lerp(cp[0], cp[1]), lerp(cp[1], cp[2]), lerp(cp[2], cp[3])];
-    let c2 = [lerp(c1[0], c1[1]), lerp(c1[1], c1[2])];
-    let d = 3.0 * (c2[1] - c2[0]);
-    (lerp(c2[0], c2[1]), if d.length_squared() > 0.0 { d } else { cp[3] - cp[0] })
-}
-
 /// The curve's parameters, validated as pbrt-v3 validates them.
 struct Params {
     segments: Vec<[DVec3; 4]>,
     width: [f64; 2],
+    kind: CurveType,
+    /// Ribbons: one per segment end.
     normals: Vec<DVec3>,
+    split_depth: u32,
 }
 
-fn params(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Params>, Diagnostic> {
+fn params(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Params, Diagnostic> {
     let ps = &desc.entity.params;
+    let warn = |msg: String| ctx.warnings.warn(Some(desc.entity.loc.clone()), msg);
     let width = ps.get_one_float("width", 1.0);
     let width = [ps.get_one_float("width0", width) as f64, ps.get_one_float("width1", width) as f64];
     let degree = ps.get_one_int("degree", 3);
@@ -118,81 +106,88 @@ fn params(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Params>, Diagno
         ));
     }
     let segments = bezier_segments(&cp, degree, bspline);
-    let kind = ps.get_one_string("type", "flat");
-    ps.get_one_int("splitdepth", ps.get_one_float("splitdepth", 3.0) as i32);
+    let kind = match ps.get_one_string("type", "flat").as_str() {
+        "flat" => CurveType::Flat,
+        "ribbon" => CurveType::Ribbon,
+        "cylinder" => CurveType::Cylinder,
+        other => {
+            warn(format!("curve: unknown curve type \"{other}\": using \"cylinder\" (as pbrt-v3)"));
+            CurveType::Cylinder
+        }
+    };
+    let depth = ps.get_one_int("splitdepth", ps.get_one_float("splitdepth", 3.0) as i32);
+    if !(0..=MAX_SPLIT_DEPTH).contains(&depth) {
+        warn(format!("curve: \"splitdepth\" {depth} clamped to {}", depth.clamp(0, MAX_SPLIT_DEPTH)));
+    }
+    let split_depth = depth.clamp(0, MAX_SPLIT_DEPTH) as u32;
     let normals: Vec<DVec3> =
         ps.get_normals("N").unwrap_or(&[]).iter().map(|n| DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64)).collect();
-    if kind != "ribbon" {
-        let what = match kind.as_str() {
-            "flat" | "cylinder" => format!(
-                "curve type \"{kind}\" is a strip facing each ray in pbrt-v3, not a surface: not supported; skipped"
-            ),
-            _ => format!("unknown curve type \"{kind}\" (pbrt-v3 uses \"cylinder\", which is not supported); skipped"),
-        };
-        ps.mark_all_used();
-        ctx.warnings.warn(Some(desc.entity.loc.clone()), what);
-        return Ok(None);
-    }
-    if normals.len() != segments.len() + 1 {
-        let msg = if normals.is_empty() {
-            "ribbon curves need normals \"N\" at the segments' endpoints".to_string()
-        } else {
-            format!(
-                "{} normals \"N\": a ribbon of {} segments takes {}",
-                normals.len(),
-                segments.len(),
-                segments.len() + 1
-            )
-        };
-        return Err(error(desc, "N", msg));
-    }
-    if normals.iter().any(|n| !n.is_finite() || n.length_squared() == 0.0) {
-        return Err(error(desc, "N", "normals \"N\" must be finite and non-zero".into()));
-    }
-    ctx.warnings.warn(
-        Some(desc.entity.loc.clone()),
-        "curve type \"ribbon\": rendered as the strip it approximates; pbrt-v3 narrows its width where a ray \
-         runs along the curve, so shadows and silhouettes of ribbons seen or lit along their length differ"
-            .to_string(),
-    );
-    Ok(Some(Params { segments, width, normals: normals.iter().map(|n| n.normalize()).collect() }))
+    let normals = match kind {
+        CurveType::Ribbon => {
+            if normals.len() != segments.len() + 1 {
+                let msg = if normals.is_empty() {
+                    "ribbon curves need normals \"N\" at the segments' endpoints".to_string()
+                } else {
+                    format!(
+                        "{} normals \"N\": a ribbon of {} segments takes {}",
+                        normals.len(),
+                        segments.len(),
+                        segments.len() + 1
+                    )
+                };
+                return Err(error(desc, "N", msg));
+            }
+            if normals.iter().any(|n| !n.is_finite() || n.length_squared() == 0.0) {
+                return Err(error(desc, "N", "normals \"N\" must be finite and non-zero".into()));
+            }
+            normals
+        }
+        _ => {
+            if !normals.is_empty() {
+                warn("curve: normals \"N\" are only used with \"ribbon\" curves (as pbrt-v3): ignored".into());
+            }
+            Vec::new()
+        }
+    };
+    Ok(Params { segments, width, kind, normals, split_depth })
 }
 
-pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMesh>, Diagnostic> {
-    let Some(Params { segments, width, normals }) = params(desc, ctx)? else { return Ok(None) };
+fn mat4(m: &[[f64; 4]; 4]) -> Mat4 {
+    Mat4::from_cols_array_2d(&m.map(|r| r.map(|x| x as f32))).transpose()
+}
+
+/// The curve shape `desc` as a triangle-less mesh carrying its [`Curves`].
+pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<TriangleMesh>, Diagnostic> {
+    let Params { segments, width, kind, normals, split_depth } = params(desc, ctx)?;
     let n_seg = segments.len() as f64;
-    let mut m = ObjMesh { n: Some(Vec::new()), uv: Some(Vec::new()), ..Default::default() };
-    let (mut ns, mut uvs) = (Vec::new(), Vec::new());
-    for (s, cp) in segments.iter().enumerate() {
-        let w = [s as f64 / n_seg, (s + 1) as f64 / n_seg].map(|t| width[0] + (width[1] - width[0]) * t);
-        let (n0, n1) = (normals[s], normals[s + 1]);
-        let angle = n0.dot(n1).clamp(0.0, 1.0).acos();
-        let base = m.p.len() as u32;
-        for i in 0..=STEPS {
-            let u = i as f64 / STEPS as f64;
-            // pbrt-v3's slerp; equal normals (angle 0, where pbrt-v3 divides by zero) give n0.
-            let n_hit = if angle > 0.0 {
-                n0 * (((1.0 - u) * angle).sin() / angle.sin()) + n1 * ((u * angle).sin() / angle.sin())
-            } else {
-                n0
-            };
-            let (p, dpdu) = eval_bezier(cp, u);
-            let half = 0.5 * (w[0] + (w[1] - w[0]) * u) * n_hit.length();
-            let side = n_hit.cross(dpdu).normalize_or_zero() * half;
-            let n = n_hit.normalize_or_zero().to_array();
-            for (q, v) in [(p + side, 0.0), (p - side, 1.0)] {
-                m.p.push(q.to_array());
-                ns.push(n);
-                uvs.push([u as f32, v]);
-            }
-            if i > 0 {
-                let (a, b) = (base + 2 * (i as u32 - 1), base + 2 * i as u32);
-                m.tris.push([a, b, b + 1]);
-                m.tris.push([a, b + 1, a + 1]);
-            }
-        }
+    let v3 = |p: DVec3| Vec3::new(p.x as f32, p.y as f32, p.z as f32);
+    let segments = segments
+        .iter()
+        .enumerate()
+        .map(|(s, cp)| {
+            let w = [s as f64 / n_seg, (s + 1) as f64 / n_seg].map(|t| (width[0] + (width[1] - width[0]) * t) as f32);
+            let n = (kind == CurveType::Ribbon).then(|| [v3(normals[s]), v3(normals[s + 1])]);
+            CurveSegment::new(cp.map(v3), w, n)
+        })
+        .collect();
+    let t = &desc.render_from_object.start;
+    let curves = Curves {
+        kind,
+        segments,
+        split_depth,
+        world_from_object: mat4(&t.m),
+        object_from_world: mat4(&t.m_inv),
+        reverse_orientation: desc.reverse_orientation,
+        swaps_handedness: t.swaps_handedness(),
+    };
+    let b = curves.world_bounds();
+    if !(b.min.is_finite() && b.max.is_finite()) {
+        return Err(error(desc, "P", "the curve is not finite in world space".into()));
     }
-    m.n = Some(ns);
-    m.uv = Some(uvs);
-    Ok(Some(m))
+    Ok(Some(TriangleMesh {
+        reverse_orientation: desc.reverse_orientation,
+        flip_normals: desc.reverse_orientation ^ t.swaps_handedness(),
+        curves: Some(Arc::new(curves)),
+        ..Default::default()
+    }))
 }

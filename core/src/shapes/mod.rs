@@ -1,5 +1,6 @@
 //! Shapes to world-space [`TriangleMesh`]es: `trianglemesh`, `plymesh`, the six
-//! pbrt-v3 quadrics (tessellated), `loopsubdiv` and `heightfield`.
+//! pbrt-v3 quadrics (tessellated), `loopsubdiv`, `heightfield`, `nurbs`, and `curve` (a mesh
+//! without triangles carrying the curve, which the hierarchy intersects as pbrt-v3 does).
 //!
 //! Every parameter is read through the [`ParamSet`](crate::parser::ParamSet)
 //! getters so that unused ones can be reported by the caller.
@@ -160,7 +161,13 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
         "loopsubdiv" => loopsubdiv::build(desc, ctx)?,
         "heightfield" => heightfield::build(desc, ctx)?,
         "nurbs" => nurbs::build(desc, ctx)?,
-        "curve" => curve::build(desc, ctx)?,
+        "curve" => {
+            let mesh = curve::build(desc, ctx)?;
+            if mesh.is_some() {
+                warn_animated(desc, ctx);
+            }
+            return Ok(mesh);
+        }
         _ => {
             desc.entity.params.mark_all_used();
             ctx.warnings.warn(Some(desc.entity.loc.clone()), format!("shape \"{kind}\" unknown; skipped"));
@@ -176,18 +183,22 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
         ctx.warnings.warn(Some(desc.entity.loc.clone()), format!("shape \"{kind}\" has no triangles; skipped"));
         return Ok(None);
     }
-    if desc.render_from_object.is_animated() {
-        ctx.warnings.warn(
-            Some(desc.entity.loc.clone()),
-            format!("shape \"{kind}\" has an animated transform; using its start transform"),
-        );
-    }
+    warn_animated(desc, ctx);
     let mut mesh = finish(obj, desc)?;
     if matches!(kind, "sphere" | "disk" | "cylinder" | "cone" | "paraboloid" | "hyperboloid") {
         mesh.normal_rule = NormalRule::Quadric;
         mesh.analytic_ng = kind == "hyperboloid";
     }
     Ok(Some(mesh))
+}
+
+fn warn_animated(desc: &ShapeDesc, ctx: &ShapeContext) {
+    if desc.render_from_object.is_animated() {
+        ctx.warnings.warn(
+            Some(desc.entity.loc.clone()),
+            format!("shape \"{}\" has an animated transform; using its start transform", desc.entity.kind),
+        );
+    }
 }
 
 /// Object-space mesh data before transformation.
@@ -303,6 +314,7 @@ fn finish(obj: ObjMesh, desc: &ShapeDesc) -> Result<TriangleMesh, Diagnostic> {
         normal_rule: NormalRule::Triangle,
         analytic_ng: false,
         quadric: obj.quadric.map(|(shape, deviation)| Quadric { shape, world_from_object: *t, deviation }),
+        curves: None,
     })
 }
 
@@ -356,19 +368,29 @@ mod tests {
     use super::*;
     use crate::parser::ParamValue;
 
+    /// A flat curve builds to a triangle-less mesh carrying its one segment (split into pbrt-v3's
+    /// default 2^3 pieces), with every parameter read and no warning; unknown shapes are skipped
+    /// with a warning.
     #[test]
-    fn curve_and_unknown_are_skipped_with_a_warning() {
+    fn curve_is_intersected_and_unknown_is_skipped_with_a_warning() {
         let sink = DiagSink::new();
         let ctx = ShapeContext::new(Path::new("."), &sink);
-        for kind in ["curve", "blob"] {
-            let d = shape(kind, vec![("P", ParamValue::Point3(vec![0.0; 12]))]);
-            assert_eq!(build_shape(&d, &ctx).unwrap(), None);
-            assert!(d.entity.params.report_unused("x").is_empty());
-        }
+        let d = shape(
+            "curve",
+            vec![("P", ParamValue::Point3(vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 2.0, 1.0, 0.0, 3.0, 0.0, 0.0]))],
+        );
+        let m = build_shape(&d, &ctx).unwrap().unwrap();
+        assert_eq!(m.triangle_count(), 0);
+        let c = m.curves.as_ref().unwrap();
+        assert_eq!((c.kind, c.segments.len(), c.prim_count()), (crate::mesh::curve::CurveType::Flat, 1, 8));
+        assert!(d.entity.params.report_unused("x").is_empty());
+        assert!(sink.take().is_empty());
+        let d = shape("blob", vec![("P", ParamValue::Point3(vec![0.0; 12]))]);
+        assert_eq!(build_shape(&d, &ctx).unwrap(), None);
+        assert!(d.entity.params.report_unused("x").is_empty());
         let w = sink.take();
-        assert_eq!(w.len(), 2);
-        assert!(w[0].message.contains("curve type \"flat\"") && w[0].message.contains("skipped"));
-        assert!(w[1].message.contains("\"blob\""));
+        assert_eq!(w.len(), 1);
+        assert!(w[0].message.contains("\"blob\""));
     }
 
     /// A rational quadratic NURBS (a quarter of the unit circle in u, `Pw` with weight √½ on

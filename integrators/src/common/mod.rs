@@ -80,19 +80,19 @@ pub fn diffuse_albedo(scene: &Scene, si: &SurfaceInteraction) -> Rgb {
     }
 }
 
-/// `integrator`'s refusal of a scene with an occluding alpha cut-out, which its `visibility`
-/// (built from the meshes' geometry) cannot represent: an error naming the shape and what
-/// renders it instead.
+/// `integrator`'s refusal of a scene with an occluding alpha cut-out or curve, which its
+/// `visibility` (built from the meshes' geometry) cannot represent: an error naming the shape
+/// and what renders it instead.
 pub fn refuse_cutouts(
     integrator: &str,
     visibility: &str,
     scene: &Scene,
 ) -> Result<(), penumbra_core::integrator::RenderError> {
-    match scene.cutout_occluder() {
+    match scene.non_polygonal_occluder() {
         None => Ok(()),
-        Some(o) => Err(penumbra_core::integrator::RenderError::Failed(format!(
-            "{}: shape \"{}\" has an \"alpha\"/\"shadowalpha\" cut-out, which {integrator}'s {visibility} cannot \
-             represent: render the scene with directlighting, path or ambientocclusion (which honour cut-outs), or \
+        Some((o, why)) => Err(penumbra_core::integrator::RenderError::Failed(format!(
+            "{}: shape \"{}\" {why}, which {integrator}'s {visibility} cannot represent: render the scene with \
+             directlighting, path or ambientocclusion (whose ray queries honour cut-outs and intersect curves), or \
              give the shape \"bool occluder\" false to leave it out of {integrator}'s visibility",
             o.loc, o.kind
         ))),

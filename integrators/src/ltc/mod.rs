@@ -309,12 +309,13 @@ impl Integrator for LtcIntegrator {
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ltc", scene, ctx.warnings);
-        let cutout = scene.cutout_occluder().filter(|_| self.shadows);
-        if let Some(o) = cutout {
+        let cutout = scene.non_polygonal_occluder().filter(|_| self.shadows);
+        if let Some((o, why)) = cutout {
+            let why = if why.contains("cut-out") { "has an alpha cut-out" } else { why };
             ctx.warnings.warn(
                 Some(o.loc.clone()),
                 format!(
-                    "ltc: shape \"{}\" has an alpha cut-out, which analytic visibility cannot represent: every light \
+                    "ltc: shape \"{}\" {why}, which analytic visibility cannot represent: every light \
                      is rendered with directlighting's estimator (\"bool occluder\" false on the shape keeps ltc's \
                      analytic shadows, without the shape's)",
                     o.kind
