@@ -242,7 +242,13 @@ const KNOWN: &[Known] = &[
     },
     Known {
         run: "ratio",
-        cells: &["material/metal-a3", "material/uber-opacity", "texture/tex-scale-mix", "texture/tex-dots", "room/room-glossy"],
+        cells: &[
+            "material/metal-a3",
+            "material/uber-opacity",
+            "texture/tex-scale-mix",
+            "texture/tex-dots",
+            "room/room-glossy",
+        ],
         issue: 43,
         what: "LTC × denoised ratio: metal-a3 −1.63 % / block 12.0 %, tex-dots −2.34 % / 9.8 %, room-glossy \
                +1.38 % / 9.7 %, uber-opacity and tex-scale-mix blocks 3.9 % (the roughness sweeps now pass)",
@@ -255,10 +261,10 @@ const KNOWN: &[Known] = &[
     },
     Known {
         run: "*",
-        cells: &["shape/shape-curve", "camera/camera-realistic"],
+        cells: &["shape/shape-curve"],
         issue: 34,
         what: "curve: ribbons as tessellated strips (pbrt-v3 narrows them edge-on), flat/cylinder skipped, \
-               +2.3..+7.0 % mean, blocks to +43 %; the realistic camera renders as perspective: +78 % (each with a warning)",
+               +2.3..+7.0 % mean, blocks to +43 % (with a warning)",
     },
     Known {
         run: "ltc",
