@@ -156,7 +156,7 @@ impl LensSystem {
         shutter_length: f64,
         warn: &mut dyn FnMut(String),
     ) -> Result<LensSystem, String> {
-        if data.is_empty() || data.len() % 4 != 0 {
+        if data.is_empty() || !data.len().is_multiple_of(4) {
             return Err(format!("the lens file must hold a multiple of four values, got {}", data.len()));
         }
         if data.iter().any(|v| !v.is_finite()) {
