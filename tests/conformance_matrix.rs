@@ -235,12 +235,6 @@ const KNOWN: &[Known] = &[
         issue: 37,
         what: "a zero 4×4 block where pbrt-v3's AO is 0.014 (pixel shading under a thin lens)",
     },
-    Known {
-        run: "*",
-        cells: &["camera/camera-realistic"],
-        issue: 34,
-        what: "the realistic camera renders as perspective: +78 % (with a warning)",
-    },
 ];
 
 /// Cells whose sampler does not jitter: its strata sit at fixed offsets, so a render at another

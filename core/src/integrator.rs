@@ -211,6 +211,14 @@ pub trait PixelEstimator: Send + Sync {
     fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, _shared: &Self::Shared, _index: usize) -> Rgb {
         self.li(ray, cx)
     }
+    /// Scales one sample's extra channels (as `li` wrote them) by its camera ray's weight `w`
+    /// (pbrt-v3's `GenerateRay` weight: the `realistic` camera's cos⁴θ and exit-pupil area;
+    /// called only when `w` is neither 1 nor 0). The driver multiplies the radiance `li`
+    /// returns by `w` itself, as pbrt-v3's film does; an estimator whose channels hold
+    /// radiance estimates that a later pass turns into the image (`ratio`'s `U`, `S_N`, `U_N`,
+    /// SH transfer) scales those here, and leaves guides (depth, normals) alone. The default
+    /// scales nothing. A sample of weight 0 is not estimated: its radiance and channels are 0.
+    fn weight_channels(&self, _aov: &mut [f32], _w: f32) {}
 }
 
 /// What a [`PixelEstimator`]'s per-sample call works with besides the ray.
@@ -397,6 +405,7 @@ struct TileScratch {
     aov: Vec<f32>,
     cams: Vec<CameraSample>,
     rays: Vec<RayDifferential>,
+    weights: Vec<f32>,
 }
 
 impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
@@ -408,6 +417,7 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
             aov: vec![0.0f32; self.film.extra_channel_names.len()],
             cams: Vec::new(),
             rays: Vec::new(),
+            weights: Vec::new(),
         };
         let pixel_bounds = self.est.pixel_bounds();
         for p in tb.iter() {
@@ -425,16 +435,16 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
     /// The shared pass (when the estimator shares pixel work), then every sample of pixel `p`.
     fn render_pixel(&self, p: IVec2, scratch: &mut TileScratch, out: &mut TileResult) {
         let shared = if self.est.shares_pixel_work() { self.begin_pixel(p, scratch, &mut out.stats) } else { None };
-        let TileScratch { sampler, aov, cams, rays } = scratch;
+        let TileScratch { sampler, aov, cams, rays, weights } = scratch;
         for s in 0..self.spp {
             sampler.start_pixel_sample(p, s);
             let i = s as usize;
             // The shared pass drew this sample's camera sample and ray already: its
             // dimensions are only skipped (the estimator's come after them).
-            let (cs, ray) = match &shared {
+            let (cs, (ray, w)) = match &shared {
                 Some(_) => {
                     self.camera.sample(sampler.as_mut(), p, false);
-                    (cams[i], rays[i])
+                    (cams[i], (rays[i], weights[i]))
                 }
                 None => {
                     let cs = self.camera.sample(sampler.as_mut(), p, true);
@@ -443,15 +453,24 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
             };
             aov.iter_mut().for_each(|v| *v = 0.0);
             let (est, scene, stats) = (self.est, self.scene, &mut out.stats);
-            crate::profiling::camera_ray_given(true);
-            let cx = SampleContext { scene, sampler: sampler.as_mut(), stats: &mut *stats, aov: aov.as_mut_slice() };
-            let l = match &shared {
-                Some(sh) => est.li_shared(&ray, cx, sh, i),
-                None => est.li(&ray, cx),
-            };
-            crate::profiling::camera_ray_given(false);
             out.camera_samples += 1;
-            let l = guard_radiance(l, self.film.spec.max_sample_luminance, stats);
+            // pbrt-v3 estimates only rays of positive weight; the others add 0 to the film.
+            let l = if w > 0.0 {
+                crate::profiling::camera_ray_given(true);
+                let cx =
+                    SampleContext { scene, sampler: sampler.as_mut(), stats: &mut *stats, aov: aov.as_mut_slice() };
+                let l = match &shared {
+                    Some(sh) => est.li_shared(&ray, cx, sh, i),
+                    None => est.li(&ray, cx),
+                };
+                crate::profiling::camera_ray_given(false);
+                if w != 1.0 {
+                    est.weight_channels(aov, w);
+                }
+                guard_radiance(l, self.film.spec.max_sample_luminance, stats) * w
+            } else {
+                Rgb::ZERO
+            };
             out.tile.add_sample(scene.filter.as_ref(), cs.p_film, l, aov);
         }
     }
@@ -461,10 +480,13 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
     fn begin_pixel(&self, p: IVec2, scratch: &mut TileScratch, stats: &mut ThreadStats) -> Option<E::Shared> {
         scratch.cams.clear();
         scratch.rays.clear();
+        scratch.weights.clear();
         for s in 0..self.spp {
             scratch.sampler.start_pixel_sample(p, s);
             let cs = self.camera.sample(scratch.sampler.as_mut(), p, true);
-            scratch.rays.push(self.generate_ray(&cs));
+            let (ray, w) = self.generate_ray(&cs);
+            scratch.rays.push(ray);
+            scratch.weights.push(w);
             scratch.cams.push(cs);
         }
         crate::profiling::camera_ray_given(true);
@@ -474,9 +496,11 @@ impl<E: PixelEstimator + ?Sized> TilePass<'_, E> {
     }
 
     /// The camera ray with its offset rays scaled to the sample spacing (pbrt-v3's
-    /// `ScaleDifferentials(1 / √spp)`).
-    fn generate_ray(&self, cs: &CameraSample) -> RayDifferential {
-        crate::profiling::timed(crate::profiling::Phase::CameraRay, || self.scene.camera.sample_ray(cs, self.spp))
+    /// `ScaleDifferentials(1 / √spp)`), and its weight.
+    fn generate_ray(&self, cs: &CameraSample) -> (RayDifferential, f32) {
+        crate::profiling::timed(crate::profiling::Phase::CameraRay, || {
+            self.scene.camera.sample_ray_weighted(cs, self.spp)
+        })
     }
 }
 

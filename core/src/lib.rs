@@ -20,6 +20,7 @@ pub mod image;
 pub mod integrator;
 pub mod interaction;
 pub mod interpolation;
+pub mod lens;
 pub mod light;
 pub mod material;
 pub mod mesh;

@@ -33,7 +33,7 @@ impl Scene {
         let t0 = Instant::now();
         let film = film_spec(desc, opts, warnings)?;
         warnings.extend(desc.film.params.report_unused("film \"image\""));
-        let camera = Camera::from_desc(&desc.camera, film.full_resolution, warnings)?;
+        let camera = Camera::from_scene(desc, film.full_resolution, warnings)?;
         warnings.extend(desc.camera.entity.params.report_unused(&format!("camera \"{}\"", desc.camera.entity.kind)));
         let filter =
             create_filter(&desc.filter).map_err(|e| Diagnostic::error(Some(desc.filter.loc.clone()), e.to_string()))?;

@@ -40,6 +40,15 @@ impl TransferChannels {
         false
     }
 
+    /// Scales the transfer values in `aov` by a camera ray's weight `w` (the albedo stays): the
+    /// relit image is then the weighted radiance ([`crate::integrator::PixelEstimator::weight_channels`]).
+    pub fn weight(&self, aov: &mut [f32], w: f32) {
+        let k = self.order.coeffs();
+        if let Some(dst) = aov.get_mut(self.offset..self.offset + k) {
+            dst.iter_mut().for_each(|v| *v *= w);
+        }
+    }
+
     /// Writes `transfer` (n² values) and `albedo` into `aov` (ignored where `aov` is too short).
     pub fn write(&self, aov: &mut [f32], transfer: &[f64], albedo: Rgb) {
         let k = self.order.coeffs();

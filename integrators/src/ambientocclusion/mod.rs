@@ -149,6 +149,13 @@ impl PixelEstimator for Estimator<'_> {
         }
         Rgb::ZERO
     }
+
+    /// The SH transfer is weighted as the AO value is (the albedo is not).
+    fn weight_channels(&self, aov: &mut [f32], w: f32) {
+        if let Some(order) = self.ao.sh {
+            TransferChannels::new(order, 0).weight(aov, w);
+        }
+    }
 }
 
 impl Integrator for AmbientOcclusion {

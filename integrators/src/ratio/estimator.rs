@@ -550,6 +550,10 @@ impl PixelEstimator for Estimator<'_> {
         self.pixel_shading
     }
 
+    fn weight_channels(&self, aov: &mut [f32], w: f32) {
+        super::RatioSample::weight(aov, w);
+    }
+
     /// `U` once per surface seen in the pixel (as `ltc`'s pixel shading, unshadowed); the
     /// stochastic `S_N`, `U_N` stay per camera sample.
     fn begin_pixel(

@@ -270,6 +270,23 @@ impl RatioSample {
         RatioSample { spread_uu: finite(self.u * self.u), spread_ru: finite(rest * self.u), ..self }
     }
 
+    /// Scales a sample's channels (as [`write`](Self::write) left them) by its camera ray's
+    /// weight `w`: the estimates `U`, `S_N`, `U_N` and the chains' by `w`, their second
+    /// moments by `w²` (so that they stay the moments of the weighted estimates); the guides
+    /// (depth, normal, plane) unchanged. The film's RGB (`rest`) is weighted by the driver, so
+    /// the resolved `rest + U·ratio` is the weighted radiance pbrt-v3's film accumulates.
+    pub(crate) fn weight(aov: &mut [f32], w: f32) {
+        if aov.len() != CHANNELS.len() {
+            return;
+        }
+        for c in [C_U, C_S, C_UN, C_CHAIN_U, C_CHAIN_S, C_CHAIN_UN] {
+            aov[c..c + 3].iter_mut().for_each(|v| *v *= w);
+        }
+        for c in [C_SS, C_UU, C_SU] {
+            aov[c] *= w * w;
+        }
+    }
+
     /// From [`CHANNELS`]-ordered values.
     fn read(ch: &[f32]) -> RatioSample {
         let rgb = |c: usize| Rgb::new(ch[c], ch[c + 1], ch[c + 2]);

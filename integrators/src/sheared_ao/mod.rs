@@ -100,7 +100,7 @@ use crate::common::{SH_ORDER, SH_TRANSFER};
 use glam::{IVec2, Vec2};
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
-use penumbra_core::geometry::{face_forward, offset_ray_origin, Bounds2i, Frame, Ray};
+use penumbra_core::geometry::{face_forward, offset_ray_origin, Bounds2i, Frame, Ray, RayDifferential};
 use penumbra_core::integrator::{
     draw_camera_sample, tiles, with_threads, Integrator, RenderContext, RenderError, RenderStats,
 };
@@ -208,6 +208,10 @@ pub struct CacheSample {
     p_film: Vec2,
     brute_seed: u64,
     shading: Option<Shading>,
+    /// The camera ray's weight (pbrt-v3's `GenerateRay`: 1 except for the `realistic`
+    /// camera); the sample's AO and SH transfer are multiplied by it. A ray of weight 0 is not
+    /// traced: no shading point, black.
+    weight: f32,
 }
 
 /// The 2D sample of brute-force ray `k` of cell `cell` of a receiver whose seed is `seed`: a
@@ -252,8 +256,14 @@ fn camera_sample(scene: &Scene, sampler: &mut dyn Sampler, p: IVec2) -> CameraSa
 impl ShearedAo {
     /// Pass 1 for one camera sample: the first surface with a material and its cached rays
     /// (`None`: the ray escaped). `us` are the occlusion rays' 2D samples.
-    fn shade(&self, scene: &Scene, cs: &CameraSample, spp: u32, us: &[Vec2], rays: &mut RayCount) -> Option<Shading> {
-        let camera_ray = scene.camera.sample_ray(cs, spp);
+    fn shade(
+        &self,
+        scene: &Scene,
+        cs: &CameraSample,
+        camera_ray: &RayDifferential,
+        us: &[Vec2],
+        rays: &mut RayCount,
+    ) -> Option<Shading> {
         let mut ray = camera_ray.ray;
         for pass in 0..64 {
             rays.camera += 1;
@@ -265,7 +275,7 @@ impl ShearedAo {
             }
             // The camera ray's differentials, for the albedo's texture lookups.
             if pass == 0 {
-                si.compute_differentials(&camera_ray);
+                si.compute_differentials(camera_ray);
             }
             let n = face_forward(si.n, -ray.d);
             let frame = Frame::from_zx(n, si.dpdu);
@@ -420,9 +430,13 @@ impl ShearedAo {
                 brute_cells += brute as u64;
                 points += 1;
                 self.write_channels(at, brute, table, scratch, aov);
-                // Cells of equal projected solid angle π / cells².
+                // Cells of equal projected solid angle π / cells², weighted by the camera ray.
                 let sum: f64 = scratch.vbar.iter().sum();
-                let ao = (std::f64::consts::PI * sum / scratch.vbar.len().max(1) as f64) as f32;
+                let w = own[m].weight;
+                let ao = (std::f64::consts::PI * sum / scratch.vbar.len().max(1) as f64) as f32 * w;
+                if let (Some(order), true) = (self.sh, w != 1.0) {
+                    TransferChannels::new(order, 1).weight(aov, w);
+                }
                 done[m] = true;
                 add(own[m].p_film, ao, aov);
             }
@@ -479,10 +493,14 @@ struct PassScratch {
 }
 
 /// The larger side of the pixel's footprint at `p` on the plane of normal `n`: where the camera
-/// rays one pixel over in x and in y meet that plane (0 when they do not).
+/// rays one pixel over in x and in y meet that plane (0 when they do not, or when a lens
+/// system blocks them).
 fn footprint(scene: &Scene, cs: &CameraSample, p: glam::DVec3, n: glam::DVec3) -> f64 {
     let side = |dp: Vec2| -> f64 {
-        let r = scene.camera.generate_ray(&CameraSample { p_film: cs.p_film + dp, ..*cs });
+        let (r, w) = scene.camera.generate_ray_weighted(&CameraSample { p_film: cs.p_film + dp, ..*cs });
+        if w == 0.0 {
+            return 0.0;
+        }
         let (o, d) = (r.o.as_dvec3(), r.d.as_dvec3());
         let t = n.dot(p - o) / n.dot(d);
         let q = o + t * d;
@@ -526,8 +544,10 @@ fn sample_pass(
                             p.x as u32 as u64 | ((p.y as u32 as u64) << 32),
                             s as u64,
                         ]);
-                        let shading = ao.shade(scene, &cs, spp, &us, &mut count);
-                        CacheSample { p_film: cs.p_film, brute_seed, shading }
+                        let (camera_ray, weight) = scene.camera.sample_ray_weighted(&cs, spp);
+                        let shading =
+                            if weight > 0.0 { ao.shade(scene, &cs, &camera_ray, &us, &mut count) } else { None };
+                        CacheSample { p_film: cs.p_film, brute_seed, shading, weight }
                     })
                     .collect()
             })

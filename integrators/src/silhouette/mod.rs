@@ -685,6 +685,13 @@ impl PixelEstimator for Estimator<'_> {
         self.pixel_shading && self.mode != Mode::Prt
     }
 
+    /// `prt`'s SH transfer is weighted as the AO value is (the albedo is not).
+    fn weight_channels(&self, aov: &mut [f32], w: f32) {
+        if let Some((order, ..)) = &self.sh {
+            TransferChannels::new(*order, 0).weight(aov, w);
+        }
+    }
+
     fn begin_pixel(
         &self,
         rays: &[RayDifferential],
