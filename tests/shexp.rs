@@ -868,6 +868,53 @@ fn block_means(img: &penumbra_core::image::Image) -> Vec<f64> {
     out
 }
 
+/// Issue 39's own scene: the open quadrics of hackmad's `shapes/all-shapes` (270° cylinder, cone
+/// and paraboloid, two hyperboloids pbrt-v3 fits with its implicit surface, an annulus) as they
+/// stand there, over its floor under its constant sky and sun (`scenes/open-shapes/all-shapes-open`;
+/// the closed tetrahedron and Loop surface and the curves left out). Against `directlighting`
+/// rendered here (256 spp; the issue's goal is stated against it): the image mean within 2 % and no
+/// 8×8 block beyond 5 %. Measured 64², 16 spp: mean −0.03 %, worst block −3.47 % (the first
+/// hyperboloid's inside); the conservative shells (`"shells"`, the method before) −3.53 % and a
+/// block −46.1 %, so the test fails on them. The mean is also held to pbrt-v3's (1024 spp):
+/// +0.14 %. Its blocks are not: on the first hyperboloid (whose implicit fit is an ellipsoid)
+/// penumbra's own `directlighting` is 19 % brighter than pbrt-v3 in one block, a geometry
+/// difference that `shexp` inherits and does not cause.
+#[test]
+fn all_shapes_open_quadrics_match_directlighting() {
+    let scene = "open-shapes/all-shapes-open.pbrt";
+    let r = render_scene(scene, &[], 64, 16);
+    let dl = common::render_path(
+        &common::scene(scene),
+        &common::Opts {
+            integrator: Some("directlighting"),
+            spp: Some(256),
+            resolution: Some((64, 64)),
+            ..Default::default()
+        },
+    );
+    assert!(r.image.data.iter().all(|v| v.is_finite()));
+    let (a, b) = (common::mean(&r.image), common::mean(&dl.image));
+    let (ours, theirs) = (block_means(&r.image), block_means(&dl.image));
+    let worst = ours.iter().zip(&theirs).map(|(o, t)| (o / t - 1.0).abs()).fold(0.0, f64::max);
+    let pbrt = common::mean(&common::reference("open-shapes/all-shapes-open.exr"));
+    eprintln!(
+        "open-shapes/all-shapes-open 64², 16 spp: mean {a:.5} vs directlighting {b:.5} ({:+.2} %, pbrt-v3 {:+.2} %), worst 8×8 block {:.2} %",
+        100.0 * (a / b - 1.0),
+        100.0 * (a / pbrt - 1.0),
+        100.0 * worst
+    );
+    assert!((a / b - 1.0).abs() <= 0.02, "image mean {a} vs directlighting's {b}");
+    assert!((a / pbrt - 1.0).abs() <= 0.02, "image mean {a} vs pbrt-v3's {pbrt}");
+    assert!(worst <= 0.05, "an 8×8 block {:.2} % off", 100.0 * worst);
+    for kind in ["cylinder", "cone", "paraboloid", "hyperboloid", "disk"] {
+        assert!(
+            r.warnings.iter().any(|w| w.contains(&format!("open mesh \"{kind}\"")) && w.contains("traced")),
+            "no warning names the traced {kind}: {:?}",
+            r.warnings
+        );
+    }
+}
+
 /// Issue 39: open quadrics and meshes (an open cylinder and cone, a paraboloid, a hyperboloid,
 /// partial spheres, an annulus, an open triangle sheet) shadow and receive as in pbrt-v3: their
 /// shadows are traced (`"openmeshes" "trace"`, one warning per object). The issue's goal: the
