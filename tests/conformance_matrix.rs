@@ -228,14 +228,12 @@ struct Known {
 
 /// The known failures of the full matrix run of 2026-12-03 (`CONFORMANCE_FULL=1`), each with what
 /// it measured (image mean / worst 8×8 block against pbrt-v3).
-const KNOWN: &[Known] = &[
-    Known {
-        run: "silhouette mode=ao",
-        cells: &["camera/camera-orthographic-dof"],
-        issue: 37,
-        what: "a zero 4×4 block where pbrt-v3's AO is 0.014 (pixel shading under a thin lens)",
-    },
-];
+const KNOWN: &[Known] = &[Known {
+    run: "silhouette mode=ao",
+    cells: &["camera/camera-orthographic-dof"],
+    issue: 37,
+    what: "a zero 4×4 block where pbrt-v3's AO is 0.014 (pixel shading under a thin lens)",
+}];
 
 /// Cells whose sampler does not jitter: its strata sit at fixed offsets, so a render at another
 /// sample count samples the pixel on another grid and aliases differently (at 16 spp and half

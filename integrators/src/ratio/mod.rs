@@ -272,8 +272,8 @@ impl RatioSample {
 
     /// Scales a sample's channels (as [`write`](Self::write) left them) by its camera ray's
     /// weight `w`: the estimates `U`, `S_N`, `U_N` and the chains' by `w`, their second
-    /// moments by `w²` (so that they stay the moments of the weighted estimates); the guides
-    /// (depth, normal, plane) unchanged. The film's RGB (`rest`) is weighted by the driver, so
+    /// moments and the camera-sample spread by `w²` (so that they stay the moments of the
+    /// weighted estimates); the guides (depth, normal, plane) unchanged. The film's RGB (`rest`) is weighted by the driver, so
     /// the resolved `rest + U·ratio` is the weighted radiance pbrt-v3's film accumulates.
     pub(crate) fn weight(aov: &mut [f32], w: f32) {
         if aov.len() != CHANNELS.len() {
@@ -284,6 +284,10 @@ impl RatioSample {
         }
         for c in [C_SS, C_UU, C_SU] {
             aov[c] *= w * w;
+        }
+        // The camera-sample spread: `U²` and `rest · U`, each a product of two weighted terms.
+        for c in [C_SPREAD_UU, C_SPREAD_RU] {
+            aov[c..c + 3].iter_mut().for_each(|v| *v *= w * w);
         }
     }
 
