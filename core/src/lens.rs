@@ -112,6 +112,30 @@ fn quadratic(a: f64, b: f64, c: f64) -> Option<(f64, f64)> {
     Some(if t0 > t1 { (t1, t0) } else { (t0, t1) })
 }
 
+/// One element's interface for a lens-space ray at `element_z` (its vertex): the hit on its
+/// sphere (or the stop's plane), the aperture test, then refraction from `eta_i` into `eta_t`
+/// (the stop only moves the ray). `None` when the element blocks the ray or reflects it totally.
+fn pass_element(e: &LensElement, element_z: f64, r: &mut LensRay, eta_i: f64, eta_t: f64) -> Option<()> {
+    let is_stop = e.curvature_radius == 0.0;
+    let (t, n) = if is_stop {
+        ((element_z - r.o.z) / r.d.z, DVec3::ZERO)
+    } else {
+        intersect_spherical(e.curvature_radius, element_z + e.curvature_radius, r)?
+    };
+    if !(t >= 0.0) {
+        return None;
+    }
+    let p = r.at(t);
+    if p.x * p.x + p.y * p.y > e.aperture_radius * e.aperture_radius {
+        return None;
+    }
+    r.o = p;
+    if !is_stop {
+        r.d = refract(-r.d.normalize(), n, eta_i / eta_t)?;
+    }
+    Some(())
+}
+
 /// pbrt-v3's `Refract`: `wi` and `n` on the same side, `eta` = ηi/ηt.
 fn refract(wi: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
     let cos_i = n.dot(wi);
@@ -230,28 +254,11 @@ impl LensSystem {
         for i in (0..self.elements.len()).rev() {
             let e = &self.elements[i];
             element_z -= e.thickness;
-            let is_stop = e.curvature_radius == 0.0;
-            let (t, n) = if is_stop {
-                if r.d.z >= 0.0 {
-                    return None;
-                }
-                ((element_z - r.o.z) / r.d.z, DVec3::ZERO)
-            } else {
-                intersect_spherical(e.curvature_radius, element_z + e.curvature_radius, &r)?
-            };
-            if !(t >= 0.0) {
+            if e.curvature_radius == 0.0 && r.d.z >= 0.0 {
                 return None;
             }
-            let p = r.at(t);
-            if p.x * p.x + p.y * p.y > e.aperture_radius * e.aperture_radius {
-                return None;
-            }
-            r.o = p;
-            if !is_stop {
-                let eta_i = e.eta;
-                let eta_t = if i > 0 && self.elements[i - 1].eta != 0.0 { self.elements[i - 1].eta } else { 1.0 };
-                r.d = refract(-r.d.normalize(), n, eta_i / eta_t)?;
-            }
+            let eta_t = if i > 0 && self.elements[i - 1].eta != 0.0 { self.elements[i - 1].eta } else { 1.0 };
+            pass_element(e, element_z, &mut r, e.eta, eta_t)?;
         }
         Some(r.flip_z())
     }
@@ -262,25 +269,9 @@ impl LensSystem {
         let mut element_z = -self.front_z();
         let mut r = r_camera.flip_z();
         for (i, e) in self.elements.iter().enumerate() {
-            let is_stop = e.curvature_radius == 0.0;
-            let (t, n) = if is_stop {
-                ((element_z - r.o.z) / r.d.z, DVec3::ZERO)
-            } else {
-                intersect_spherical(e.curvature_radius, element_z + e.curvature_radius, &r)?
-            };
-            if !(t >= 0.0) {
-                return None;
-            }
-            let p = r.at(t);
-            if p.x * p.x + p.y * p.y > e.aperture_radius * e.aperture_radius {
-                return None;
-            }
-            r.o = p;
-            if !is_stop {
-                let eta_i = if i == 0 || self.elements[i - 1].eta == 0.0 { 1.0 } else { self.elements[i - 1].eta };
-                let eta_t = if e.eta != 0.0 { e.eta } else { 1.0 };
-                r.d = refract(-r.d.normalize(), n, eta_i / eta_t)?;
-            }
+            let eta_i = if i == 0 || self.elements[i - 1].eta == 0.0 { 1.0 } else { self.elements[i - 1].eta };
+            let eta_t = if e.eta != 0.0 { e.eta } else { 1.0 };
+            pass_element(e, element_z, &mut r, eta_i, eta_t)?;
             element_z += e.thickness;
         }
         Some(r.flip_z())
