@@ -906,13 +906,7 @@ fn all_shapes_open_quadrics_match_directlighting() {
     assert!((a / b - 1.0).abs() <= 0.02, "image mean {a} vs directlighting's {b}");
     assert!((a / pbrt - 1.0).abs() <= 0.02, "image mean {a} vs pbrt-v3's {pbrt}");
     assert!(worst <= 0.05, "an 8×8 block {:.2} % off", 100.0 * worst);
-    for kind in ["cylinder", "cone", "paraboloid", "hyperboloid", "disk"] {
-        assert!(
-            r.warnings.iter().any(|w| w.contains(&format!("open mesh \"{kind}\"")) && w.contains("traced")),
-            "no warning names the traced {kind}: {:?}",
-            r.warnings
-        );
-    }
+    assert_open_quadrics_traced(&r.warnings);
 }
 
 /// Issue 39: open quadrics and meshes (an open cylinder and cone, a paraboloid, a hyperboloid,
@@ -937,11 +931,16 @@ fn open_shapes_match_pbrt_v3() {
     );
     assert!((a / b - 1.0).abs() <= 0.02, "image mean {a} vs {b}");
     assert!(worst <= 0.05, "an 8×8 block {:.2} % off", 100.0 * worst);
+    assert_open_quadrics_traced(&r.warnings);
+}
+
+/// One warning names each open quadric kind (cylinder, cone, paraboloid, hyperboloid, disk)
+/// whose shadows `shexp` traces.
+fn assert_open_quadrics_traced(warnings: &[String]) {
     for kind in ["cylinder", "cone", "paraboloid", "hyperboloid", "disk"] {
         assert!(
-            r.warnings.iter().any(|w| w.contains(&format!("open mesh \"{kind}\"")) && w.contains("traced")),
-            "no warning names the traced {kind}: {:?}",
-            r.warnings
+            warnings.iter().any(|w| w.contains(&format!("open mesh \"{kind}\"")) && w.contains("traced")),
+            "no warning names the traced {kind}: {warnings:?}"
         );
     }
 }
