@@ -67,6 +67,14 @@ pub struct SurfaceInteraction {
     pub wo: Vec3,
     pub mesh: u32,
     pub tri: u32,
+    /// Where `n` is not normal to the surface the ray crossed (pbrt-v3's hyperboloid, whose
+    /// `n` is `∂p/∂u × ∂p/∂v` along its segment `p1 → p2`, up to 160° off its surface): the
+    /// hit triangle's normal, on the side the ray arrived from; zero otherwise. See
+    /// [`Self::ray_origin`].
+    pub wall: Vec3,
+    /// With `wall`: the (smooth) normal of the surface the triangles approximate, on the side
+    /// the ray arrived from.
+    pub surface: Vec3,
 }
 
 impl Default for SurfaceInteraction {
@@ -87,6 +95,8 @@ impl Default for SurfaceInteraction {
             wo: Vec3::Z,
             mesh: 0,
             tri: 0,
+            wall: Vec3::ZERO,
+            surface: Vec3::ZERO,
         }
     }
 }
@@ -125,18 +135,42 @@ impl SurfaceInteraction {
         Differentials { dpdx, dpdy, dudx, dvdx, dudy, dvdy }
     }
 
+    /// The origin of a ray leaving the surface in direction `w`: `p` offset off the surface to
+    /// `w`'s side of `n`, so the ray cannot re-hit it.
+    ///
+    /// Where `n` is not normal to the surface ([`Self::wall`]), pbrt-v3 still offsets along
+    /// `n`, which puts the origin on one side of its surface or the other, and a ray whose
+    /// origin is not on the side it heads to meets the surface at once and is blocked (its
+    /// analytic intersection finds the root beside the origin). That decides, smoothly with
+    /// the surface's normal `g`: blocked iff sign(w·n)·sign(n·g) ≠ sign(w·g). penumbra makes
+    /// the same decision with the smooth `g` and enforces it on the tessellation: the origin
+    /// goes to the hit triangle's side away from `w` (the ray then crosses its own triangle)
+    /// or towards it. Offsetting along `n` as for other surfaces let rays through the
+    /// tessellated surface (+16 % ambient occlusion on a two-sheet hyperboloid's inside), and
+    /// deciding with the triangle's normal left rings along its rows.
+    #[inline]
+    pub fn ray_origin(&self, w: Vec3) -> Vec3 {
+        if self.wall == Vec3::ZERO {
+            return offset_ray_origin(self.p, self.p_error, self.n, w);
+        }
+        let g = self.surface;
+        let side_n = w.dot(self.n) >= 0.0;
+        let origin_side = side_n == (self.n.dot(g) >= 0.0);
+        let blocked = origin_side != (w.dot(g) >= 0.0);
+        offset_ray_origin(self.p, self.p_error, self.wall, if blocked { -w } else { w })
+    }
     /// A ray leaving the surface in direction `d`, offset so it cannot re-hit this surface.
     pub fn spawn_ray(&self, d: Vec3) -> Ray {
-        Ray::new(offset_ray_origin(self.p, self.p_error, self.n, d), d, f32::INFINITY)
+        Ray::new(self.ray_origin(d), d, f32::INFINITY)
     }
     /// A shadow ray from this surface to point `p` (stops just short of it).
     pub fn spawn_ray_to(&self, p: Vec3) -> Ray {
-        let o = offset_ray_origin(self.p, self.p_error, self.n, p - self.p);
+        let o = self.ray_origin(p - self.p);
         Ray::new(o, p - o, 1.0 - SHADOW_EPSILON)
     }
     /// A shadow ray between this surface and another surface point, both ends offset.
     pub fn spawn_ray_to_surface(&self, p: Vec3, p_error: Vec3, n: Vec3) -> Ray {
-        let o = offset_ray_origin(self.p, self.p_error, self.n, p - self.p);
+        let o = self.ray_origin(p - self.p);
         let t = offset_ray_origin(p, p_error, n, o - p);
         Ray::new(o, t - o, 1.0 - SHADOW_EPSILON)
     }

@@ -118,6 +118,24 @@ pub fn mean(img: &Image) -> f64 {
     img.data.iter().map(|v| *v as f64).sum::<f64>() / img.data.len() as f64
 }
 
+/// The means of the image's 8×8-pixel blocks (over the colour channels), row by row.
+pub fn block_means(img: &Image) -> Vec<f64> {
+    let (w, h) = (img.width as usize, img.height as usize);
+    let mut out = Vec::new();
+    for by in 0..h / 8 {
+        for bx in 0..w / 8 {
+            let mut s = 0.0;
+            for y in by * 8..by * 8 + 8 {
+                for x in bx * 8..bx * 8 + 8 {
+                    s += (0..3).map(|c| img.data[(y * w + x) * 3 + c] as f64).sum::<f64>();
+                }
+            }
+            out.push(s / (64.0 * 3.0));
+        }
+    }
+    out
+}
+
 pub fn rmse(a: &Image, b: &Image) -> f64 {
     assert_eq!((a.width, a.height, a.data.len()), (b.width, b.height, b.data.len()));
     (a.data.iter().zip(&b.data).map(|(x, y)| (*x as f64 - *y as f64).powi(2)).sum::<f64>() / a.data.len() as f64).sqrt()

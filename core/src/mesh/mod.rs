@@ -149,6 +149,10 @@ pub struct TriangleMesh {
     /// and so is not normal to the surface it intersects (up to 160° off on public scenes);
     /// BSDFs decide reflection against it, as pbrt-v3's do.
     pub analytic_ng: bool,
+    /// With `analytic_ng`: the surface's own normals per vertex (unoriented), which decide
+    /// whether a ray leaving a hit passes through the surface (see
+    /// [`crate::interaction::SurfaceInteraction::wall`]).
+    pub surface_normals: Option<Vec<Vec3>>,
     /// For a sphere, disk or cylinder: its parameters, for what pbrt-v3 computes on the
     /// analytic shape (area-light sampling).
     pub quadric: Option<Quadric>,

@@ -370,6 +370,8 @@ impl Scene {
             wo,
             mesh: hit.mesh,
             tri: hit.tri,
+            wall: Vec3::ZERO,
+            surface: Vec3::ZERO,
         };
         if flat {
             return base;
@@ -383,6 +385,13 @@ impl Scene {
                 // own ∂p/∂u, ∂p/∂v, made tangent to that normal.
                 let ns = ns0 * mesh.hit_normal_sign();
                 si.n = if mesh.analytic_ng && ns != Vec3::ZERO { ns } else { face_forward(ng, ns) };
+                if let Some(sn) = mesh.surface_normals.as_ref().filter(|_| mesh.analytic_ng && ns != Vec3::ZERO) {
+                    let g = interpolate(mesh.indices[tri].map(|i| sn[i as usize]), b).normalize_or_zero();
+                    if g != Vec3::ZERO && g.is_finite() {
+                        si.wall = face_forward(ng, wo);
+                        si.surface = face_forward(g, wo);
+                    }
+                }
                 si.shading = Frame::from_zx(ns, dpdu);
                 si.shading_dpdu = dpdu - ns * ns.dot(dpdu);
                 si.shading_dpdv = dpdv - ns * ns.dot(dpdv);
@@ -440,6 +449,8 @@ fn curve_interaction(c: &crate::mesh::curve::Curves, ray: &Ray, hit: &Hit) -> Su
         wo: -ray.d.normalize_or_zero(),
         mesh: hit.mesh,
         tri: hit.tri,
+        wall: Vec3::ZERO,
+        surface: Vec3::ZERO,
     }
 }
 

@@ -7,8 +7,9 @@
 //!
 //! # Tessellation bound (quadrics)
 //! With `ε = Tessellation::max_rel_error` and `R` the shape's largest radius
-//! (sphere/cylinder/cone/paraboloid `radius`, disk outer `radius`, hyperboloid
-//! `max(|p1.xy|, |p2.xy|)`):
+//! (sphere/cylinder/cone/paraboloid `radius`, disk outer `radius`, hyperboloid the
+//! largest radius its fitted surface reaches, at most `max(|p1.xy|, |p2.xy|)`; hyperboloids
+//! use `ε / 10`, see `quadrics::build`):
 //! * every vertex lies exactly (to f64 rounding, then f32 storage) on the surface;
 //! * around the axis, the chord sagitta of every circle is `≤ ε/2 · R`
 //!   (`Δφ = 2 acos(1 - ε/2)`, at most [`MAX_SEGMENTS`] segments over 2π);
@@ -215,6 +216,9 @@ pub(crate) struct ObjMesh {
     /// A sphere's, disk's or cylinder's parameters (object space) and the tessellation's
     /// largest distance from its surface.
     pub quadric: Option<(QuadricShape, f64)>,
+    /// Where `n` (the analytic normal pbrt-v3 shades with) is not normal to the surface:
+    /// the surface's own normals, per vertex (pbrt-v3's hyperboloid).
+    pub surface_n: Option<Vec<[f64; 3]>>,
 }
 
 /// Reads pbrt-v3's `alpha`/`shadowalpha` parameters (meshes only, as pbrt-v3).
@@ -261,7 +265,7 @@ fn finish(obj: ObjMesh, desc: &ShapeDesc) -> Result<TriangleMesh, Diagnostic> {
         }
         positions.push(v);
     }
-    let normals = obj.n.as_ref().map(|ns| {
+    let world_normals = |ns: &Vec<[f64; 3]>| {
         ns.iter()
             .map(|n| {
                 let w = t.apply_normal(*n);
@@ -273,7 +277,9 @@ fn finish(obj: ObjMesh, desc: &ShapeDesc) -> Result<TriangleMesh, Diagnostic> {
                 }
             })
             .collect::<Vec<_>>()
-    });
+    };
+    let normals = obj.n.as_ref().map(world_normals);
+    let surface_normals = obj.surface_n.as_ref().map(world_normals);
     let tangents = obj.s.as_ref().map(|ss| {
         ss.iter().map(|s| to_vec(t.apply_vector(*s))).map(|v| if v.is_finite() { v } else { Vec3::ZERO }).collect()
     });
@@ -313,6 +319,7 @@ fn finish(obj: ObjMesh, desc: &ShapeDesc) -> Result<TriangleMesh, Diagnostic> {
         shadow_alpha: obj.shadow_alpha,
         normal_rule: NormalRule::Triangle,
         analytic_ng: false,
+        surface_normals,
         quadric: obj.quadric.map(|(shape, deviation)| Quadric { shape, world_from_object: *t, deviation }),
         curves: None,
     })

@@ -427,6 +427,7 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
         alpha,
         shadow_alpha,
         quadric: None,
+        surface_n: None,
     }))
 }
 

@@ -116,7 +116,7 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
     }
     let alpha = read_alpha(desc, ctx, "alpha");
     let shadow_alpha = read_alpha(desc, ctx, "shadowalpha");
-    Ok(Some(ObjMesh { p, n, s, uv, tris, alpha, shadow_alpha, quadric: None }))
+    Ok(Some(ObjMesh { p, n, s, uv, tris, alpha, shadow_alpha, quadric: None, surface_n: None }))
 }
 
 #[cfg(test)]
