@@ -118,14 +118,16 @@ fn shade_matches_pbrt_v3_directlighting() {
 }
 
 /// The scene turned as a whole (camera, objects and sky) about a non-axis direction renders
-/// the same image up to the azimuth discretisation. The radiance tables are built about the
-/// coordinate axes; sampling each cell at fixed 3 × 3 points aliased the sky-sun map's sun
-/// (12 texels, 60 % of the power), so each axis frame saw a different sun: relative RMSE 24 %
-/// between the two renders and −10 % on the ground; and the Monte Carlo fallback's uniform rays
-/// made a pixel 10× too bright wherever one hit the sun. Measured now (32², 2 spp): relative
-/// RMSE 1.8 %, means 0.5 % apart — the azimuth discretisation of the sun's shadows (at 48²,
-/// 4 spp the RMS difference falls from 0.0081 at 128 meridians to 0.0034 and 0.0022 at 256
-/// and 512) and the sun's power sampled at half a texel (±0.5 % of the image).
+/// the same image. Sampling each radiance-table cell at fixed 3 × 3 points aliased the sky-sun
+/// map's sun (12 texels, 60 % of the power), so each axis frame saw a different sun: relative
+/// RMSE 24 % between the two renders and −10 % on the ground; and the Monte Carlo fallback's
+/// uniform rays made a pixel 10× too bright wherever one hit the sun. With half-texel sampling
+/// but the tables and meridians still about the world's axes: relative RMSE 1.8 %, means 0.5 %
+/// apart (the sun's power sampled differently, the shadows' azimuth discretisation turned).
+/// About the environment map's axes (`param::Axes`, issue 39) the turned scene is integrated
+/// alike; measured now (32², 2 spp): relative RMSE 0.81 % (as for the scene scaled: pixels
+/// whose clusters or fallbacks fall otherwise by rounding; `penumbra stability` max |z| 0.44),
+/// means 0.03 % apart. The bounds leave 1.5× and 3× of that and fail for the world's axes.
 #[test]
 fn shade_is_unchanged_by_turning_the_scene() {
     let path = scene("suite/env/objects-sky-sun.pbrt");
@@ -136,8 +138,8 @@ fn shade_is_unchanged_by_turning_the_scene() {
     let (a, b) = (render_desc(&base, &o), render_desc(&turned, &o));
     let rel = rmse(&a.image, &b.image) / mean(&a.image);
     eprintln!("turned: relative RMSE {rel:.4}, means {:.5} {:.5}", mean(&a.image), mean(&b.image));
-    assert!(rel < 0.03, "relative RMSE {rel} between the scene and the scene turned");
-    assert!((mean(&b.image) / mean(&a.image) - 1.0).abs() < 0.015, "means differ");
+    assert!(rel < 0.012, "relative RMSE {rel} between the scene and the scene turned");
+    assert!((mean(&b.image) / mean(&a.image) - 1.0).abs() < 0.001, "means differ");
 }
 
 /// Same seed → bit-identical images with 1 or 2 threads and from assembled crops.

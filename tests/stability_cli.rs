@@ -209,10 +209,9 @@ fn every_integrator_is_stable_on_public_scenes() {
 
 /// Issue 39: pixel shading's hard 10 % switch (a cluster's shared value or each sample's own)
 /// made `shexp` on `env/objects-sky-sun` (32², 4 spp) jump by 0.028 in one pixel scaled by 1e4
-/// (max |z| 9.9) and turned (10.4); the blend over [10 %, 20 %] keeps every variant within the
-/// gate (measured: shexp max |z| 2.75 turned, 0.028 scaled; ltc 7e-4). `silhouette` is not
-/// here: it fails turned on this scene with `"shading" "sample"` too (max |z| 46), not from
-/// pixel shading.
+/// (max |z| 9.9) and turned (10.4); the blend over [5 %, 10 %] keeps every variant within the
+/// gate (measured: shexp max |z| 2.75 turned, 0.028 scaled; ltc 7e-4). `silhouette`'s failure
+/// turned, not from pixel shading, is the next test.
 #[test]
 fn pixel_shading_does_not_jump_on_the_sky_sun_scene() {
     let out = out_dir("sky-sun");
@@ -228,5 +227,25 @@ fn pixel_shading_does_not_jump_on_the_sky_sun_scene() {
             assert!(z <= 8.0, "{n} {variant}: {z}");
         }
     }
+    std::fs::remove_dir_all(&out).ok();
+}
+
+/// Issue 39: `silhouette` on `env/objects-sky-sun` turned 37° (32², 4 spp) failed the gate with
+/// either shading (max |z| 50.3, 29.8 % of the pixels over 3; 45.9 with `"shading" "sample"`):
+/// its radiance tables and meridians were about the world's axes, so the turned sun fell
+/// elsewhere in the cells (0.5 % more light on the whole ground, up to 8 % at shadow edges).
+/// About the environment map's axes the turned scene is integrated alike (measured: max |z|
+/// 0.443, relative RMS 0.0041, as scaled by 1e4).
+#[test]
+fn silhouette_is_stable_turned_under_the_sky_sun() {
+    let out = out_dir("sky-sun-silhouette");
+    let args = ["-i", "silhouette", "--variants", "rotate", "--resolution", "32x32", "--spp", "4"];
+    let o = stability("scenes/suite/env/objects-sky-sun.pbrt", &args, &out);
+    let v = report(&o, &out);
+    assert_eq!(o.status.code(), Some(0), "{}\n{}", text(&o.stdout), text(&o.stderr));
+    let r = row(&v, "silhouette", "rotate");
+    let z = max_z(r);
+    eprintln!("silhouette rotate: max |z| {z:.2e}");
+    assert!(z <= 8.0, "{r}");
     std::fs::remove_dir_all(&out).ok();
 }

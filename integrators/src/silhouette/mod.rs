@@ -4,7 +4,9 @@
 //!
 //! At each shading point the contour edges come from the scene's 4D dual-edge hierarchy
 //! ([`dual::DualEdges`], built by [`Integrator::prepare`]), culled behind the tangent plane; their arcs are bucketed on `"integer resolution"` meridians of the
-//! `(φ, cos θ)` parameterisation about the coordinate axis closest to the normal, each
+//! `(φ, cos θ)` parameterisation about the axis closest to the normal (of the brightest
+//! environment map's frame, so that a scene turned as a whole is integrated alike:
+//! [`param::Axes`]), each
 //! meridian is walked from the pole with the relative depth complexity `W`, and one shadow
 //! ray through the longest interval of minimal `W` decides whether those intervals are the
 //! visible ones (else the point sees nothing). The integrand is integrated exactly in `v`
@@ -40,9 +42,10 @@
 //! pixel's camera samples only resolve which surfaces it sees and where their edges run; each
 //! surface seen in a pixel (a cluster of [`crate::common::pixel_shading`]) is integrated at
 //! its most central and its farthest sample, and at every sample where the two differ by more
-//! than [`REFINE`](crate::common::pixel_shading::REFINE) (a shadow edge or highlight crossing
-//! the pixel; each sample then takes a blend of the central value and its own, its own alone
-//! from a difference of [`REFINE_FULL`](crate::common::pixel_shading::REFINE_FULL)); the other samples reuse the central value (`shade`: the irradiance over π,
+//! than [`REFINE`](crate::common::pixel_shading::REFINE), 5 % (a shadow edge or highlight
+//! crossing the pixel; each sample then takes a blend of the central value and its own, its
+//! own alone from a difference of [`REFINE_FULL`](crate::common::pixel_shading::REFINE_FULL),
+//! 10 %); the other samples reuse the central value (`shade`: the irradiance over π,
 //! multiplied by each sample's own albedo, and the SH-shaded lobes' radiance; the estimator's
 //! lights, emission and specular recursion stay per sample). `sample`: every camera sample is
 //! integrated, as `prt` always is.
@@ -64,7 +67,7 @@ use crate::common::params::{ParamSpec, Params};
 use crate::common::pixel_shading::{parse_shading, rgb_difference, Refine, SharedPixel, SHADING};
 use crate::common::{max_depth, max_depth_param, SH_ORDER};
 use dual::{Contour, DualEdges};
-use param::{moment, Meridians, PoleFrame};
+use param::{moment, Axes, Meridians, PoleFrame};
 use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
@@ -255,6 +258,23 @@ fn table_spacing(infinite: &[&Light]) -> f64 {
     0.5 * texel.max(std::f64::consts::PI / 2048.0)
 }
 
+/// The axes the traversal and the tables are discretised about ([`Axes`]): the environment
+/// map's of the brightest infinite light (its mean radiance summed over the colours; the first
+/// of equals), so that the scene turned as a whole, lights included, is integrated alike;
+/// the world's where there is no infinite light or its transform is degenerate.
+fn integration_axes(infinite: &[&Light]) -> Axes {
+    let mut best: Option<(f32, Axes)> = None;
+    for l in infinite {
+        let Light::Infinite(l) = l else { continue };
+        let m = l.world_from_light.as_dmat3();
+        let (Some(axes), power) = (Axes::of_map(m.x_axis, m.z_axis), l.map.mean().element_sum()) else { continue };
+        if best.is_none_or(|(p, _)| power > p) {
+            best = Some((power, axes));
+        }
+    }
+    best.map_or(Axes::WORLD, |(_, a)| a)
+}
+
 /// Rays per side of the stratified grid of the AO modes' Monte Carlo fallback.
 const FALLBACK_RAYS: usize = 16;
 
@@ -266,6 +286,8 @@ struct Estimator<'a> {
     max_depth: u32,
     dual: &'a DualEdges,
     meridians: Meridians,
+    /// The axes the pole frames are taken about ([`integration_axes`]).
+    axes: Axes,
     /// The infinite lights' radiance moments (`shade`).
     table: Option<MomentTable>,
     /// `prt`: the transfer order and Gauss–Legendre nodes in θ per interval.
@@ -303,7 +325,7 @@ impl Estimator<'_> {
         // coplanar neighbours are then strictly behind the tangent plane, never contours.
         let p = dual.normalise(offset_ray_origin(si.p, si.p_error, n, n));
         let nd = n.as_dvec3().normalize();
-        let frame = PoleFrame::for_normal(nd);
+        let frame = self.axes.frame_for_normal(nd);
         SCRATCH.with_borrow_mut(|s| {
             s.contours.clear();
             let cost = dual.contours(p, nd, CULL_TOL, &mut s.contours);
@@ -635,7 +657,7 @@ impl Estimator<'_> {
         self.counters.glossy_points.fetch_add(1, Ordering::Relaxed);
         let sh_table = self.sh_table.get_or_init(|| {
             let cells = self.meridians.n.min(glossy::TABLE_CELLS);
-            ShTable::build(&self.meridians, cells, self.glossy_order, self.table_spacing, |w| {
+            ShTable::build(&self.meridians, &self.axes, cells, self.glossy_order, self.table_spacing, |w| {
                 let l = self.radiance(w);
                 [l.x as f64, l.y as f64, l.z as f64]
             })
@@ -798,8 +820,9 @@ impl Integrator for Silhouette {
         }
         let meridians = Meridians::new(self.resolution);
         let table_spacing = table_spacing(&infinite);
+        let axes = integration_axes(&infinite);
         let table = (mode == Mode::Shade && !infinite.is_empty()).then(|| {
-            MomentTable::build(&meridians, self.resolution, table_spacing, |w| {
+            MomentTable::build(&meridians, &axes, self.resolution, table_spacing, |w| {
                 let ray = Ray::new(Vec3::ZERO, w.as_vec3(), f32::INFINITY);
                 let l: Rgb = infinite.iter().map(|l| l.le(&ray)).sum();
                 [l.x as f64, l.y as f64, l.z as f64]
@@ -817,6 +840,7 @@ impl Integrator for Silhouette {
             max_depth: self.max_depth,
             dual,
             meridians,
+            axes,
             table,
             sh,
             infinite,

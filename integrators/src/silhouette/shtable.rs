@@ -8,7 +8,7 @@
 //! from the other end, as [`super::table::MomentTable`] does. Stored in f32 (a 128-meridian table
 //! at order 12 is 85 MB); accumulated in f64.
 
-use super::param::{CellNodes, Meridians, PoleFrame};
+use super::param::{Axes, CellNodes, Meridians, PoleFrame};
 use glam::DVec3;
 use penumbra_core::sh::{basis, ShOrder, MAX_ORDER};
 use rayon::prelude::*;
@@ -33,9 +33,10 @@ impl ShTable {
 
     /// Tables for `meridians` with `cells` cells in `v` per meridian, of radiance `le`, up to
     /// SH order `order`, the radiance sampled no more than `spacing` radians apart in each
-    /// cell ([`CellNodes`]).
+    /// cell ([`CellNodes`]), about `axes`' poles.
     pub fn build(
         m: &Meridians,
+        axes: &Axes,
         cells: usize,
         order: ShOrder,
         spacing: f64,
@@ -47,7 +48,7 @@ impl ShTable {
         let mut data = vec![0.0f32; 3 * m.n * stride];
         data.par_chunks_mut(stride).enumerate().for_each(|(row, out)| {
             let (axis, i) = (row / m.n, row % m.n);
-            let frame = PoleFrame::new(axis, 1.0);
+            let frame = axes.frame(axis, 1.0);
             let dv = 2.0 / cells as f64;
             let mut acc = vec![0.0f64; 3 * k];
             let mut y = [0.0f64; MAX_ORDER * MAX_ORDER];
@@ -127,7 +128,7 @@ mod tests {
         let k = order.coeffs();
         let le = |w: DVec3| [1.0 + 0.5 * w.x, 2.0 + w.z * w.y, (3.0 * w.z).exp()];
         let m = Meridians::new(64);
-        let t = ShTable::build(&m, 64, order, 1.0, le);
+        let t = ShTable::build(&m, &Axes::WORLD, 64, order, 1.0, le);
         let q = SphereQuadrature::product(40, 80);
         let mut y = vec![0.0; k];
         let mut exact = vec![0.0; 3 * k];
@@ -153,7 +154,7 @@ mod tests {
                 assert!((o - e).abs() < 2e-3 * scale, "axis {axis} {sign} coefficient {c}: {o} vs {e}");
             }
         }
-        let t = ShTable::build(&m, 16, order, 1.0, |_| [1.0, 1.0, 1.0]);
+        let t = ShTable::build(&m, &Axes::WORLD, 16, order, 1.0, |_| [1.0, 1.0, 1.0]);
         let mut out = vec![0.0; 3 * k];
         for i in 0..m.n {
             t.add(&PoleFrame::new(2, -1.0), i, -1.0, 1.0, order, &mut out);

@@ -335,11 +335,13 @@ struct ShaderCounters {
 pub const LIGHT_TRIANGLE_BUDGET: usize = 256;
 
 /// A glossy lobe narrower than this many times a pixel cluster's angular extent (its camera
-/// rays' spread) starts to be shaded at every member (fully from half as narrow, [`Refine::ramps`]): the highlight (a sharp reflection of the light's
-/// outline) moves across the pixel by about that angle, while the lobe is `~2α` wide.
+/// rays' spread) is shaded at every member (partly from twice as wide, [`Refine::ramps`]): the
+/// highlight (a sharp reflection of the light's outline) moves across the pixel by about that
+/// angle, while the lobe is `~2α` wide.
 const SHARP_EVERY: f32 = 0.5;
-/// … and narrower than this many times, at the representative and the farthest member too, and
-/// at every member as far as the two differ by more than 10 % ([`crate::common::pixel_shading::REFINE`]).
+/// … and narrower than this many times (partly from twice as wide), at the representative and
+/// the farthest member too, and at every member as far as the two differ
+/// ([`crate::common::pixel_shading::REFINE`]).
 const SHARP_COMPARE: f32 = 8.0;
 
 /// A shading point's query: where it is and whether occluders are searched.
@@ -463,7 +465,7 @@ impl LtcShader {
     }
 
     /// How finely pixel shading shades a cluster at `p` ([`Refine::ramps`]): every member near
-    /// a light (from the cluster's extent at [`NEAR_FIELD`] of its distance) or for a lobe far
+    /// a light (the cluster's extent at [`NEAR_FIELD`] of its distance) or for a lobe far
     /// sharper than the cluster's angle ([`SHARP_EVERY`]); compared with its farthest member for
     /// a sharp one ([`SHARP_COMPARE`]); once otherwise.
     fn refine(&self, scene: &Scene, p: &SurfacePoint, extent: ClusterExtent) -> Refine {
