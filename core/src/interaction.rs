@@ -67,6 +67,9 @@ pub struct SurfaceInteraction {
     pub wo: Vec3,
     pub mesh: u32,
     pub tri: u32,
+    /// The time of the ray that found the hit (pbrt-v3's `Interaction::time`): rays spawned
+    /// here take it.
+    pub time: f32,
 }
 
 impl Default for SurfaceInteraction {
@@ -87,6 +90,7 @@ impl Default for SurfaceInteraction {
             wo: Vec3::Z,
             mesh: 0,
             tri: 0,
+            time: 0.0,
         }
     }
 }
@@ -127,18 +131,18 @@ impl SurfaceInteraction {
 
     /// A ray leaving the surface in direction `d`, offset so it cannot re-hit this surface.
     pub fn spawn_ray(&self, d: Vec3) -> Ray {
-        Ray::new(offset_ray_origin(self.p, self.p_error, self.n, d), d, f32::INFINITY)
+        Ray::new(offset_ray_origin(self.p, self.p_error, self.n, d), d, f32::INFINITY).at_time(self.time)
     }
     /// A shadow ray from this surface to point `p` (stops just short of it).
     pub fn spawn_ray_to(&self, p: Vec3) -> Ray {
         let o = offset_ray_origin(self.p, self.p_error, self.n, p - self.p);
-        Ray::new(o, p - o, 1.0 - SHADOW_EPSILON)
+        Ray::new(o, p - o, 1.0 - SHADOW_EPSILON).at_time(self.time)
     }
     /// A shadow ray between this surface and another surface point, both ends offset.
     pub fn spawn_ray_to_surface(&self, p: Vec3, p_error: Vec3, n: Vec3) -> Ray {
         let o = offset_ray_origin(self.p, self.p_error, self.n, p - self.p);
         let t = offset_ray_origin(p, p_error, n, o - p);
-        Ray::new(o, t - o, 1.0 - SHADOW_EPSILON)
+        Ray::new(o, t - o, 1.0 - SHADOW_EPSILON).at_time(self.time)
     }
 }
 
