@@ -429,9 +429,12 @@ impl Accel {
         (t < t_max).then_some((t, h.b, TriRef { mesh, tri: h.tri }))
     }
 
-    /// Whether some meshes move ([`Mover`]).
-    pub fn has_movers(&self) -> bool {
-        !self.movers.is_empty()
+    /// The number of moving groups ([`Mover`]) in the hierarchy, each one slot of it.
+    pub fn mover_count(&self) -> usize {
+        if self.movers.is_empty() {
+            return 0;
+        }
+        self.refs.iter().filter(|r| r.mesh == MOVER).count()
     }
 
     /// Whether candidate slot `slot` is hit before `t_max` (BVH parameter): the BVH parameter

@@ -120,12 +120,15 @@ impl Scene {
                 a.set_filter(Arc::new(test));
             }
             let by = if a.kind() == AccelKind::Embree { " (Embree)" } else { "" };
-            let pieces = a.curve_piece_count();
-            let what = if pieces > 0 {
-                format!("{} triangles, {pieces} curve pieces{by}", a.triangle_count() - pieces)
-            } else {
-                format!("{} triangles{by}", a.triangle_count())
-            };
+            let (pieces, moving) = (a.curve_piece_count(), a.mover_count());
+            let mut what = format!("{} triangles", a.triangle_count() - pieces - moving);
+            if pieces > 0 {
+                what += &format!(", {pieces} curve pieces");
+            }
+            if moving > 0 {
+                what += &format!(", {moving} moving shapes (each a hierarchy of its own)");
+            }
+            what += by;
             report.stages.push(("bvh".into(), a.build_seconds, what));
             Some(a)
         } else {
@@ -520,5 +523,33 @@ mod tests {
             }
             assert!(hits > 500 && shadowed < hits / 2, "{path}: {hits} hits, {shadowed} shadowed");
         }
+    }
+
+    /// A scene with moving shapes asks Embree in vain: the BVH answers (it alone holds moving
+    /// groups), with a warning naming the moving shape; both give the same camera-ray hits.
+    #[test]
+    fn embree_with_moving_shapes_falls_back_to_the_bvh() {
+        let (bvh, _) = scene("scenes/real/shape-motion.pbrt", "bvh");
+        let (other, w) = scene("scenes/real/shape-motion.pbrt", "embree");
+        assert_eq!(other.accel.as_ref().unwrap().kind(), AccelKind::Bvh);
+        assert!(!other.movers.is_empty() && other.uses_time());
+        let messages: Vec<String> = w.take().into_iter().map(|d| d.message).collect();
+        let expected = if AccelKind::EMBREE_AVAILABLE { "shape \"sphere\" at" } else { "built without Embree" };
+        assert!(messages.iter().any(|m| m.contains(expected)), "{messages:?}");
+        let mut hits = 0;
+        for y in 0..48 {
+            for x in 0..48 {
+                let s = CameraSample {
+                    p_film: Vec2::new(x as f32 + 0.5, y as f32 + 0.5),
+                    p_lens: Vec2::ZERO,
+                    time: (x + 48 * y) as f32 / 2304.0,
+                };
+                let ray = bvh.camera.generate_ray(&s);
+                let (a, b) = (bvh.intersect(&ray), other.intersect(&ray));
+                assert_eq!(a, b);
+                hits += a.is_some() as usize;
+            }
+        }
+        assert!(hits > 1000, "{hits}");
     }
 }
