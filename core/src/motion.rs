@@ -90,10 +90,10 @@ impl Motion {
 }
 
 /// One factor of a [`MovingTransform`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 enum Factor {
     Fixed(DMat4),
-    Moving(Motion),
+    Moving(Box<Motion>),
 }
 
 impl Factor {
@@ -122,7 +122,7 @@ impl MovingTransform {
     /// [`Motion::new`]; the caller then keeps the start transforms).
     pub fn new(outer: &AnimatedTransform, inner: &AnimatedTransform) -> Option<MovingTransform> {
         let factor = |a: &AnimatedTransform| match Motion::new(a) {
-            Some(m) => Some(Factor::Moving(m)),
+            Some(m) => Some(Factor::Moving(Box::new(m))),
             None if a.is_animated() => None,
             None => Some(Factor::Fixed(to_dmat4(&a.start.m))),
         };

@@ -44,7 +44,7 @@ impl Scene {
         warn_media(desc, warnings);
 
         let t1 = Instant::now();
-        let (meshes, objects, movers) = shapes(desc, warnings)?;
+        let Shapes { meshes, objects, movers } = shapes(desc, warnings)?;
         let ntris: usize = meshes.iter().map(|m| m.triangle_count()).sum();
         report.stages.push((
             "shapes".into(),
@@ -300,10 +300,7 @@ fn warn_media(desc: &SceneDescription, warnings: &DiagSink) {
 /// move (their own or their instance's transform animated) are at their start transforms and
 /// are also listed as [`Mover`]s: one per shape directive, one per animated instance (as
 /// pbrt-v3 makes one `TransformedPrimitive` of each).
-fn shapes(
-    desc: &SceneDescription,
-    warnings: &DiagSink,
-) -> Result<(Vec<TriangleMesh>, Vec<SceneObject>, Vec<Mover>), Diagnostic> {
+fn shapes(desc: &SceneDescription, warnings: &DiagSink) -> Result<Shapes, Diagnostic> {
     let mut ctx = ShapeContext::for_scene(desc, warnings, Tessellation::default());
     ctx.budget = TriangleBudget::from_env().map_err(|e| Diagnostic::error(None, e))?;
     let mut out = Shapes::default();
@@ -339,7 +336,7 @@ fn shapes(
             }
         }
     }
-    Ok((out.meshes, out.objects, out.movers))
+    Ok(out)
 }
 
 #[derive(Default)]
