@@ -200,16 +200,24 @@ impl Camera {
         self.lens_radius > 0.0 || self.lens.is_some()
     }
 
-    /// Whether [`Camera::generate_ray`] reads `CameraSample::time` (when the camera moves).
+    /// Whether [`Camera::generate_ray`] needs `CameraSample::time` for its own transform (when
+    /// the camera moves; the scene's moving shapes need it too: [`crate::scene::Scene::uses_time`]).
     pub fn uses_time(&self) -> bool {
         self.motion.is_some()
+    }
+
+    /// The ray time of a sample's time in [0, 1): pbrt-v3's `Lerp(sample.time, shutterOpen,
+    /// shutterClose)`.
+    #[inline]
+    pub fn ray_time(&self, time: f32) -> f32 {
+        self.shutter.0 + time * (self.shutter.1 - self.shutter.0)
     }
 
     /// The world-from-camera matrix of a sample's time (`CameraSample::time` in [0, 1) maps
     /// onto the shutter interval as pbrt-v3's `Lerp(sample.time, shutterOpen, shutterClose)`).
     fn world_from_camera_at(&self, time: f32) -> CameraToWorld<'_> {
         match &self.motion {
-            Some(m) => CameraToWorld::Moving(m.at(self.shutter.0 + time * (self.shutter.1 - self.shutter.0))),
+            Some(m) => CameraToWorld::Moving(m.at(self.ray_time(time))),
             None => CameraToWorld::Fixed(&self.world_from_camera),
         }
     }
@@ -232,13 +240,13 @@ impl Camera {
             let u = DVec2::new(s.p_lens.x as f64, s.p_lens.y as f64);
             let p = DVec2::new(s.p_film.x as f64, s.p_film.y as f64);
             return match lens.generate(p, self.resolution, u) {
-                Some((r, w)) => (self.to_world(&m, r.o.as_vec3(), r.d.as_vec3()), w as f32),
+                Some((r, w)) => (self.to_world(&m, r.o.as_vec3(), r.d.as_vec3(), s.time), w as f32),
                 // Blocked: the axis ray, never traced.
-                None => (self.to_world(&m, Vec3::ZERO, Vec3::Z), 0.0),
+                None => (self.to_world(&m, Vec3::ZERO, Vec3::Z, s.time), 0.0),
             };
         }
         let (o, d) = self.camera_space_ray(s.p_film, s.p_lens);
-        (self.to_world(&m, o, d), 1.0)
+        (self.to_world(&m, o, d, s.time), 1.0)
     }
 
     /// The camera ray with its offset rays one pixel step away in x and y (pbrt-v3's
@@ -274,7 +282,7 @@ impl Camera {
         }
         let (o, d) = self.camera_space_ray(s.p_film, s.p_lens);
         let m = self.world_from_camera_at(s.time);
-        let ray = self.to_world(&m, o, d);
+        let ray = self.to_world(&m, o, d, s.time);
         let shifted = |dx: f32, dy: f32| self.camera_space_ray(s.p_film + Vec2::new(dx, dy), s.p_lens);
         let offsets = match self.projection {
             Projection::Perspective { .. } | Projection::Orthographic => {
@@ -350,9 +358,9 @@ impl Camera {
         }
     }
 
-    fn to_world(&self, m: &CameraToWorld, o: Vec3, d: Vec3) -> Ray {
+    fn to_world(&self, m: &CameraToWorld, o: Vec3, d: Vec3, time: f32) -> Ray {
         let (ow, dw) = point_and_direction_to_world(m, o, d);
-        Ray::new(ow, dw, f32::INFINITY)
+        Ray::new(ow, dw, f32::INFINITY).at_time(self.ray_time(time))
     }
 
     fn offsets_to_world(&self, m: &CameraToWorld, rx_o: Vec3, rx_d: Vec3, ry_o: Vec3, ry_d: Vec3) -> RayOffsets {

@@ -3,17 +3,26 @@
 
 use glam::{DVec3, IVec2, Vec3};
 
-/// A ray `o + t d` for `t` in `(0, t_max)`.
+/// A ray `o + t d` for `t` in `(0, t_max)`, at `time` (pbrt-v3's `Ray::time`: camera rays
+/// take theirs in the shutter interval, rays spawned from a surface its hit's time; moving
+/// shapes are intersected where they are at that time).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
     pub o: Vec3,
     pub d: Vec3,
     pub t_max: f32,
+    pub time: f32,
 }
 
 impl Ray {
+    /// A ray at time 0.
     pub fn new(o: Vec3, d: Vec3, t_max: f32) -> Self {
-        Ray { o, d, t_max }
+        Ray { o, d, t_max, time: 0.0 }
+    }
+    /// This ray at `time`.
+    #[inline]
+    pub fn at_time(self, time: f32) -> Self {
+        Ray { time, ..self }
     }
     pub fn at(&self, t: f32) -> Vec3 {
         self.o + self.d * t

@@ -292,7 +292,7 @@ pub fn render_pixels<E: PixelEstimator + ?Sized>(
         film: &*film,
         proto: proto.as_ref(),
         spp,
-        camera: CameraDims { uses_time: scene.camera.uses_time(), uses_lens: scene.camera.uses_lens() },
+        camera: CameraDims { uses_time: scene.uses_time(), uses_lens: scene.camera.uses_lens() },
         cancel: ctx.cancel,
     };
     let results: Vec<Option<TileResult>> = with_threads(ctx.threads, || {

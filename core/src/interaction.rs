@@ -75,6 +75,9 @@ pub struct SurfaceInteraction {
     /// With `wall`: the (smooth) normal of the surface the triangles approximate, on the side
     /// the ray arrived from.
     pub surface: Vec3,
+    /// The time of the ray that found the hit (pbrt-v3's `Interaction::time`): rays spawned
+    /// here take it.
+    pub time: f32,
 }
 
 impl Default for SurfaceInteraction {
@@ -97,6 +100,7 @@ impl Default for SurfaceInteraction {
             tri: 0,
             wall: Vec3::ZERO,
             surface: Vec3::ZERO,
+            time: 0.0,
         }
     }
 }
@@ -161,18 +165,18 @@ impl SurfaceInteraction {
     }
     /// A ray leaving the surface in direction `d`, offset so it cannot re-hit this surface.
     pub fn spawn_ray(&self, d: Vec3) -> Ray {
-        Ray::new(self.ray_origin(d), d, f32::INFINITY)
+        Ray::new(self.ray_origin(d), d, f32::INFINITY).at_time(self.time)
     }
     /// A shadow ray from this surface to point `p` (stops just short of it).
     pub fn spawn_ray_to(&self, p: Vec3) -> Ray {
         let o = self.ray_origin(p - self.p);
-        Ray::new(o, p - o, 1.0 - SHADOW_EPSILON)
+        Ray::new(o, p - o, 1.0 - SHADOW_EPSILON).at_time(self.time)
     }
     /// A shadow ray between this surface and another surface point, both ends offset.
     pub fn spawn_ray_to_surface(&self, p: Vec3, p_error: Vec3, n: Vec3) -> Ray {
         let o = self.ray_origin(p - self.p);
         let t = offset_ray_origin(p, p_error, n, o - p);
-        Ray::new(o, t - o, 1.0 - SHADOW_EPSILON)
+        Ray::new(o, t - o, 1.0 - SHADOW_EPSILON).at_time(self.time)
     }
 }
 

@@ -89,6 +89,111 @@ impl Motion {
     }
 }
 
+/// One factor of a [`MovingTransform`].
+#[derive(Clone, Debug, PartialEq)]
+enum Factor {
+    Fixed(DMat4),
+    Moving(Box<Motion>),
+}
+
+impl Factor {
+    fn at(&self, time: f32) -> DMat4 {
+        match self {
+            Factor::Fixed(m) => *m,
+            Factor::Moving(m) => m.at(time),
+        }
+    }
+}
+
+/// A world-from-object transform that moves: the product of an object instance's transform
+/// and its shape's, either or both animated (pbrt-v3's `TransformedPrimitive` of an animated
+/// shape inside a — possibly animated — instance: each interpolated at the ray's time).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MovingTransform {
+    /// Outermost first: world-from-object = `factors[0] · factors[1] · …`.
+    factors: Vec<Factor>,
+}
+
+/// How many times [`MovingTransform::motion_bounds`] samples the motion.
+const BOUND_SAMPLES: usize = 128;
+
+impl MovingTransform {
+    /// `outer · inner`, `None` when neither moves (or a moving one cannot be interpolated:
+    /// [`Motion::new`]; the caller then keeps the start transforms).
+    pub fn new(outer: &AnimatedTransform, inner: &AnimatedTransform) -> Option<MovingTransform> {
+        let factor = |a: &AnimatedTransform| match Motion::new(a) {
+            Some(m) => Some(Factor::Moving(Box::new(m))),
+            None if a.is_animated() => None,
+            None => Some(Factor::Fixed(to_dmat4(&a.start.m))),
+        };
+        let factors = vec![factor(outer)?, factor(inner)?];
+        factors.iter().any(|f| matches!(f, Factor::Moving(_))).then_some(MovingTransform { factors })
+    }
+
+    /// World from object at `time`.
+    pub fn at(&self, time: f32) -> DMat4 {
+        self.factors.iter().fold(DMat4::IDENTITY, |m, f| m * f.at(time))
+    }
+
+    /// The times over which it moves (before and after, it stands at its ends).
+    fn time_range(&self) -> (f32, f32) {
+        self.factors.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), f| match f {
+            Factor::Moving(m) => (a.min(m.start_time), b.max(m.end_time)),
+            Factor::Fixed(_) => (a, b),
+        })
+    }
+
+    /// A box holding the object box `[lo, hi]` at every time (pbrt-v3's
+    /// `AnimatedTransform::MotionBounds`, conservatively instead of by the derivative's roots):
+    /// the union of its transforms' boxes at evenly spaced times, each grown by how far a point
+    /// of the box can travel in half a spacing. That distance comes from a bound on the
+    /// speed of every point, composed factor by factor: a moving factor turns at the constant
+    /// rate of its slerp (×1.01 for the normalised lerp glam uses below acos 0.9995) and
+    /// translates and scales linearly.
+    pub fn motion_bounds(&self, lo: DVec3, hi: DVec3) -> (DVec3, DVec3) {
+        let (t0, t1) = self.time_range();
+        let (mut bmin, mut bmax) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        let corners: Vec<DVec3> =
+            (0..8).map(|i| DVec3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][i >> 2])).collect();
+        for k in 0..=BOUND_SAMPLES {
+            let t = t0 + (t1 - t0) * k as f32 / BOUND_SAMPLES as f32;
+            let m = self.at(t);
+            for c in &corners {
+                let p = m.transform_point3(*c);
+                bmin = bmin.min(p);
+                bmax = bmax.max(p);
+            }
+        }
+        // Innermost first: the radius of the points (about the factor's origin) and their speed.
+        let mut radius = corners.iter().map(|c| c.length()).fold(0.0, f64::max);
+        let mut speed = 0.0f64;
+        for f in self.factors.iter().rev() {
+            let (lin, trans, v) = match f {
+                Factor::Fixed(m) => (frobenius(&DMat3::from_mat4(*m)), m.w_axis.truncate().length(), 0.0),
+                Factor::Moving(m) => {
+                    let [a, b] = &m.parts;
+                    let dt = (m.end_time - m.start_time) as f64;
+                    let s_max = frobenius(&a.s).max(frobenius(&b.s));
+                    let angle = a.r.angle_between(b.r).min(std::f64::consts::PI) * 1.01;
+                    let v = ((b.t - a.t).length() + (angle * s_max + frobenius(&(b.s - a.s))) * radius) / dt;
+                    (s_max, a.t.length().max(b.t.length()), v)
+                }
+            };
+            speed = lin * speed + v;
+            radius = lin * radius + trans;
+        }
+        let grow = speed * (t1 - t0) as f64 / BOUND_SAMPLES as f64 * 0.5;
+        // And f32's rounding of the boxes and of the points transformed.
+        let slack = grow + 1e-5 * (bmax - bmin).max_element() + 1e-6 * bmin.abs().max(bmax.abs()).max_element();
+        (bmin - DVec3::splat(slack), bmax + DVec3::splat(slack))
+    }
+}
+
+/// The Frobenius norm, a bound on the operator norm.
+fn frobenius(m: &DMat3) -> f64 {
+    (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared()).sqrt()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -126,5 +231,53 @@ mod tests {
         let quarter = Motion::new(&b).unwrap().at(0.25);
         assert!(close(quarter, to_dmat4(&Transform::rotate(-25.0, [0.0, 0.0, 1.0]).unwrap().m), 1e-6));
         assert!(Motion::new(&AnimatedTransform::fixed(start)).is_none());
+    }
+
+    /// The motion bounds hold the box at every time — checked densely (4001 times, the box's
+    /// corners and a grid over its faces) on a chain of a turning, sliding, growing instance and
+    /// a shape spinning the long way round inside it — and are tight: within 6 % of the dense
+    /// box's extent on each side (the sampled union plus the travel bound over 1/256 of the motion).
+    #[test]
+    fn motion_bounds_hold_every_time() {
+        let outer = AnimatedTransform {
+            start: Transform::translate([1.0, 0.0, 0.0]),
+            end: Transform::translate([3.0, 1.0, -1.0])
+                .compose(&Transform::rotate(170.0, [0.3, 0.2, 1.0]).unwrap())
+                .compose(&Transform::scale([2.0, 1.0, 0.5]).unwrap()),
+            start_time: 0.0,
+            end_time: 2.0,
+        };
+        let inner = AnimatedTransform {
+            start: Transform::translate([0.0, 0.5, 0.0]),
+            end: Transform::translate([0.0, 0.5, 0.0]).compose(&Transform::rotate(150.0, [1.0, 0.0, 0.0]).unwrap()),
+            start_time: 0.0,
+            end_time: 2.0,
+        };
+        let m = MovingTransform::new(&outer, &inner).unwrap();
+        let (lo, hi) = (DVec3::new(-0.5, -0.2, 0.0), DVec3::new(0.5, 0.3, 1.5));
+        let (blo, bhi) = m.motion_bounds(lo, hi);
+        let (mut dlo, mut dhi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for k in 0..=4000 {
+            let w = m.at(-0.5 + 3.0 * k as f32 / 4000.0);
+            for i in 0..=4 {
+                for j in 0..=4 {
+                    for face in 0..6 {
+                        let (a, b) = (i as f64 / 4.0, j as f64 / 4.0);
+                        let f = [a, b, (face % 2) as f64];
+                        let u = DVec3::new(f[face / 2 % 3], f[(face / 2 + 1) % 3], f[(face / 2 + 2) % 3]);
+                        let p = w.transform_point3(lo + (hi - lo) * u);
+                        dlo = dlo.min(p);
+                        dhi = dhi.max(p);
+                    }
+                }
+            }
+        }
+        assert!(blo.cmple(dlo).all() && bhi.cmpge(dhi).all(), "{blo} {bhi} vs {dlo} {dhi}");
+        let extent = (dhi - dlo).max_element();
+        let slack = (dlo - blo).max_element().max((bhi - dhi).max_element()) / extent;
+        eprintln!("motion bounds: widest margin beyond the dense sweep {:.2} % of its extent", slack * 100.0);
+        assert!(slack < 0.06, "{slack}"); // measured 4.89 %
+                                          // Neither moving: no moving transform.
+        assert!(MovingTransform::new(&AnimatedTransform::default(), &AnimatedTransform::default()).is_none());
     }
 }

@@ -19,9 +19,10 @@
 mod embree;
 pub mod objects;
 
-use crate::geometry::{gamma, Bounds3, Ray};
+use crate::geometry::{gamma, next_float_down, Bounds3, Ray};
 use crate::mesh::curve::Curves;
 use crate::mesh::TriangleMesh;
+use crate::motion::MovingTransform;
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::CwBvh;
@@ -76,6 +77,42 @@ pub struct TriRef {
     pub tri: u32,
 }
 
+/// Meshes that move as one (pbrt-v3's `TransformedPrimitive` over an animated shape's, or an
+/// animated object instance's, primitives): queried through a hierarchy of their own in object
+/// space, with each ray taken there by the inverse of the transform at the ray's time; the
+/// scene's hierarchy holds them as one slot, a box bounding their whole motion.
+#[derive(Clone, Debug)]
+pub struct Mover {
+    pub transform: MovingTransform,
+    /// The scene's indices of its meshes (hits report these).
+    pub meshes: Vec<u32>,
+    /// The same meshes in object space, in the same order.
+    pub object: Vec<TriangleMesh>,
+}
+
+/// A [`Mover`] as queried: its object-space hierarchy, whose mesh `i` is the scene's `ids[i]`.
+struct MoverAccel {
+    transform: MovingTransform,
+    inner: Accel,
+    ids: Vec<u32>,
+}
+
+/// The `TriRef::mesh` of a BVH slot holding a [`Mover`] (`tri` is the mover's index).
+const MOVER: u32 = u32::MAX;
+
+/// A hit filter for a mover's object-space hierarchy: its mesh indices mapped to the scene's.
+struct MappedFilter {
+    filter: Arc<dyn HitFilter>,
+    ids: Vec<u32>,
+}
+
+impl HitFilter for MappedFilter {
+    fn accept(&self, hit: &Hit, shadow: bool) -> bool {
+        let mesh = self.ids.get(hit.mesh as usize).copied().unwrap_or(hit.mesh);
+        self.filter.accept(&Hit { mesh, ..*hit }, shadow)
+    }
+}
+
 /// Which library answers the ray queries (pbrt's `Accelerator` directive, `--accel`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum AccelKind {
@@ -109,6 +146,8 @@ pub struct Accel {
     /// Per mesh, its curve (empty when no mesh has one): the BVH slots of a curve mesh hold its
     /// pieces (`tris` holds each piece's box as a degenerate triangle; `refs.tri` is the piece).
     curves: Vec<Option<Arc<Curves>>>,
+    /// The moving groups (their slots' `TriRef` is `{ mesh: MOVER, tri: index here }`).
+    movers: Vec<MoverAccel>,
     pub build_seconds: f64,
 }
 
@@ -120,6 +159,7 @@ struct Query {
     d: Vec3,
     /// World ray parameter × `to_bvh` + [`BACKUP`] = BVH ray parameter.
     to_bvh: f32,
+    time: f32,
 }
 
 /// Per-ray constants of the watertight test.
@@ -218,9 +258,37 @@ impl Accel {
     /// Meshes with an `alpha` or `shadowalpha` cut-out are asked about through the filter
     /// given to [`set_filter`](Self::set_filter) (until then, every hit counts).
     pub fn build_with(meshes: &[TriangleMesh], kind: AccelKind) -> Accel {
+        Self::build_moving(meshes, kind, &[])
+    }
+
+    /// [`build_with`](Self::build_with) where the meshes of `movers` move (their entries in
+    /// `meshes` are not used): Embree is not given them (the caller asks for the BVH).
+    pub fn build_moving(meshes: &[TriangleMesh], kind: AccelKind, movers: &[Mover]) -> Accel {
         let start = std::time::Instant::now();
+        let mut moving = vec![false; meshes.len()];
+        for &i in movers.iter().flat_map(|m| &m.meshes) {
+            if let Some(b) = moving.get_mut(i as usize) {
+                *b = true;
+            }
+        }
         let mut bounds = Bounds3::EMPTY;
-        for m in meshes {
+        let mut mover_boxes = Vec::new();
+        for m in movers {
+            let inner = Accel::build(&m.object);
+            let b = inner.bounds();
+            let (lo, hi) = if b.is_empty() {
+                (Vec3::NAN, Vec3::NAN)
+            } else {
+                let (lo, hi) = m.transform.motion_bounds(b.min.as_dvec3(), b.max.as_dvec3());
+                (lo.as_vec3(), hi.as_vec3())
+            };
+            if lo.is_finite() && hi.is_finite() {
+                bounds.extend(lo);
+                bounds.extend(hi);
+            }
+            mover_boxes.push((lo, hi, MoverAccel { transform: m.transform.clone(), inner, ids: m.meshes.clone() }));
+        }
+        for m in meshes.iter().zip(&moving).filter(|(_, &mv)| !mv).map(|(m, _)| m) {
             for p in &m.positions {
                 if p.is_finite() {
                     bounds.extend(*p);
@@ -242,6 +310,9 @@ impl Accel {
         let mut tris = Vec::new();
         let mut refs = Vec::new();
         for (mi, m) in meshes.iter().enumerate() {
+            if moving[mi] {
+                continue;
+            }
             for (ti, idx) in m.indices.iter().enumerate() {
                 let v = idx.map(|i| m.positions.get(i as usize).copied().unwrap_or(Vec3::NAN));
                 if v.iter().any(|p| !p.is_finite()) || (v[1] - v[0]).cross(v[2] - v[0]) == Vec3::ZERO {
@@ -262,9 +333,18 @@ impl Accel {
                 }
             }
         }
-        // Embree gets triangles only: a scene with curves is the BVH's (the caller warns).
+        let mut mover_accels = Vec::with_capacity(mover_boxes.len());
+        for (i, (lo, hi, ma)) in mover_boxes.into_iter().enumerate() {
+            if lo.is_finite() && hi.is_finite() {
+                tris.push(Tri([lo, hi, hi].map(|p| Vec3A::from(p * scale))));
+                refs.push(TriRef { mesh: MOVER, tri: i as u32 });
+            }
+            mover_accels.push(ma);
+        }
+        // Embree gets static triangles only: a scene with curves or moving shapes is the
+        // BVH's (the caller warns).
         #[cfg(feature = "embree")]
-        if kind == AccelKind::Embree && !has_curves {
+        if kind == AccelKind::Embree && !has_curves && mover_accels.is_empty() {
             // Opaque triangles first, then the cut-out ones: Embree gets them as two geometries,
             // the second with the alpha test as its filter.
             let mut order: Vec<usize> = (0..tris.len()).collect();
@@ -285,6 +365,7 @@ impl Accel {
                     cutout,
                     filter: None,
                     curves,
+                    movers: mover_accels,
                     build_seconds: start.elapsed().as_secs_f64(),
                 };
             }
@@ -309,8 +390,51 @@ impl Accel {
             cutout,
             filter: None,
             curves,
+            movers: mover_accels,
             build_seconds: start.elapsed().as_secs_f64(),
         }
+    }
+
+    /// [`hit_slot`](Self::hit_slot) with the mesh and triangle hit: for a mover's slot, its
+    /// object-space hierarchy's answer to the ray at its time (with `shadow`, whether anything
+    /// of it blocks the ray, at a `t` just short of `t_max`).
+    #[inline(always)]
+    fn hit_slot_ref(&self, slot: usize, q: &Query, t_max: f32, shadow: bool) -> Option<(f32, [f32; 3], TriRef)> {
+        if !self.movers.is_empty() {
+            let r = self.refs[slot];
+            if r.mesh == MOVER {
+                return self.hit_mover(r.tri as usize, q, t_max, shadow);
+            }
+        }
+        let (t, b) = self.hit_slot(slot, q, t_max, shadow)?;
+        Some((t, b, self.refs[slot]))
+    }
+
+    /// pbrt-v3's `TransformedPrimitive::Intersect`/`IntersectP`: the world ray taken into the
+    /// mover's space by the inverse of its transform at the ray's time (the ray parameter
+    /// is the same in both spaces).
+    #[cold]
+    fn hit_mover(&self, i: usize, q: &Query, t_max: f32, shadow: bool) -> Option<(f32, [f32; 3], TriRef)> {
+        let m = self.movers.get(i)?;
+        let object_from_world = m.transform.at(q.time).inverse();
+        let o = object_from_world.transform_point3(q.o.as_dvec3()).as_vec3();
+        let d = object_from_world.transform_vector3(q.d.as_dvec3()).as_vec3();
+        let ray = Ray { o, d, t_max: (t_max - BACKUP) / q.to_bvh, time: q.time };
+        if shadow {
+            return m.inner.occluded(&ray).then(|| (next_float_down(t_max), [0.0; 3], TriRef { mesh: MOVER, tri: 0 }));
+        }
+        let h = m.inner.intersect(&ray)?;
+        let t = h.t * q.to_bvh + BACKUP;
+        let mesh = *m.ids.get(h.mesh as usize)?;
+        (t < t_max).then_some((t, h.b, TriRef { mesh, tri: h.tri }))
+    }
+
+    /// The number of moving groups ([`Mover`]) in the hierarchy, each one slot of it.
+    pub fn mover_count(&self) -> usize {
+        if self.movers.is_empty() {
+            return 0;
+        }
+        self.refs.iter().filter(|r| r.mesh == MOVER).count()
     }
 
     /// Whether candidate slot `slot` is hit before `t_max` (BVH parameter): the BVH parameter
@@ -339,6 +463,11 @@ impl Accel {
 
     /// The alpha test of the cut-out meshes (see [`HitFilter`]).
     pub fn set_filter(&mut self, filter: std::sync::Arc<dyn HitFilter>) {
+        for m in &mut self.movers {
+            let mapped = MappedFilter { filter: filter.clone(), ids: m.ids.clone() };
+            m.inner.cutout = m.ids.iter().map(|&i| self.cutout.get(i as usize).copied().unwrap_or(false)).collect();
+            m.inner.set_filter(Arc::new(mapped));
+        }
         self.filter = Some(filter);
     }
 
@@ -394,7 +523,7 @@ impl Accel {
         let o = Vec3A::from(ray.o * self.scale) - dn * BACKUP;
         // A parameter along the world ray maps to (t * len * scale) + BACKUP along the BVH ray.
         let t_max = if ray.t_max.is_finite() { ray.t_max * len * self.scale + BACKUP } else { f32::INFINITY };
-        let q = Query { pre: RayPrecomp::new(o, dn), o: ray.o, d: ray.d, to_bvh: len * self.scale };
+        let q = Query { pre: RayPrecomp::new(o, dn), o: ray.o, d: ray.d, to_bvh: len * self.scale, time: ray.time };
         Some((obvhs::ray::Ray::new(o, dn, 0.0, t_max), q))
     }
 
@@ -413,15 +542,16 @@ impl Accel {
         }
         let (bray, q) = self.prepare(ray)?;
         if !traversable(bray.direction) {
-            let (slot, t, b) = self.traverse_exact(&bray, &q, false)?;
-            let r = self.refs[slot as usize];
+            let (r, t, b) = self.traverse_exact(&bray, &q, false)?;
             return Some(Hit { t: (t - BACKUP) / q.to_bvh, mesh: r.mesh, tri: r.tri, b });
         }
         let mut hit = RayHit::none();
         let mut best_b = [0.0f32; 3];
-        let found = self.bvh.ray_traverse(bray, &mut hit, |r, id| match self.hit_slot(id, &q, r.tmax, false) {
-            Some((t, b)) => {
+        let mut best_r = TriRef { mesh: 0, tri: 0 };
+        let found = self.bvh.ray_traverse(bray, &mut hit, |r, id| match self.hit_slot_ref(id, &q, r.tmax, false) {
+            Some((t, b, tr)) => {
                 best_b = b;
+                best_r = tr;
                 t
             }
             None => f32::INFINITY,
@@ -429,8 +559,7 @@ impl Accel {
         if !found {
             return None;
         }
-        let r = self.refs[hit.primitive_id as usize];
-        Some(Hit { t: (hit.t - BACKUP) / q.to_bvh, mesh: r.mesh, tri: r.tri, b: best_b })
+        Some(Hit { t: (hit.t - BACKUP) / q.to_bvh, mesh: best_r.mesh, tri: best_r.tri, b: best_b })
     }
 
     /// The triangles (BVH slots) that rays of a bundle sharing one origin — a pixel's camera
@@ -509,13 +638,12 @@ impl Accel {
             if slot as usize >= self.tris.len() {
                 continue;
             }
-            if let Some((t, b)) = self.hit_slot(slot as usize, &q, t_max, false) {
+            if let Some((t, b, r)) = self.hit_slot_ref(slot as usize, &q, t_max, false) {
                 t_max = t;
-                best = Some((slot, b));
+                best = Some((r, b));
             }
         }
-        let (slot, b) = best?;
-        let r = self.refs[slot as usize];
+        let (r, b) = best?;
         Some(Hit { t: (t_max - BACKUP) / q.to_bvh, mesh: r.mesh, tri: r.tri, b })
     }
 
@@ -526,9 +654,9 @@ impl Accel {
     /// end (from a sphere's centre along its equator, along an axis-aligned box's face) left
     /// the box of the triangle it was to hit and missed. Here a zero component's slab is the
     /// whole line when the origin lies within the box's range (inclusive) and empty otherwise;
-    /// the far slab distance is widened by pbrt-v3's 1 + 2γ(3). Returns the BVH slot, the
+    /// the far slab distance is widened by pbrt-v3's 1 + 2γ(3). Returns the triangle hit, the
     /// BVH-space `t` and the barycentrics.
-    fn traverse_exact(&self, bray: &obvhs::ray::Ray, q: &Query, any: bool) -> Option<(u32, f32, [f32; 3])> {
+    fn traverse_exact(&self, bray: &obvhs::ray::Ray, q: &Query, any: bool) -> Option<(TriRef, f32, [f32; 3])> {
         let (o, d) = (bray.origin, bray.direction);
         let widen = 1.0 + 2.0 * gamma(3);
         let mut t_max = bray.tmax;
@@ -562,9 +690,9 @@ impl Accel {
                         if slot as usize >= self.tris.len() {
                             continue;
                         }
-                        if let Some((t, bary)) = self.hit_slot(slot as usize, q, t_max, any) {
+                        if let Some((t, bary, r)) = self.hit_slot_ref(slot as usize, q, t_max, any) {
                             t_max = t;
-                            best = Some((slot, t, bary));
+                            best = Some((r, t, bary));
                             if any {
                                 return best;
                             }
@@ -590,7 +718,9 @@ impl Accel {
         if !traversable(bray.direction) {
             return self.traverse_exact(&bray, &q, true).is_some();
         }
-        !self.bvh.ray_traverse_miss(bray, |r, id| self.hit_slot(id, &q, r.tmax, true).map_or(f32::INFINITY, |h| h.0))
+        !self
+            .bvh
+            .ray_traverse_miss(bray, |r, id| self.hit_slot_ref(id, &q, r.tmax, true).map_or(f32::INFINITY, |h| h.0))
     }
 }
 

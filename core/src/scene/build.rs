@@ -3,7 +3,7 @@
 
 use super::cutout::{self, CutoutTest};
 use super::{BuildOptions, BuildReport, Crop, Requirements, Scene};
-use crate::accel::{Accel, AccelKind};
+use crate::accel::{Accel, AccelKind, Mover};
 use crate::camera::Camera;
 use crate::film::FilmSpec;
 use crate::filter::create_filter;
@@ -12,11 +12,12 @@ use crate::interaction::SceneObject;
 use crate::light::Lights;
 use crate::material::Materials;
 use crate::mesh::{EdgeAdjacency, TriangleMesh};
+use crate::motion::MovingTransform;
 use crate::sampler::{create_sampler, Sampler};
-use crate::shapes::{build_shape, ShapeContext, Tessellation, TriangleBudget};
+use crate::shapes::{build_shape_moving, ShapeContext, Tessellation, TriangleBudget};
 use crate::texture::Textures;
 use glam::IVec2;
-use penumbra_parser::{DiagSink, Diagnostic, SceneDescription, ShapeDesc};
+use penumbra_parser::{AnimatedTransform, DiagSink, Diagnostic, SceneDescription, ShapeDesc};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -43,7 +44,7 @@ impl Scene {
         warn_media(desc, warnings);
 
         let t1 = Instant::now();
-        let (meshes, objects) = shapes(desc, warnings)?;
+        let Shapes { meshes, objects, movers } = shapes(desc, warnings)?;
         let ntris: usize = meshes.iter().map(|m| m.triangle_count()).sum();
         report.stages.push((
             "shapes".into(),
@@ -55,6 +56,20 @@ impl Scene {
         for m in &meshes {
             for p in &m.positions {
                 bounds.extend(*p);
+            }
+        }
+        // A moving shape's whole motion (lights sized by the scene's bounds reach it anywhere).
+        for m in &movers {
+            for o in &m.object {
+                let mut b = Bounds3::EMPTY;
+                o.positions.iter().for_each(|p| b.extend(*p));
+                if !b.is_empty() {
+                    let (lo, hi) = m.transform.motion_bounds(b.min.as_dvec3(), b.max.as_dvec3());
+                    if lo.is_finite() && hi.is_finite() {
+                        bounds.extend(lo.as_vec3());
+                        bounds.extend(hi.as_vec3());
+                    }
+                }
             }
         }
         // Textures: those of the cut-outs (every query tests them) and, when asked, the
@@ -88,17 +103,32 @@ impl Scene {
                 );
                 kind = AccelKind::Bvh;
             }
-            let mut a = Accel::build_with(&meshes, kind);
+            if kind == AccelKind::Embree && !movers.is_empty() {
+                let o = &objects[movers[0].meshes[0] as usize];
+                warnings.warn(
+                    Some(desc.accelerator.loc.clone()),
+                    format!(
+                        "Accelerator \"embree\": shape \"{}\" at {} moves (animated transform), which penumbra gives \
+                         Embree no geometry for: using \"bvh\"",
+                        o.kind, o.loc
+                    ),
+                );
+                kind = AccelKind::Bvh;
+            }
+            let mut a = Accel::build_moving(&meshes, kind, &movers);
             if let Some(test) = textures.as_ref().and_then(|t| CutoutTest::new(&meshes, t.clone())) {
                 a.set_filter(Arc::new(test));
             }
             let by = if a.kind() == AccelKind::Embree { " (Embree)" } else { "" };
-            let pieces = a.curve_piece_count();
-            let what = if pieces > 0 {
-                format!("{} triangles, {pieces} curve pieces{by}", a.triangle_count() - pieces)
-            } else {
-                format!("{} triangles{by}", a.triangle_count())
-            };
+            let (pieces, moving) = (a.curve_piece_count(), a.mover_count());
+            let mut what = format!("{} triangles", a.triangle_count() - pieces - moving);
+            if pieces > 0 {
+                what += &format!(", {pieces} curve pieces");
+            }
+            if moving > 0 {
+                what += &format!(", {moving} moving shapes (each a hierarchy of its own)");
+            }
+            what += by;
             report.stages.push(("bvh".into(), a.build_seconds, what));
             Some(a)
         } else {
@@ -129,6 +159,8 @@ impl Scene {
             integrator: desc.integrator.clone(),
             report,
             prepared: None,
+            mover_lookup: mover_lookup(&movers),
+            movers,
         })
     }
 }
@@ -264,39 +296,94 @@ fn warn_media(desc: &SceneDescription, warnings: &DiagSink) {
 }
 
 /// Every shape directive, then every shape of every object instance (with the instance's
-/// transform), as world-space meshes with one [`SceneObject`] each.
-fn shapes(desc: &SceneDescription, warnings: &DiagSink) -> Result<(Vec<TriangleMesh>, Vec<SceneObject>), Diagnostic> {
+/// transform), as world-space meshes with one [`SceneObject`] each; the meshes of shapes that
+/// move (their own or their instance's transform animated) are at their start transforms and
+/// are also listed as [`Mover`]s: one per shape directive, one per animated instance (as
+/// pbrt-v3 makes one `TransformedPrimitive` of each).
+fn shapes(desc: &SceneDescription, warnings: &DiagSink) -> Result<Shapes, Diagnostic> {
     let mut ctx = ShapeContext::for_scene(desc, warnings, Tessellation::default());
     ctx.budget = TriangleBudget::from_env().map_err(|e| Diagnostic::error(None, e))?;
-    let mut meshes = Vec::new();
-    let mut objects = Vec::new();
+    let mut out = Shapes::default();
+    let fixed = AnimatedTransform::default();
     for s in &desc.shapes {
-        add_shape(s, None, &ctx, &mut meshes, &mut objects)?;
+        out.add(s, None, &fixed, &s.render_from_object, &ctx)?;
         warnings.extend(s.entity.params.report_unused(&format!("shape \"{}\"", s.entity.kind)));
     }
     for (ii, inst) in desc.instances.iter().enumerate() {
         let Some(def) = desc.instance_definitions.get(inst.definition) else { continue };
-        for s in &def.shapes {
-            let mut s = s.clone();
+        let moving_instance = inst.render_from_instance.is_animated();
+        let first_mover = out.movers.len();
+        for own in &def.shapes {
+            let mut s = own.clone();
             s.render_from_object.start = inst.render_from_instance.start.compose(&s.render_from_object.start);
             s.render_from_object.end = inst.render_from_instance.end.compose(&s.render_from_object.end);
-            add_shape(&s, Some(ii), &ctx, &mut meshes, &mut objects)?;
+            out.add(&s, Some(ii), &inst.render_from_instance, &own.render_from_object, &ctx)?;
+        }
+        // An animated instance moves as one: its shapes' movers merge into one hierarchy.
+        if moving_instance && out.movers.len() > first_mover + 1 {
+            let mut merged = out.movers.split_off(first_mover);
+            let mut one = merged.remove(0);
+            let same = merged.iter().all(|m| m.transform == one.transform);
+            if same {
+                for m in merged {
+                    one.meshes.extend(m.meshes);
+                    one.object.extend(m.object);
+                }
+                out.movers.push(one);
+            } else {
+                out.movers.push(one);
+                out.movers.extend(merged);
+            }
         }
     }
-    Ok((meshes, objects))
+    Ok(out)
 }
 
-/// One shape's mesh and object (nothing for a shape that tessellates to no triangles).
-fn add_shape(
-    s: &ShapeDesc,
-    instance: Option<usize>,
-    ctx: &ShapeContext,
-    meshes: &mut Vec<TriangleMesh>,
-    objects: &mut Vec<SceneObject>,
-) -> Result<(), Diagnostic> {
-    if let Some(mesh) = build_shape(s, ctx)? {
-        meshes.push(mesh);
-        objects.push(SceneObject {
+#[derive(Default)]
+struct Shapes {
+    meshes: Vec<TriangleMesh>,
+    objects: Vec<SceneObject>,
+    movers: Vec<Mover>,
+}
+
+impl Shapes {
+    /// One shape's mesh and object (nothing for a shape that tessellates to no triangles).
+    /// (The parser has dropped the area light of a moving shape, with pbrt-v3's warning.)
+    /// `s.render_from_object` is world from object (the instance's transform composed in);
+    /// `outer` is the instance's transform (identity for a shape directive) and `own` the
+    /// shape's, so that the shape moves by `outer(t) · own(t)`.
+    fn add(
+        &mut self,
+        s: &ShapeDesc,
+        instance: Option<usize>,
+        outer: &AnimatedTransform,
+        own: &AnimatedTransform,
+        ctx: &ShapeContext,
+    ) -> Result<(), Diagnostic> {
+        let Some((mesh, object)) = build_shape_moving(s, ctx)? else { return Ok(()) };
+        if let Some(object) = object {
+            let transform = MovingTransform::new(outer, own);
+            match transform {
+                Some(transform) => {
+                    let mut o = mesh.clone();
+                    o.positions = object.positions;
+                    o.normals = object.normals;
+                    o.tangents = object.tangents;
+                    o.quadric = None;
+                    self.movers.push(Mover { transform, meshes: vec![self.meshes.len() as u32], object: vec![o] });
+                }
+                None => ctx.warnings.warn(
+                    Some(s.entity.loc.clone()),
+                    format!(
+                        "shape \"{}\": animated transform with a singular keyframe or TransformTimes end <= start: no \
+                         motion (using its start transform)",
+                        s.entity.kind
+                    ),
+                ),
+            }
+        }
+        self.meshes.push(mesh);
+        self.objects.push(SceneObject {
             kind: s.entity.kind.clone(),
             loc: s.entity.loc.clone(),
             material: s.material,
@@ -304,8 +391,19 @@ fn add_shape(
             instance,
             occluder: s.entity.params.get_one_bool("occluder", true),
         });
+        Ok(())
     }
-    Ok(())
+}
+
+/// [`Scene::mover_lookup`] of `movers`.
+fn mover_lookup(movers: &[Mover]) -> Vec<(u32, u32, u32)> {
+    let mut v: Vec<(u32, u32, u32)> = movers
+        .iter()
+        .enumerate()
+        .flat_map(|(i, m)| m.meshes.iter().enumerate().map(move |(k, &mesh)| (mesh, i as u32, k as u32)))
+        .collect();
+    v.sort_unstable();
+    v
 }
 
 /// Every mesh's edge adjacency (timed into `report`).
@@ -422,5 +520,33 @@ mod tests {
             }
             assert!(hits > 500 && shadowed < hits / 2, "{path}: {hits} hits, {shadowed} shadowed");
         }
+    }
+
+    /// A scene with moving shapes asks Embree in vain: the BVH answers (it alone holds moving
+    /// groups), with a warning naming the moving shape; both give the same camera-ray hits.
+    #[test]
+    fn embree_with_moving_shapes_falls_back_to_the_bvh() {
+        let (bvh, _) = scene("scenes/real/shape-motion.pbrt", "bvh");
+        let (other, w) = scene("scenes/real/shape-motion.pbrt", "embree");
+        assert_eq!(other.accel.as_ref().unwrap().kind(), AccelKind::Bvh);
+        assert!(!other.movers.is_empty() && other.uses_time());
+        let messages: Vec<String> = w.take().into_iter().map(|d| d.message).collect();
+        let expected = if AccelKind::EMBREE_AVAILABLE { "shape \"sphere\" at" } else { "built without Embree" };
+        assert!(messages.iter().any(|m| m.contains(expected)), "{messages:?}");
+        let mut hits = 0;
+        for y in 0..48 {
+            for x in 0..48 {
+                let s = CameraSample {
+                    p_film: Vec2::new(x as f32 + 0.5, y as f32 + 0.5),
+                    p_lens: Vec2::ZERO,
+                    time: (x + 48 * y) as f32 / 2304.0,
+                };
+                let ray = bvh.camera.generate_ray(&s);
+                let (a, b) = (bvh.intersect(&ray), other.intersect(&ray));
+                assert_eq!(a, b);
+                hits += a.is_some() as usize;
+            }
+        }
+        assert!(hits > 1000, "{hits}");
     }
 }

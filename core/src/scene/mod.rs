@@ -1,7 +1,7 @@
 //! The renderable scene, built from a `SceneDescription` according to what
 //! the chosen integrator says it needs ([`Requirements`]).
 
-use crate::accel::{Accel, Hit};
+use crate::accel::{Accel, Hit, Mover};
 use crate::bxdf::Bsdf;
 use crate::camera::Camera;
 use crate::film::FilmSpec;
@@ -133,7 +133,16 @@ pub struct Scene {
     /// ([`Integrator::prepare`](crate::integrator::Integrator::prepare)), kept with the scene
     /// so that every render of it shares one build; read with [`Scene::prepared`].
     pub prepared: Option<Arc<dyn Any + Send + Sync>>,
+    /// The shapes that move (their meshes in `meshes` are at their start transforms; ray
+    /// queries and hits take them where they are at the ray's time).
+    pub movers: Vec<Mover>,
+    /// `(mesh, mover, place in the mover)` of every moving mesh, sorted by mesh.
+    pub(crate) mover_lookup: Vec<(u32, u32, u32)>,
 }
+
+/// What [`Scene::non_polygonal_occluder`] says of a moving shape.
+pub const MOVING: &str =
+    "moves (animated transform: its ray queries follow it through the shutter; one outline cannot)";
 
 /// A ray bundle with more candidate triangles than this is traversed ray by ray: testing each
 /// candidate would cost more than a traversal.
@@ -266,13 +275,23 @@ impl Scene {
     /// represent, and why: an alpha cut-out ([`cutout_occluder`](Self::cutout_occluder)) or a
     /// `curve` (intersected analytically: it has no triangles to outline).
     pub fn non_polygonal_occluder(&self) -> Option<(&SceneObject, &'static str)> {
-        self.cutout_occluder().map(|o| (o, "has an \"alpha\"/\"shadowalpha\" cut-out")).or_else(|| {
-            self.meshes
-                .iter()
-                .zip(&self.objects)
-                .find(|(m, o)| o.occluder && m.curves.is_some())
-                .map(|(_, o)| (o, "is a curve (intersected as pbrt-v3 does, with no triangles to outline)"))
-        })
+        self.cutout_occluder()
+            .map(|o| (o, "has an \"alpha\"/\"shadowalpha\" cut-out"))
+            .or_else(|| {
+                self.meshes
+                    .iter()
+                    .zip(&self.objects)
+                    .find(|(m, o)| o.occluder && m.curves.is_some())
+                    .map(|(_, o)| (o, "is a curve (intersected as pbrt-v3 does, with no triangles to outline)"))
+            })
+            .or_else(|| self.moving_occluder().map(|o| (o, MOVING)))
+    }
+
+    /// The first occluding object that moves (an animated transform of its own or of its
+    /// instance): ray queries find it where it is at each ray's time, but visibility built
+    /// from the meshes' outlines has one position for every sample.
+    pub fn moving_occluder(&self) -> Option<&SceneObject> {
+        self.movers.iter().flat_map(|m| &m.meshes).filter_map(|&i| self.objects.get(i as usize)).find(|o| o.occluder)
     }
 
     /// The BSSRDF under `si`, whose BSDF (built with `opts`) is `bsdf`; `None` when its material
@@ -315,10 +334,89 @@ impl Scene {
     /// samples of a pixel that mostly see one triangle. The differentials are left zero (see
     /// [`SurfaceInteraction::compute_differentials`]).
     pub fn interaction_after(&self, ray: &Ray, hit: &Hit, prev: Option<&SurfaceInteraction>) -> SurfaceInteraction {
+        if !self.movers.is_empty() {
+            if let Some(si) = self.moving_interaction(ray, hit) {
+                return si;
+            }
+        }
         let mesh = &self.meshes[hit.mesh as usize];
         if let Some(c) = &mesh.curves {
             return curve_interaction(c, ray, hit);
         }
+        mesh_interaction(mesh, ray, hit, prev)
+    }
+
+    /// Whether camera rays need a time: the camera or a shape moves.
+    pub fn uses_time(&self) -> bool {
+        self.camera.uses_time() || !self.movers.is_empty()
+    }
+
+    /// The moving shape (index into [`movers`](Self::movers)) and its mesh's place in it, of
+    /// scene mesh `mesh`.
+    pub fn mover_of(&self, mesh: u32) -> Option<(usize, usize)> {
+        let i = self.mover_lookup.binary_search_by_key(&mesh, |e| e.0).ok()?;
+        let (_, m, k) = self.mover_lookup[i];
+        Some((m as usize, k as usize))
+    }
+
+    /// The interaction at a hit on a moving shape (pbrt-v3's `TransformedPrimitive`: the
+    /// object-space hit moved by the transform at the ray's time): the triangle's vertices,
+    /// normals and tangents at that time, with the error bound of the transform added.
+    /// `None` when the mesh does not move.
+    fn moving_interaction(&self, ray: &Ray, hit: &Hit) -> Option<SurfaceInteraction> {
+        let (i, k) = self.mover_of(hit.mesh)?;
+        let mover = &self.movers[i];
+        let obj = mover.object.get(k)?;
+        let tri = hit.tri as usize;
+        let idx = *obj.indices.get(tri)?;
+        let m = mover.transform.at(ray.time);
+        let lin = glam::DMat3::from_mat4(m);
+        let normal_m = lin.inverse().transpose();
+        let pv = idx.map(|v| obj.positions[v as usize]);
+        let at = |p: Vec3| m.transform_point3(p.as_dvec3()).as_vec3();
+        let normals = obj
+            .normals
+            .as_ref()
+            .map(|ns| idx.map(|v| (normal_m * ns[v as usize].as_dvec3()).normalize_or_zero().as_vec3()).to_vec());
+        let tangents =
+            obj.tangents.as_ref().map(|ts| idx.map(|v| (lin * ts[v as usize].as_dvec3()).as_vec3()).to_vec());
+        let moved = TriangleMesh {
+            positions: pv.map(at).to_vec(),
+            indices: vec![[0, 1, 2]],
+            normals,
+            uvs: Some(obj.default_uvs(tri).to_vec()),
+            tangents,
+            flip_normals: obj.flip_normals,
+            reverse_orientation: obj.reverse_orientation,
+            winding_reversed: obj.winding_reversed,
+            normal_rule: obj.normal_rule,
+            analytic_ng: obj.analytic_ng,
+            ..Default::default()
+        };
+        let mut si = mesh_interaction(&moved, ray, &Hit { tri: 0, ..*hit }, None);
+        si.tri = hit.tri;
+        // pbrt-v3's `Transform` of an interaction's error: the object-space point's bound
+        // carried through the transform, plus the rounding of the transform itself.
+        let b = hit.b;
+        let p_obj = interpolate(pv, b).as_dvec3();
+        let abs_obj = (pv[0].abs() * b[0].abs() + pv[1].abs() * b[1].abs() + pv[2].abs() * b[2].abs()).as_dvec3();
+        let abs_lin = glam::DMat3::from_cols(lin.x_axis.abs(), lin.y_axis.abs(), lin.z_axis.abs());
+        let err = abs_lin * (abs_obj * gamma(7) as f64)
+            + (abs_lin * p_obj.abs() + m.w_axis.truncate().abs()) * gamma(3) as f64;
+        si.p_error += err.as_vec3();
+        Some(si)
+    }
+}
+
+/// The surface geometry at a hit on a triangle of `mesh`, as pbrt-v3's `Triangle::Intersect`
+/// computes it (see [`Scene::interaction_after`]).
+fn mesh_interaction(
+    mesh: &TriangleMesh,
+    ray: &Ray,
+    hit: &Hit,
+    prev: Option<&SurfaceInteraction>,
+) -> SurfaceInteraction {
+    {
         let tri = hit.tri as usize;
         let pv = mesh.vertices(tri);
         let b = hit.b;
@@ -330,7 +428,7 @@ impl Scene {
         let wo = -ray.d.normalize_or_zero();
         let flat = mesh.normals.is_none() && mesh.tangents.is_none();
         if let Some(q) = prev.filter(|q| q.mesh == hit.mesh && q.tri == hit.tri && flat) {
-            return SurfaceInteraction { p, p_error, uv, wo, diff: Differentials::default(), ..*q };
+            return SurfaceInteraction { p, p_error, uv, wo, diff: Differentials::default(), time: ray.time, ..*q };
         }
         let duv02 = uvv[0] - uvv[2];
         let duv12 = uvv[1] - uvv[2];
@@ -372,6 +470,7 @@ impl Scene {
             tri: hit.tri,
             wall: Vec3::ZERO,
             surface: Vec3::ZERO,
+            time: ray.time,
         };
         if flat {
             return base;
@@ -451,6 +550,7 @@ fn curve_interaction(c: &crate::mesh::curve::Curves, ray: &Ray, hit: &Hit) -> Su
         tri: hit.tri,
         wall: Vec3::ZERO,
         surface: Vec3::ZERO,
+        time: ray.time,
     }
 }
 

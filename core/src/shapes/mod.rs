@@ -152,8 +152,31 @@ impl<'a> ShapeContext<'a> {
 ///
 /// `Ok(None)`: the shape was skipped and a warning explaining why was pushed to
 /// `ctx.warnings`. `Err`: the shape's data is malformed (located at the offending
-/// parameter when possible). Never panics.
+/// parameter when possible). Never panics. A shape under an animated transform is built at
+/// its start transform (see [`build_shape_moving`] for its object-space geometry).
 pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<TriangleMesh>, Diagnostic> {
+    if desc.render_from_object.is_animated() && desc.entity.kind != "curve" {
+        warn_animated(desc, ctx);
+    }
+    Ok(build_shape_moving(desc, ctx)?.map(|(m, _)| m))
+}
+
+/// A moving shape's vertices in its own space (pbrt-v3 builds an animated shape with the
+/// identity transform and moves it as a whole): the mesh's vertex arrays, in the same order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ObjectSpace {
+    pub positions: Vec<Vec3>,
+    pub normals: Option<Vec<Vec3>>,
+    pub tangents: Option<Vec<Vec3>>,
+}
+
+/// [`build_shape`], with the object-space vertices when the shape's transform is animated
+/// (then the caller moves it, and no warning is given; a `curve` is not moved: it stays at
+/// its start transform, with a warning).
+pub fn build_shape_moving(
+    desc: &ShapeDesc,
+    ctx: &ShapeContext,
+) -> Result<Option<(TriangleMesh, Option<ObjectSpace>)>, Diagnostic> {
     let kind = desc.entity.kind.as_str();
     let obj = match kind {
         "trianglemesh" => trianglemesh::build(desc, ctx)?,
@@ -164,10 +187,14 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
         "nurbs" => nurbs::build(desc, ctx)?,
         "curve" => {
             let mesh = curve::build(desc, ctx)?;
-            if mesh.is_some() {
-                warn_animated(desc, ctx);
+            if mesh.is_some() && desc.render_from_object.is_animated() {
+                ctx.warnings.warn(
+                    Some(desc.entity.loc.clone()),
+                    "shape \"curve\" has an animated transform, which penumbra does not move curves by; using its \
+                     start transform",
+                );
             }
-            return Ok(mesh);
+            return Ok(mesh.map(|m| (m, None)));
         }
         _ => {
             desc.entity.params.mark_all_used();
@@ -184,22 +211,41 @@ pub fn build_shape(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<Triang
         ctx.warnings.warn(Some(desc.entity.loc.clone()), format!("shape \"{kind}\" has no triangles; skipped"));
         return Ok(None);
     }
-    warn_animated(desc, ctx);
+    let object = desc.render_from_object.is_animated().then(|| object_space(&obj));
     let mut mesh = finish(obj, desc)?;
     if matches!(kind, "sphere" | "disk" | "cylinder" | "cone" | "paraboloid" | "hyperboloid") {
         mesh.normal_rule = NormalRule::Quadric;
         mesh.analytic_ng = kind == "hyperboloid";
     }
-    Ok(Some(mesh))
+    Ok(Some((mesh, object)))
+}
+
+/// The vertex arrays of `obj` as [`finish`] makes them, with the identity transform.
+fn object_space(obj: &ObjMesh) -> ObjectSpace {
+    let to_vec = |v: &[f64; 3]| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32);
+    let unit = |v: &[f64; 3]| {
+        let w = to_vec(v).normalize_or_zero();
+        if w.is_finite() {
+            w
+        } else {
+            Vec3::ZERO
+        }
+    };
+    ObjectSpace {
+        positions: obj.p.iter().map(to_vec).collect(),
+        normals: obj.n.as_ref().map(|ns| ns.iter().map(unit).collect()),
+        tangents: obj
+            .s
+            .as_ref()
+            .map(|ss| ss.iter().map(to_vec).map(|v| if v.is_finite() { v } else { Vec3::ZERO }).collect()),
+    }
 }
 
 fn warn_animated(desc: &ShapeDesc, ctx: &ShapeContext) {
-    if desc.render_from_object.is_animated() {
-        ctx.warnings.warn(
-            Some(desc.entity.loc.clone()),
-            format!("shape \"{}\" has an animated transform; using its start transform", desc.entity.kind),
-        );
-    }
+    ctx.warnings.warn(
+        Some(desc.entity.loc.clone()),
+        format!("shape \"{}\" has an animated transform; using its start transform", desc.entity.kind),
+    );
 }
 
 /// Object-space mesh data before transformation.

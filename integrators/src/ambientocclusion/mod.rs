@@ -128,7 +128,7 @@ impl PixelEstimator for Estimator<'_> {
                 }
                 let wi = frame.from_local(w);
                 let mut r = match self.ao.fixed_epsilon {
-                    Some(eps) => Ray::new(si.p + n * eps, wi, f32::INFINITY),
+                    Some(eps) => Ray::new(si.p + n * eps, wi, f32::INFINITY).at_time(si.time),
                     None => si.spawn_ray(wi),
                 };
                 r.t_max = self.ao.max_distance;

@@ -92,7 +92,8 @@ pub fn refuse_cutouts(
         None => Ok(()),
         Some((o, why)) => Err(penumbra_core::integrator::RenderError::Failed(format!(
             "{}: shape \"{}\" {why}, which {integrator}'s {visibility} cannot represent: render the scene with \
-             directlighting, path or ambientocclusion (whose ray queries honour cut-outs and intersect curves), or \
+             directlighting, path or ambientocclusion (whose ray queries honour cut-outs, intersect curves and \
+             follow moving shapes), or \
              give the shape \"bool occluder\" false to leave it out of {integrator}'s visibility",
             o.loc, o.kind
         ))),

@@ -199,6 +199,8 @@ pub struct Shading {
     frame: Frame,
     /// The diffuse albedo (only with `"bool sh"`).
     albedo: Rgb,
+    /// The camera ray's time (brute-force rays see moving shapes where it saw them).
+    time: f32,
 }
 
 /// One camera sample of pass 1: where it lands on the film, the seed of its brute-force rays,
@@ -250,7 +252,7 @@ fn open_square(u: Vec2) -> Vec2 {
 
 /// The camera sample of pixel `p` as `render_pixels` draws it.
 fn camera_sample(scene: &Scene, sampler: &mut dyn Sampler, p: IVec2) -> CameraSample {
-    draw_camera_sample(sampler, p, scene.camera.uses_time(), scene.camera.uses_lens())
+    draw_camera_sample(sampler, p, scene.uses_time(), scene.camera.uses_lens())
 }
 
 impl ShearedAo {
@@ -303,6 +305,7 @@ impl ShearedAo {
                 n,
                 frame,
                 albedo: if self.sh.is_some() { crate::common::diffuse_albedo(scene, &si) } else { Rgb::ZERO },
+                time: si.time,
             });
         }
         None
@@ -352,7 +355,8 @@ impl ShearedAo {
                             offset_ray_origin(at.p, at.p_error, at.n, wi),
                             wi,
                             self.filter.max_distance as f32,
-                        );
+                        )
+                        .at_time(at.time);
                         rays.occlusion += 1;
                         if !scene.occluded(&r) {
                             unoccluded += 1;
