@@ -18,7 +18,10 @@
 //! equations, a node survives when the hyperplane can touch its padded box, and every
 //! surviving edge is decided by the exact predicate of [`super::orient`], so
 //! [`DualEdges::contours`] returns exactly [`DualEdges::contours_brute_force`]'s set
-//! (property-tested). Nodes also keep the primal box of their edges: a node wholly behind the
+//! (property-tested). A node's offsets are taken from the centre of its primal box, and the
+//! tree splits space first and normals only where the node is small against its mesh
+//! ([`NORMAL_WEIGHT`]): on two 66k-triangle killeroos that examines 2.8 edges per contour
+//! instead of 8.1. Nodes also keep the primal box of their edges: a node wholly behind the
 //! shading point's tangent plane is skipped, and so is every edge with both ends behind it.
 //!
 //! Geometry is translated to its centre and scaled by a power of two to an extent of about 1
@@ -31,6 +34,14 @@ use penumbra_core::mesh::TriangleMesh;
 
 /// Edges per leaf.
 const LEAF: usize = 4;
+/// The split's weight of the normals' extents, times the extent of the mesh the node's edges
+/// come from (a length: a node's dual test spans about `Δn·|p − c|` plus its offsets, and
+/// shading points see contours at distances of about the mesh's size). Measured on
+/// killeroo-simple (two 66k-triangle killeroos, floor, wall) and on the killeroos alone: 0.1
+/// gives 17.7k nodes / 16.5k edges examined per point (was 37.5k / 48.1k with the unweighted
+/// dual split) and 9.8k / 7.7k (was 37.1k / 29.4k); 0.2–0.3 are within 5 % on the first
+/// and 13–25 % worse on the second, 0 (a purely primal split) 40 % worse on the first.
+const NORMAL_WEIGHT: f64 = 0.1;
 /// Rounding bound, relative to the sum of the magnitudes of its terms, of a dot product of up
 /// to 4 terms (γ₄ ≈ 4ε, doubled): every slack of the hierarchy's filters is this times the
 /// magnitudes involved, so none is an absolute length and the filters are scale-free.
@@ -95,7 +106,7 @@ struct BuildNode {
 }
 
 /// A node of the hierarchy: the dual box (components 0–2 the planes' normals, 3 their
-/// offsets, padded by the rounding bound) and the primal box of its edges, in f32 rounded
+/// offsets from the centre of the node's primal box, `g₃ + n·c`, padded by the rounding bound) and the primal box of its edges, in f32 rounded
 /// outwards — the bounds only filter, so a looser box is safe — making a node one 64-byte
 /// cache line instead of 120 bytes.
 #[derive(Clone, Copy, Debug, Default)]
@@ -139,13 +150,12 @@ impl BuildNode {
     }
 }
 
-/// A query's constants for the node tests: per axis which bound gives the minimum of the
-/// dual dot product and which corner is farthest along the normal, and slacks bounding the
-/// rounding of both tests for every node (from the root's bounds: conservative for all).
+/// A query's constants for the node tests: per axis which corner is farthest along the
+/// normal, and slacks bounding the rounding of both tests for every node (from bounds over
+/// all nodes: conservative for each).
 struct NodeQuery {
     p: DVec3,
     n: DVec3,
-    p_pos: [bool; 3],
     n_pos: [bool; 3],
     /// Rounding slack of the dual test.
     slack: f64,
@@ -154,23 +164,15 @@ struct NodeQuery {
 }
 
 impl NodeQuery {
-    fn new(p: DVec3, n: DVec3, tol: f64, root: &Node) -> NodeQuery {
+    fn new(p: DVec3, n: DVec3, tol: f64, root: &Node, dmax: f64, cmax: f64) -> NodeQuery {
         let f = |a: [f32; 3]| DVec3::new(a[0] as f64, a[1] as f64, a[2] as f64);
         let (plo, phi) = (f(root.plo), f(root.phi));
-        // |terms| of the dual dot product: the offset, and normals of length ≤ 1 (+ the f32
-        // rounding) times |p_k|.
-        let g3 = (root.lo[3] as f64).abs().max((root.hi[3] as f64).abs());
-        let slack = DOT_ROUNDING * (g3 + 1.001 * (p.x.abs() + p.y.abs() + p.z.abs()));
+        // |terms| of the dual dot product: the node's offset (≤ dmax) and normals of length ≤ 1
+        // (+ the f32 rounding) times |p_k − c_k| ≤ |p_k| + |c_k|.
+        let slack = DOT_ROUNDING * (dmax + 1.001 * (p.x.abs() + p.y.abs() + p.z.abs() + cmax));
         let reach = (plo - p).abs().max((phi - p).abs());
         let margin = (tol >= 0.0).then(|| 2.0 * DOT_ROUNDING * n.abs().dot(reach));
-        NodeQuery {
-            p,
-            n,
-            p_pos: [p.x >= 0.0, p.y >= 0.0, p.z >= 0.0],
-            n_pos: [n.x > 0.0, n.y > 0.0, n.z > 0.0],
-            slack,
-            margin,
-        }
+        NodeQuery { p, n, n_pos: [n.x > 0.0, n.y > 0.0, n.z > 0.0], slack, margin }
     }
 
     /// Whether the hyperplane `x·(p, 1) = 0` can touch the node's dual box and some of its
@@ -178,8 +180,11 @@ impl NodeQuery {
     fn visits(&self, node: &Node) -> bool {
         let (mut mn, mut mx) = (node.lo[3] as f64, node.hi[3] as f64);
         for k in 0..3 {
-            let (l, h) = (node.lo[k] as f64 * self.p[k], node.hi[k] as f64 * self.p[k]);
-            let (a, b) = if self.p_pos[k] { (l, h) } else { (h, l) };
+            let q = self.p[k] - 0.5 * (node.plo[k] as f64 + node.phi[k] as f64);
+            // lo ≤ hi, and rounding is monotonic: the order of the products is q's sign
+            // (cheaper than f64::min/max, which handle NaN).
+            let (l, h) = (node.lo[k] as f64 * q, node.hi[k] as f64 * q);
+            let (a, b) = if q >= 0.0 { (l, h) } else { (h, l) };
             mn += a;
             mx += b;
         }
@@ -216,6 +221,9 @@ pub struct DualEdges {
     pub boundary_edges: usize,
     pub non_manifold_edges: usize,
     pub build_seconds: f64,
+    dmax: f64,
+    cmax: f64,
+    mesh_extent: Vec<f64>,
 }
 
 /// The signed plane `g` of triangle `(a, b, c)` seen from edge `(a, b)`, with `g·(p, 1)`
@@ -280,6 +288,8 @@ impl DualEdges {
         for (i, &w) in adj.weld.iter().enumerate() {
             pos[w as usize] = self.normalise(mesh.positions[i]);
         }
+        let ext = pos.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), p| (l.min(*p), h.max(*p)));
+        let ext = (ext.1 - ext.0).max_element().max(0.0);
         self.verts.extend_from_slice(&pos);
         // Incident triangles of every edge, as opposite welded vertices (tri_edges lists every
         // incident triangle, also past the two `Edge::tris` keeps).
@@ -301,6 +311,7 @@ impl DualEdges {
                 count: opp.len() as u32,
             });
             self.opposite.extend(opp.iter().map(|o| base + o));
+            self.mesh_extent.push(ext);
             match e.count {
                 1 => self.boundary_edges += 1,
                 2 => {}
@@ -340,7 +351,9 @@ impl DualEdges {
         while let Some((node, begin, end)) = stack.pop() {
             let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
             let (mut plo, mut phi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            let mut mext = 0.0f64;
             for (id, d, pad) in &items[begin..end] {
+                mext = mext.max(self.mesh_extent[*id as usize]);
                 for g in d {
                     for k in 0..4 {
                         lo[k] = lo[k].min(g[k]);
@@ -355,6 +368,26 @@ impl DualEdges {
                     phi = phi.max(self.verts[v as usize]);
                 }
             }
+            // The offsets relative to the node's centre `c` (of its f32 primal box, as the
+            // query computes it): g·(p, 1) = n·(p − c) + (g₃ + n·c), and the second term ranges
+            // over about the node's size, where g₃ ranged over |n|·|c| more.
+            {
+                let f32_box = |v: DVec3, r: fn(f64) -> f32| DVec3::from_array(v.to_array().map(|x| r(x) as f64));
+                let c = 0.5 * (f32_box(plo, down) + f32_box(phi, up));
+                let (mut dlo, mut dhi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for (_, d, pad) in &items[begin..end] {
+                    for g in d {
+                        let v = g[3] + g[0] * c.x + g[1] * c.y + g[2] * c.z;
+                        let err = DOT_ROUNDING * (g[3].abs() + c.abs().element_sum()) + pad;
+                        dlo = dlo.min(v - err);
+                        dhi = dhi.max(v + err);
+                    }
+                }
+                self.dmax = self.dmax.max(dlo.abs()).max(dhi.abs());
+                self.cmax = self.cmax.max(c.abs().element_sum());
+                lo[3] = dlo;
+                hi[3] = dhi;
+            }
             let n = end - begin;
             if n <= LEAF {
                 nodes[node] = BuildNode { lo, hi, plo, phi, first: self.order.len() as u32, count: n as u32 };
@@ -365,13 +398,15 @@ impl DualEdges {
                 }
                 continue;
             }
-            // Split at the median of the widest of the 4 dual and 3 primal extents (the primal
-            // ones make the tangent-plane cull effective).
+            // Split at the median of the widest of the 3 primal extents and the normals' 3
+            // extents times NORMAL_WEIGHT × the meshes' extent (the offsets are not split on:
+            // relative to the node's centre they shrink with its primal extent).
+            let wn = NORMAL_WEIGHT * mext;
             let ext: [f64; 7] = [
-                hi[0] - lo[0],
-                hi[1] - lo[1],
-                hi[2] - lo[2],
-                hi[3] - lo[3],
+                wn * (hi[0] - lo[0]),
+                wn * (hi[1] - lo[1]),
+                wn * (hi[2] - lo[2]),
+                0.0,
                 phi.x - plo.x,
                 phi.y - plo.y,
                 phi.z - plo.z,
@@ -459,7 +494,7 @@ impl DualEdges {
         if self.nodes.is_empty() {
             return QueryCost { edges: examined, nodes: 0 };
         }
-        let query = NodeQuery::new(p, n, tol, &self.nodes[0]);
+        let query = NodeQuery::new(p, n, tol, &self.nodes[0], self.dmax, self.cmax);
         let mut stack = [0u32; 128];
         let mut sp = 1;
         while sp > 0 {

@@ -127,7 +127,7 @@ impl Meridians {
     /// an azimuth range `[φ_a, φ_b)` covers the meridians `key(φ_a) .. key(φ_b)` — half-open,
     /// so a chain of edges through a shared vertex counts a meridian through it once.
     pub fn key(&self, phi: f64) -> i64 {
-        (phi / self.dphi - 0.5).ceil() as i64
+        ceil_i64(phi / self.dphi - 0.5)
     }
 
     /// `v` of the horizon of normal `n_local` (local coordinates, `n_local.z > 0`) on meridian `i`.
@@ -275,6 +275,24 @@ pub fn moment(frame: &PoleFrame, m: &Meridians, i: usize, v_a: f64, v_b: f64) ->
     (frame.e1 * m.cos[i] + frame.e2 * m.sin[i]) * s + frame.pole * (0.5 * (v_b * v_b - v_a * v_a))
 }
 
+/// `x.ceil() as i64` without the call to `ceil` it is without SSE4.1 (exact: `as` truncates
+/// towards zero and saturates, NaN gives 0 as `x.ceil() as i64` does).
+pub fn ceil_i64(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) < x {
+        t + 1
+    } else {
+        t
+    }
+}
+
+/// The distance from `x` to the nearest integer, `(x − x.round()).abs()` without the call to
+/// `round` (exact for |x| < 2^63, far beyond the azimuths it is used for).
+pub fn dist_to_integer(x: f64) -> f64 {
+    let f = (x - (x as i64) as f64).abs();
+    f.min(1.0 - f)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -420,6 +438,18 @@ mod tests {
         assert!((total - DVec3::Z * PI).length() < 1e-12, "{total}");
         let f = PoleFrame::for_normal(DVec3::new(0.1, -0.9, 0.3));
         assert_eq!((f.axis, f.sign), (1, -1.0));
+    }
+
+    #[test]
+    fn integer_helpers_equal_the_library_calls() {
+        let mut values = vec![0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, 7.0, -7.0, 1e15 + 0.5, -3.25, f64::NAN];
+        values.extend((0..2000).map(|i| (i as f64 - 1000.0) * 0.0137 + 1e-9 * i as f64));
+        for x in values {
+            assert_eq!(ceil_i64(x), x.ceil() as i64, "{x}");
+            let d = dist_to_integer(x);
+            let e = (x - x.round()).abs();
+            assert!(d == e || (d.is_nan() && e.is_nan()), "{x}: {d} {e}");
+        }
     }
 
     #[test]

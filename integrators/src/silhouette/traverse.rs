@@ -15,7 +15,7 @@
 //! duplicated edges), so no interval of zero length carries a spurious `W`.
 
 use super::dual::Contour;
-use super::param::{azimuth, azimuth_approx, Meridians, PoleFrame, AZIMUTH_ERR};
+use super::param::{azimuth, azimuth_approx, dist_to_integer, Meridians, PoleFrame, AZIMUTH_ERR};
 use glam::DVec3;
 use std::f64::consts::{PI, TAU};
 
@@ -79,7 +79,7 @@ fn end_azimuths(la: DVec3, lb: DVec3, m: &Meridians) -> Option<(f64, f64)> {
     let e = 2.0 * AZIMUTH_ERR;
     let clear = |phi: f64| {
         let u = phi / m.dphi - 0.5;
-        (u - u.round()).abs() * m.dphi > e && phi > e && phi < TAU - e
+        dist_to_integer(u) * m.dphi > e && phi > e && phi < TAU - e
     };
     let d = (pb - pa).abs();
     if clear(pa) && clear(pb) && d > 2.0 * e && (d - PI).abs() > 2.0 * e {
