@@ -297,7 +297,7 @@ impl ShearedAo {
                 cached.push(CachedRay { d, t, n_hit });
             }
             return Some(Shading {
-                point: CachePoint::new(pd, n.as_dvec3(), footprint, cached),
+                point: CachePoint::new(pd, n.as_dvec3(), footprint, &cached),
                 p: si.p,
                 p_error: si.p_error,
                 n,

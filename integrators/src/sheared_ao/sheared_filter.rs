@@ -20,8 +20,9 @@ pub struct CachedRay {
     pub n_hit: DVec3,
 }
 
-/// A shading point of pass 1 with its occlusion rays, and the terms of its rays that every
-/// receiver it lends them to would otherwise recompute ([`CachePoint::new`]).
+/// A shading point of pass 1 with its occlusion rays, kept as the terms of its rays that every
+/// receiver it lends them to would otherwise recompute ([`CachePoint::new`]; no more memory than
+/// the rays themselves, 56 bytes each, when half of them escape).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CachePoint {
     pub p: DVec3,
@@ -29,7 +30,6 @@ pub struct CachePoint {
     pub n: DVec3,
     /// World size of one pixel at `p` (the paper's shading diameter).
     pub footprint: f64,
-    pub rays: Vec<CachedRay>,
     /// The rays that hit something, with their receiver-independent terms.
     hits: Vec<HitTerms>,
     /// The directions of the rays that escaped.
@@ -51,7 +51,7 @@ struct HitTerms {
 impl CachePoint {
     /// The cache point of `rays` from `p` (normal `n`), with the rays' receiver-independent
     /// terms.
-    pub fn new(p: DVec3, n: DVec3, footprint: f64, rays: Vec<CachedRay>) -> Self {
+    pub fn new(p: DVec3, n: DVec3, footprint: f64, rays: &[CachedRay]) -> Self {
         let hits = rays
             .iter()
             .filter(|r| r.t.is_finite())
@@ -62,7 +62,7 @@ impl CachePoint {
             })
             .collect();
         let misses = rays.iter().filter(|r| !r.t.is_finite()).map(|r| r.d).collect();
-        CachePoint { p, n, footprint, rays, hits, misses }
+        CachePoint { p, n, footprint, hits, misses }
     }
 }
 

@@ -10,6 +10,11 @@ fn plane_frame() -> Frame<DVec3> {
 /// A plane z = 0 of cache points on a `k × k` grid of spacing `h` around the origin, each with
 /// `rays` cosine-distributed directions; `hit(o, d)` gives the hit distance (∞: a miss).
 fn plane_cache(k: i32, h: f64, rays: usize, hit: impl Fn(DVec3, DVec3) -> f64) -> Vec<CachePoint> {
+    plane_rays(k, h, rays, hit).into_iter().map(|(p, rays)| CachePoint::new(p, DVec3::Z, h, &rays)).collect()
+}
+
+/// [`plane_cache`]'s points and rays.
+fn plane_rays(k: i32, h: f64, rays: usize, hit: impl Fn(DVec3, DVec3) -> f64) -> Vec<(DVec3, Vec<CachedRay>)> {
     let mut rng = Rng::new(7);
     let mut out = Vec::new();
     for j in -k..=k {
@@ -22,7 +27,7 @@ fn plane_cache(k: i32, h: f64, rays: usize, hit: impl Fn(DVec3, DVec3) -> f64) -
                     CachedRay { d, t: hit(p, d), n_hit: DVec3::Z }
                 })
                 .collect();
-            out.push(CachePoint::new(p, DVec3::Z, h, rays));
+            out.push((p, rays));
         }
     }
     out
@@ -90,16 +95,17 @@ fn disk_hit(rho: f64, h: f64) -> impl Fn(DVec3, DVec3) -> f64 {
 fn plane_under_a_disk_matches_the_closed_form() {
     let (rho, h) = (1.0, 1.0);
     // A 33×33 window of spacing 0.02 (±0.16): the disk is at one depth per direction cone.
-    let cache = plane_cache(8, 0.02, 64, disk_hit(rho, h));
+    let cache = plane_rays(8, 0.02, 64, disk_hit(rho, h));
     let (mut s, mut out) = (Scratch::default(), Vec::new());
     // Measured (64 rays per point): 1.5720 / 1.7777 / 2.2832 against 1.5708 / 1.7656 / 2.2733.
     for a in [0.0, 0.5, 1.0] {
         let p = DVec3::new(a, 0.0, 0.0);
         let shifted: Vec<CachePoint> = cache
             .iter()
-            .map(|q| {
-                let rays = q.rays.iter().map(|r| CachedRay { t: disk_hit(rho, h)(q.p + p, r.d), ..*r }).collect();
-                CachePoint::new(q.p + p, q.n, q.footprint, rays)
+            .map(|(q, rays)| {
+                let rays: Vec<CachedRay> =
+                    rays.iter().map(|r| CachedRay { t: disk_hit(rho, h)(*q + p, r.d), ..*r }).collect();
+                CachePoint::new(*q + p, DVec3::Z, 0.02, &rays)
             })
             .collect();
         let recv = Receiver { p, frame: plane_frame(), footprint: 0.02 };
@@ -179,7 +185,7 @@ fn precomputed_jacobian_matches_occluded_jacobian() {
         }
         let t = 0.05 + unit().x;
         let r = CachedRay { d, t, n_hit: m };
-        let cp = CachePoint::new(q, n_q, 0.01, vec![r]);
+        let cp = CachePoint::new(q, n_q, 0.01, &[r]);
         let ht = cp.hits[0];
         let u = ht.h - recv;
         let z2 = u.length_squared();
