@@ -299,7 +299,7 @@ impl ShearedAo {
                 cached.push(CachedRay { d, t, n_hit });
             }
             return Some(Shading {
-                point: CachePoint { p: pd, n: n.as_dvec3(), footprint, rays: cached },
+                point: CachePoint::new(pd, n.as_dvec3(), footprint, &cached),
                 p: si.p,
                 p_error: si.p_error,
                 n,

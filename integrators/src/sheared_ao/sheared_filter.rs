@@ -20,7 +20,9 @@ pub struct CachedRay {
     pub n_hit: DVec3,
 }
 
-/// A shading point of pass 1 with its occlusion rays.
+/// A shading point of pass 1 with its occlusion rays, kept as the terms of its rays that every
+/// receiver it lends them to would otherwise recompute ([`CachePoint::new`]; no more memory than
+/// the rays themselves, 56 bytes each, when half of them escape).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CachePoint {
     pub p: DVec3,
@@ -28,7 +30,40 @@ pub struct CachePoint {
     pub n: DVec3,
     /// World size of one pixel at `p` (the paper's shading diameter).
     pub footprint: f64,
-    pub rays: Vec<CachedRay>,
+    /// The rays that hit something, with their receiver-independent terms.
+    hits: Vec<HitTerms>,
+    /// The directions of the rays that escaped.
+    misses: Vec<DVec3>,
+}
+
+/// What a receiver needs of an occluded cached ray, computed once per cache point: its hit
+/// point and direction (world), the hit's normal `m` and the receiver-independent factor of the
+/// warp's Jacobian ([`occluded_jacobian`]), `k = t² / (cos_q |m·d|)` (0 when `cos_q ≤ 0`: the
+/// weight is 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct HitTerms {
+    h: DVec3,
+    d: DVec3,
+    m: DVec3,
+    k: f64,
+}
+
+impl CachePoint {
+    /// The cache point of `rays` from `p` (normal `n`), with the rays' receiver-independent
+    /// terms.
+    pub fn new(p: DVec3, n: DVec3, footprint: f64, rays: &[CachedRay]) -> Self {
+        let hits = rays
+            .iter()
+            .filter(|r| r.t.is_finite())
+            .map(|r| {
+                let cos_q = r.d.dot(n);
+                let k = if cos_q > 0.0 { r.t * r.t / (cos_q * r.n_hit.dot(r.d).abs()) } else { 0.0 };
+                HitTerms { h: p + r.t * r.d, d: r.d, m: r.n_hit, k }
+            })
+            .collect();
+        let misses = rays.iter().filter(|r| !r.t.is_finite()).map(|r| r.d).collect();
+        CachePoint { p, n, footprint, hits, misses }
+    }
 }
 
 /// The receiver: a cache point with its tangent frame (z = `n`), in which cells are laid.
@@ -269,22 +304,24 @@ struct Bounds {
     mid: f64,
 }
 
-/// [`Visit::cell`] of a ray that escaped, or whose hit lies beyond `maxdistance`.
-const MISS: u32 = u32::MAX;
-/// [`Visit::cell`] of a ray whose hit is on or behind the receiver's tangent plane: it lends
-/// nothing.
-const BEHIND: u32 = u32::MAX - 1;
-
-/// What loop 1 found about one neighbour ray, kept for loop 2 (computed once): its direction
-/// `d` in the receiver's frame and, when its hit is in front of the receiver, the effective
-/// direction `v` from the receiver to the hit (local), its distance and its cell (else
-/// [`MISS`] or [`BEHIND`]).
+/// An occluded neighbour ray whose hit lies in front of the receiver and within `maxdistance`,
+/// as loop 2 needs it (loop 1 computed it once): the cell of the direction from the receiver to
+/// the hit, the squared tangent offset `|x|²` of the sheared filter (the sample ray meets the
+/// plane through the receiver perpendicular to that direction `v` at distance
+/// `|x| = z √(1/(v·d)² − 1)`, `z` the hit's distance) and the ray's Jacobian weight.
 #[derive(Clone, Copy, Debug)]
-struct Visit {
-    d: DVec3,
-    v: DVec3,
-    len: f64,
+struct HitVisit {
     cell: u32,
+    x2: f64,
+    j: f64,
+}
+
+/// A neighbour ray that escaped, or whose hit lies beyond `maxdistance`: its direction in the
+/// receiver's frame and the index of its point in [`Scratch::offsets`].
+#[derive(Clone, Copy, Debug)]
+struct MissVisit {
+    d: DVec3,
+    point: u32,
 }
 
 /// A neighbour point's offset from the receiver (local) and its squared length.
@@ -302,8 +339,10 @@ pub struct Scratch {
     wv: Vec<f64>,
     /// The cells' central directions (local).
     centers: Vec<DVec3>,
-    /// Per neighbour ray, in the neighbours' order: what loop 1 found.
-    visits: Vec<Visit>,
+    /// What loop 1 found about the occluded neighbour rays that lend something.
+    hits: Vec<HitVisit>,
+    /// The unoccluded neighbour rays, warped in loop 2.
+    misses: Vec<MissVisit>,
     /// Per neighbour point.
     offsets: Vec<Offset>,
 }
@@ -317,15 +356,23 @@ pub struct Scratch {
 /// targets are not on a real surface, and directions to the sky at infinity have the same
 /// density from every neighbour of a flat neighbourhood.
 pub fn occluded_jacobian(r: &CachedRay, n_q: DVec3, n_p: DVec3, v: DVec3, dist_p: f64) -> f64 {
-    jacobian(v.dot(n_p), r.d.dot(n_q), r.n_hit.dot(v), r.n_hit.dot(r.d), r.t, dist_p)
+    let (cos_p, cos_q, m_v, m_d) = (v.dot(n_p), r.d.dot(n_q), r.n_hit.dot(v), r.n_hit.dot(r.d));
+    let j = cos_p / cos_q * m_v.abs() * r.t * r.t / (m_d.abs() * dist_p * dist_p);
+    if j.is_finite() && cos_q > 0.0 {
+        j.clamp(0.0, JACOBIAN_CAP)
+    } else {
+        0.0
+    }
 }
 
-/// [`occluded_jacobian`] from its dot products (any frame): `cos_p = v·n_p`, `cos_q = d·n_q`,
-/// `m_v = m·v`, `m_d = m·d`, the neighbour's hit distance `t` and the receiver's `dist_p`.
+/// [`occluded_jacobian`] as [`filter_receiver`] computes it, from the ray's
+/// receiver-independent factor `k = t² / (cos_q |m·d|)` ([`HitTerms`]) and, with `u` the
+/// vector from the receiver to the hit and `z² = |u|²`: `cos_p = u_z / z`, `|m·v| = |m·u| / z`,
+/// so the weight is `u_z |m·u| k / z⁴` (no square root, one division).
 #[inline]
-fn jacobian(cos_p: f64, cos_q: f64, m_v: f64, m_d: f64, t: f64, dist_p: f64) -> f64 {
-    let j = cos_p / cos_q * m_v.abs() * t * t / (m_d.abs() * dist_p * dist_p);
-    if j.is_finite() && cos_q > 0.0 {
+fn hit_jacobian(u_z: f64, m_u: f64, k: f64, z2: f64) -> f64 {
+    let j = u_z * m_u.abs() * k / (z2 * z2);
+    if j.is_finite() {
         j.clamp(0.0, JACOBIAN_CAP)
     } else {
         0.0
@@ -344,8 +391,9 @@ pub fn same_surface(recv: &Receiver, q: &CachePoint) -> bool {
 /// Pass 2's first loop, in the receiver's frame (z = its normal): each cell's occluder depth
 /// bounds (cells binned by the direction from the receiver to the hit), whether a ray of the
 /// cell escaped, the contact test, the filter's radius (Eq. 8) and the harmonic mid depth.
-/// Records each point's offset and what it found about each ray, in order, for the second
-/// loop.
+/// Everything about an occluded ray but its kernel weight (which needs its cell's radius, known
+/// only after this loop) is computed here, once: its cell, tangent offset and Jacobian
+/// ([`HitVisit`]); escaped rays are kept with their local direction for the warp of loop 2.
 fn cell_depth_bounds<'a>(
     recv: &Receiver,
     neighbours: impl Iterator<Item = &'a CachePoint>,
@@ -354,43 +402,49 @@ fn cell_depth_bounds<'a>(
     scratch: &mut Scratch,
 ) {
     let (frame, inf) = (&recv.frame, f64::INFINITY);
-    let Scratch { bounds, visits, offsets, .. } = scratch;
-    visits.clear();
+    let Scratch { bounds, hits, misses, offsets, .. } = scratch;
+    hits.clear();
+    misses.clear();
     offsets.clear();
     for q in neighbours {
         // Points of a neighbourhood are subtracted in f64 world coordinates, then turned.
         let o = frame.to_local(q.p - recv.p);
+        let point = offsets.len() as u32;
         offsets.push(Offset { o, oo: o.length_squared() });
-        // (`extend` over a slice reserves once and writes without a capacity test per ray.)
-        visits.extend(q.rays.iter().map(|r| {
-            let d = frame.to_local(r.d);
-            let mut visit = Visit { d, v: DVec3::ZERO, len: 0.0, cell: MISS };
-            if !r.t.is_finite() {
-                return visit;
-            }
-            let u = o + r.t * d;
-            let z = u.length();
+        // (The receiver's own rays weigh exactly 1: their Jacobian is 1 up to rounding, and a
+        // weight sum a rounding below `minweight` would flip the cell to brute force.)
+        let weigh = params.jacobian && o != DVec3::ZERO;
+        for r in &q.hits {
+            let uw = r.h - recv.p;
+            let u = frame.to_local(uw);
+            let z2 = u.length_squared();
+            let z = z2.sqrt();
             if !(z <= params.max_distance) {
-                // An occluder beyond `maxdistance`: a miss (its cell is marked below).
-                return visit;
+                // An occluder beyond `maxdistance`: a miss.
+                misses.push(MissVisit { d: frame.to_local(r.d), point });
+                continue;
             }
             if !(u.z > 1e-9 * z) {
-                visit.cell = BEHIND;
-                return visit;
+                continue; // on or behind the receiver's tangent plane: it lends nothing
             }
-            let v = u / z;
-            let cell = grid.cell_of(v);
+            let cell = grid.cell_of(u / z);
             let b = &mut bounds[cell];
             b.z_min = b.z_min.min(z);
             b.z_max = b.z_max.max(z);
-            Visit { d, v, len: z, cell: cell as u32 }
-        }));
+            let vd = uw.dot(r.d) / z;
+            if !(vd > GRAZING) {
+                continue;
+            }
+            let j = if weigh { hit_jacobian(u.z, r.m.dot(uw), r.k, z2) } else { 1.0 };
+            hits.push(HitVisit { cell: cell as u32, x2: (z2 * (1.0 / (vd * vd) - 1.0)).max(0.0), j });
+        }
+        misses.extend(q.misses.iter().map(|d| MissVisit { d: frame.to_local(*d), point }));
     }
     // A cell's escaped rays matter only where it also has occluders (its radius): the
     // directions of the misses are binned only when some cell has.
     if bounds.iter().any(|b| b.z_max > 0.0) {
-        for visit in visits.iter().filter(|v| v.cell == MISS) {
-            bounds[grid.cell_of(visit.d)].miss = true;
+        for m in misses.iter() {
+            bounds[grid.cell_of(m.d)].miss = true;
         }
     }
     let contact = 2.0 * params.omega_v * recv.footprint;
@@ -423,12 +477,20 @@ struct WarpCtx<'a> {
     centers: &'a [DVec3],
 }
 
+/// Where [`warp_unoccluded`] puts an unoccluded neighbour ray.
+enum Warped {
+    /// [`Warp::Cell`] in a cell without occluders: its own direction, unwarped, weight 1 in
+    /// this cell.
+    Unwarped(usize),
+    /// Its effective direction from the receiver `v` (local), the squared distance to its
+    /// target and the cell of `v`.
+    To(DVec3, f64, usize),
+}
+
 /// The effective direction from the receiver (local) of an unoccluded neighbour ray of local
-/// direction `d` from offset `o`, and the cell it weighs in (`None`: it lends nothing), or with
-/// [`Warp::Cell`] in a cell without occluders, its own direction unwarped with weight 1
-/// (`Some((d, c, true))`).
+/// direction `d` from offset `o` ([`Warped`]; `None`: it lends nothing).
 #[inline]
-fn warp_unoccluded(d: DVec3, off: &Offset, cx: &WarpCtx) -> Option<(DVec3, usize, bool)> {
+fn warp_unoccluded(d: DVec3, off: &Offset, cx: &WarpCtx) -> Option<Warped> {
     let o = off.o;
     let target = if cx.params.warp == Warp::Sphere {
         if !cx.gmid.is_finite() {
@@ -444,7 +506,7 @@ fn warp_unoccluded(d: DVec3, off: &Offset, cx: &WarpCtx) -> Option<(DVec3, usize
         if !mid.is_finite() {
             // No occluder in the ray's cell: no warp (target at infinity, v = d), infinite
             // radius: weight 1 in that cell.
-            return (d.z > GRAZING).then_some((d, c0, true));
+            return (d.z > GRAZING).then_some(Warped::Unwarped(c0));
         }
         let a = cx.centers[c0];
         let den = a.dot(d);
@@ -457,12 +519,13 @@ fn warp_unoccluded(d: DVec3, off: &Offset, cx: &WarpCtx) -> Option<(DVec3, usize
         }
         o + tau * d
     };
-    let len = target.length();
+    let len2 = target.length_squared();
+    let len = len2.sqrt();
     if !(target.z > 1e-9 * len) {
         return None;
     }
     let v = target / len;
-    Some((v, cx.grid.cell_of(v), false))
+    Some(Warped::To(v, len2, cx.grid.cell_of(v)))
 }
 
 /// Warped rays closer to grazing than this (cosine with the sample ray) are rejected.
@@ -470,8 +533,9 @@ const GRAZING: f64 = 1e-3;
 
 /// Per-cell filtered visibility at `recv` from the rays of `neighbours` (the receiver's own
 /// point included; [`same_surface`] is applied here). `out` gets `cells²` values. Computed in
-/// the receiver's frame: each neighbour's offset is subtracted in f64 world coordinates and
-/// turned once, each ray's direction turned once.
+/// the receiver's frame: each neighbour's offset and each occluded ray's hit point are
+/// subtracted in f64 world coordinates and turned once, each escaped ray's direction turned
+/// once.
 pub fn filter_receiver<'a>(
     recv: &Receiver,
     neighbours: impl Iterator<Item = &'a CachePoint> + Clone,
@@ -489,8 +553,7 @@ pub fn filter_receiver<'a>(
     if scratch.centers.len() != nc {
         scratch.centers = (0..nc).map(|c| cell_center(c, params.cells)).collect();
     }
-    let neighbours = neighbours.filter(|q| same_surface(recv, q));
-    cell_depth_bounds(recv, neighbours.clone(), params, &grid, scratch);
+    cell_depth_bounds(recv, neighbours.filter(|q| same_surface(recv, q)), params, &grid, scratch);
     // The receiver's mid depth over all cells, for `Warp::Sphere`.
     let (gmin, gmax) = scratch
         .bounds
@@ -498,63 +561,39 @@ pub fn filter_receiver<'a>(
         .filter(|b| b.z_max > 0.0)
         .fold((inf, 0.0f64), |(a, b), c| (a.min(c.z_min), b.max(c.z_max)));
     let gmid = if gmax > 0.0 { 2.0 / (1.0 / gmin + 1.0 / gmax) } else { inf };
-    // Loop 2: warp every ray to an effective ray from p, weight it, accumulate per cell.
+    // Loop 2: weight every ray in its cell (occluded rays) or warp it to an effective ray from
+    // p and weight it (unoccluded ones), accumulate per cell.
     scratch.w.clear();
     scratch.w.resize(nc, 0.0);
     scratch.wv.clear();
     scratch.wv.resize(nc, 0.0);
-    let Scratch { bounds, w: sw, wv: swv, centers, visits, offsets } = scratch;
+    let Scratch { bounds, w: sw, wv: swv, centers, hits, misses, offsets } = scratch;
+    // The kernel's weight of a squared tangent offset in cell `b` (1 at an infinite radius).
+    let weight = |b: &Bounds, x2: f64| if b.radius.is_finite() { kernel(x2 / b.radius2) } else { 1.0 };
+    for h in hits.iter() {
+        let c = h.cell as usize;
+        let b = &bounds[c];
+        if !b.brute {
+            sw[c] += weight(b, h.x2) * h.j;
+        }
+    }
     let cx = WarpCtx { params, grid, gmid, gmid2: gmid * gmid, bounds, centers };
-    let mut start = 0;
-    for (q, off) in neighbours.zip(offsets.iter()) {
-        let o = off.o;
-        let own = o == DVec3::ZERO;
-        let Some(vs) = visits.get(start..start + q.rays.len()) else { break };
-        start += q.rays.len();
-        for (r, visit) in q.rays.iter().zip(vs) {
-            let d = visit.d;
-            // (Every test that rejects a ray is a `continue`: their order does not matter, and
-            // the cheapest come first.)
-            let (v, c, visible, len) = if visit.cell < BEHIND {
-                let c = visit.cell as usize;
-                if bounds[c].brute {
+    for m in misses.iter() {
+        match warp_unoccluded(m.d, &offsets[m.point as usize], &cx) {
+            Some(Warped::Unwarped(c)) => {
+                sw[c] += 1.0;
+                swv[c] += 1.0;
+            }
+            Some(Warped::To(v, len2, c)) if !bounds[c].brute => {
+                let vd = v.dot(m.d);
+                if !(vd > GRAZING) {
                     continue;
                 }
-                (visit.v, c, 0.0, visit.len)
-            } else if visit.cell == MISS {
-                match warp_unoccluded(d, off, &cx) {
-                    Some((_, c, true)) => {
-                        sw[c] += 1.0;
-                        swv[c] += 1.0;
-                        continue;
-                    }
-                    Some((v, c, false)) if !bounds[c].brute => (v, c, 1.0, 0.0),
-                    _ => continue,
-                }
-            } else {
-                continue;
-            };
-            let vd = v.dot(d);
-            if !(vd > GRAZING) {
-                continue;
+                let w = weight(&bounds[c], (len2 * (1.0 / (vd * vd) - 1.0)).max(0.0));
+                sw[c] += w;
+                swv[c] += w;
             }
-            let b = &bounds[c];
-            let mut w = if b.radius.is_finite() {
-                // Tangent offset: the sample ray meets the plane through p perpendicular to v at
-                // p + x.
-                let x = o + (-v.dot(o) / vd) * d;
-                kernel(x.length_squared() / b.radius2)
-            } else {
-                1.0
-            };
-            // (The receiver's own rays weigh exactly 1: their Jacobian is 1 up to rounding, and a
-            // weight sum a rounding below `minweight` would flip the cell to brute force.)
-            if params.jacobian && visible == 0.0 && !own {
-                let m = recv.frame.to_local(r.n_hit);
-                w *= jacobian(v.z, r.d.dot(q.n), m.dot(v), m.dot(d), r.t, len);
-            }
-            sw[c] += w;
-            swv[c] += w * visible;
+            _ => {}
         }
     }
     out.clear();

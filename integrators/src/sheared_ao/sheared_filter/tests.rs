@@ -10,6 +10,11 @@ fn plane_frame() -> Frame<DVec3> {
 /// A plane z = 0 of cache points on a `k × k` grid of spacing `h` around the origin, each with
 /// `rays` cosine-distributed directions; `hit(o, d)` gives the hit distance (∞: a miss).
 fn plane_cache(k: i32, h: f64, rays: usize, hit: impl Fn(DVec3, DVec3) -> f64) -> Vec<CachePoint> {
+    plane_rays(k, h, rays, hit).into_iter().map(|(p, rays)| CachePoint::new(p, DVec3::Z, h, &rays)).collect()
+}
+
+/// [`plane_cache`]'s points and rays.
+fn plane_rays(k: i32, h: f64, rays: usize, hit: impl Fn(DVec3, DVec3) -> f64) -> Vec<(DVec3, Vec<CachedRay>)> {
     let mut rng = Rng::new(7);
     let mut out = Vec::new();
     for j in -k..=k {
@@ -22,7 +27,7 @@ fn plane_cache(k: i32, h: f64, rays: usize, hit: impl Fn(DVec3, DVec3) -> f64) -
                     CachedRay { d, t: hit(p, d), n_hit: DVec3::Z }
                 })
                 .collect();
-            out.push(CachePoint { p, n: DVec3::Z, footprint: h, rays });
+            out.push((p, rays));
         }
     }
     out
@@ -90,17 +95,17 @@ fn disk_hit(rho: f64, h: f64) -> impl Fn(DVec3, DVec3) -> f64 {
 fn plane_under_a_disk_matches_the_closed_form() {
     let (rho, h) = (1.0, 1.0);
     // A 33×33 window of spacing 0.02 (±0.16): the disk is at one depth per direction cone.
-    let cache = plane_cache(8, 0.02, 64, disk_hit(rho, h));
+    let cache = plane_rays(8, 0.02, 64, disk_hit(rho, h));
     let (mut s, mut out) = (Scratch::default(), Vec::new());
     // Measured (64 rays per point): 1.5720 / 1.7777 / 2.2832 against 1.5708 / 1.7656 / 2.2733.
     for a in [0.0, 0.5, 1.0] {
         let p = DVec3::new(a, 0.0, 0.0);
         let shifted: Vec<CachePoint> = cache
             .iter()
-            .map(|q| CachePoint {
-                p: q.p + p,
-                rays: q.rays.iter().map(|r| CachedRay { t: disk_hit(rho, h)(q.p + p, r.d), ..*r }).collect(),
-                ..q.clone()
+            .map(|(q, rays)| {
+                let rays: Vec<CachedRay> =
+                    rays.iter().map(|r| CachedRay { t: disk_hit(rho, h)(*q + p, r.d), ..*r }).collect();
+                CachePoint::new(*q + p, DVec3::Z, 0.02, &rays)
             })
             .collect();
         let recv = Receiver { p, frame: plane_frame(), footprint: 0.02 };
@@ -155,4 +160,45 @@ fn occluded_jacobian_through_a_parallel_plane() {
         let own = occluded_jacobian(&r, DVec3::Z, DVec3::Z, d, t);
         assert!((own - 1.0).abs() < 1e-12);
     }
+}
+
+/// The filter's Jacobian from the per-ray factor precomputed in [`CachePoint::new`]
+/// ([`hit_jacobian`]) is [`occluded_jacobian`] (to rounding), for neighbours and hits in
+/// general position, a ray leaving below the neighbour's horizon (weight 0) and a hit seen
+/// edge-on from the neighbour (capped).
+#[test]
+fn precomputed_jacobian_matches_occluded_jacobian() {
+    let mut rng = Rng::new(11);
+    let mut unit = || DVec3::new(rng.uniform_f32() as f64, rng.uniform_f32() as f64, rng.uniform_f32() as f64);
+    let (n_p, recv) = (DVec3::new(0.1, -0.05, 1.0).normalize(), DVec3::new(0.2, 0.1, -0.3));
+    let mut checked = 0;
+    for i in 0..200 {
+        let n_q = (DVec3::Z + 0.2 * (unit() - 0.5)).normalize();
+        let q = recv + 0.1 * (unit() - 0.5);
+        let mut d = (unit() - DVec3::new(0.5, 0.5, 0.0) + DVec3::new(0.0, 0.0, 0.05)).normalize();
+        let mut m = (unit() - 0.5).normalize();
+        if i == 0 {
+            d = (d - n_q * (d.dot(n_q) + 0.1)).normalize(); // below the neighbour's horizon
+        }
+        if i == 1 {
+            m = (m - d * m.dot(d)).normalize(); // m ⟂ d
+        }
+        let t = 0.05 + unit().x;
+        let r = CachedRay { d, t, n_hit: m };
+        let cp = CachePoint::new(q, n_q, 0.01, &[r]);
+        let ht = cp.hits[0];
+        let u = ht.h - recv;
+        let z2 = u.length_squared();
+        let got = hit_jacobian(u.dot(n_p), ht.m.dot(u), ht.k, z2);
+        let want = occluded_jacobian(&r, n_q, n_p, u / z2.sqrt(), z2.sqrt());
+        if i == 0 {
+            assert_eq!(want, 0.0, "below the horizon");
+        }
+        if i == 1 {
+            assert_eq!(want, JACOBIAN_CAP, "edge-on hit (|m·d| ≈ 1e-17)");
+        }
+        assert!((got - want).abs() <= 1e-12 * want.max(1.0), "case {i}: {got} vs {want}");
+        checked += (want > 0.0 && want < JACOBIAN_CAP) as usize;
+    }
+    assert!(checked > 50, "only {checked} uncapped non-zero weights");
 }
