@@ -172,6 +172,10 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
     let bar = (!args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(progress_bar);
     let progress = |done: u64, total: u64| {
         if let Some(b) = &bar {
+            // The integrator's live status (ltc/ratio: shading points in the fallback path).
+            if let Some(s) = warnings.status() {
+                b.set_message(s);
+            }
             b.set_length(total);
             b.set_position(done);
         }
@@ -245,6 +249,10 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
             r.stats.render_seconds,
             (r.stats.rays + r.stats.shadow_rays) as f64 / r.stats.render_seconds.max(1e-9) / 1e6
         );
+        // What the integrator says of the render as a whole (ltc/ratio: the fallbacks' share).
+        if let Some(s) = warnings.status() {
+            eprintln!("{s}");
+        }
     }
     ExitCode::SUCCESS
 }
@@ -319,7 +327,7 @@ fn progress_bar() -> indicatif::ProgressBar {
     let b = indicatif::ProgressBar::new(1);
     b.set_style(
         indicatif::ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} tiles (eta {eta})",
+            "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} tiles (eta {eta}) {msg}",
         )
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );

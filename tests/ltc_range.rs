@@ -103,6 +103,7 @@ fn check_cells(integrator: &str, params: &[&str], spp: u32, keep: impl Fn(usize)
             continue;
         }
         let reference = penumbra_core::image::read(&path).expect("reference");
+        let spp = if integrator == "ratio" && RATIO_SPP_256.contains(&name.as_str()) { spp.max(256) } else { spp };
         let opts = Opts {
             integrator: Some(integrator),
             params,
@@ -124,11 +125,7 @@ fn check_cells(integrator: &str, params: &[&str], spp: u32, keep: impl Fn(usize)
         if NOT_ASSERTED.contains(&name.as_str()) {
             continue;
         }
-        let block_known = KNOWN_BLOCK_FAILURES.contains(&(integrator, name.as_str()));
-        if block_known && e.block.abs() > tol.1 {
-            eprintln!("{integrator} {name}: KNOWN FAILURE (issue 43): worst block {:+.2}%", e.block * 100.0);
-        }
-        if e.mean.abs() > tol.0 || (!block_known && e.block.abs() > tol.1) {
+        if e.mean.abs() > tol.0 || e.block.abs() > tol.1 {
             failures.push(format!("{name}: mean {:+.2}%, block {:+.2}%", e.mean * 100.0, e.block * 100.0));
         }
     }
@@ -140,11 +137,14 @@ fn check_cells(integrator: &str, params: &[&str], spp: u32, keep: impl Fn(usize)
 /// the module doc): reported, not asserted.
 const NOT_ASSERTED: &[&str] = &["plastic-a0.001"];
 
-/// Known failures (issue 43), block test only (their image mean is asserted): `ratio` on
-/// `metal-r0.001` (α ≈ 0.05 copper) measured −3.71 % in the cube's darkest shadow block (3, 5)
-/// at 64 spp, mean +0.12 %; not yet known whether that is the shadow ratio's noise at a near-
-/// mirror lobe or a bias (every cell's (3, 5) block is about −1 %).
-const KNOWN_BLOCK_FAILURES: &[(&str, &str)] = &[("ratio", "metal-r0.001")];
+/// Cells whose `ratio` run takes 256 camera samples instead of 64: `metal-r0.001` (α ≈ 0.05
+/// copper) has a near-mirror reflection of the cube's shadow edge in block (3, 5), whose
+/// anti-aliasing at 64 camera samples is off by a few per cent for every integrator (measured
+/// on that block against pbrt-v3: `directlighting` 64 spp −3.29 %, 256 spp −0.21 %; `ltc` 64 spp
+/// with one coverage sample per camera sample −3.72 %; `ratio` 64 spp −3.72 % whatever its seed,
+/// `nsamples` 16 or `"shading" "sample"`, 256 spp −0.72 %, 1024 spp −0.04 %): camera sampling,
+/// not `ratio`'s estimator (it was a known failure of issue 43 until measured so).
+const RATIO_SPP_256: &[&str] = &["metal-r0.001"];
 
 /// `ltc`'s parameters in the test: 256 coverage samples (see the module doc).
 const LTC_PARAMS: &[&str] = &["coveragesamples=256"];

@@ -148,10 +148,13 @@ impl fmt::Display for Diagnostic {
     }
 }
 
-/// A thread-safe collector of warnings that keeps each distinct one once, in order.
+/// A thread-safe collector of warnings that keeps each distinct one once, in order, and the
+/// render's live status line (what a progress bar shows beside its count: e.g. how many shading
+/// points took a fallback path so far).
 #[derive(Default, Debug)]
 pub struct DiagSink {
     inner: Mutex<(Vec<Diagnostic>, HashSet<Diagnostic>)>,
+    status: Mutex<Option<String>>,
 }
 
 impl DiagSink {
@@ -185,5 +188,13 @@ impl DiagSink {
     }
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+    /// Replaces the live status line (not a warning: not kept, not deduplicated).
+    pub fn set_status(&self, s: impl Into<String>) {
+        *self.status.lock().unwrap_or_else(|e| e.into_inner()) = Some(s.into());
+    }
+    /// The live status line, if a render set one.
+    pub fn status(&self) -> Option<String> {
+        self.status.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 }

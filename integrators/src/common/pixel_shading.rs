@@ -68,7 +68,7 @@ fn ramp(x: f32, lo: f32, hi: f32) -> f32 {
 }
 
 /// A value pixel shading can blend between a cluster's shared value and a member's own.
-pub trait Blend: Copy {
+pub trait Blend: Clone {
     /// `(1 − w)·self + w·other` (`w` in [0, 1]; `other` itself at `w = 1`).
     fn blend(&self, other: &Self, w: f32) -> Self;
 }
@@ -91,14 +91,14 @@ impl<A: Blend> Blend for Option<A> {
     fn blend(&self, other: &Self, w: f32) -> Self {
         // The ends exactly (the shared value or the member's own, bit for bit).
         if w >= 1.0 {
-            return *other;
+            return other.clone();
         }
         if w <= 0.0 {
-            return *self;
+            return self.clone();
         }
         match (self, other) {
             (Some(a), Some(b)) => Some(a.blend(b, w)),
-            _ => *other,
+            _ => other.clone(),
         }
     }
 }
@@ -193,7 +193,7 @@ impl<T: Blend> SharedPixel<T> {
     /// its cluster's value. `index` is below the number of rays [`trace`](Self::trace) was
     /// given (the driver's contract for `li_shared`).
     pub fn sample(&self, index: usize) -> (&FirstSurface, Option<T>) {
-        (&self.hits[index], self.shaded[index])
+        (&self.hits[index], self.shaded[index].clone())
     }
 
     /// Sample `index` shaded by `shade` from its first surface (with its BSDF; black where it
@@ -309,9 +309,9 @@ pub fn shade_clusters<T: Blend>(
             }
         }
         for m in members() {
-            shaded[m] = match far {
-                Some((f, fv, wf)) if f == m => v.blend(&fv, wf),
-                _ if m == rep || w <= 0.0 => v,
+            shaded[m] = match &far {
+                Some((f, fv, wf)) if *f == m => v.blend(fv, *wf),
+                _ if m == rep || w <= 0.0 => v.clone(),
                 _ => v.blend(&shade_one(m), w),
             };
         }

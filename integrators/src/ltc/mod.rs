@@ -170,20 +170,14 @@ impl Estimator<'_> {
                 let transmits = lit.is_some()
                     && may_transmit(scene, si)
                     && self.shader.lobes(scene, si).is_some_and(|d| d.transmits);
-                (lit, Coverage::of(lit.is_some(), transmits), if lit.is_some() { over } else { none })
+                (lit, Coverage::of(lit.is_some(), transmits), if lit.is_some() { over } else { none.clone() })
             }
             None => match self.shader.lobes(scene, si) {
-                Some(d) => match self.shader.area_lights_budgeted(scene, si, &d, self.ltc.shadows, &mut Vec::new()) {
-                    Some(BudgetedLighting { lighting: (diffuse, specular), over }) => {
-                        (Some(d.diffuse * diffuse + specular), Coverage::of(true, d.transmits), over)
-                    }
-                    // Over the cost budget on a light without a bit: every light through
-                    // directlighting's estimator.
-                    None => {
-                        self.shader.count_over_budget();
-                        (None, Coverage::None, none)
-                    }
-                },
+                Some(d) => {
+                    let BudgetedLighting { lighting: (diffuse, specular), over } =
+                        self.shader.area_lights_budgeted(scene, si, &d, self.ltc.shadows, &mut Vec::new());
+                    (Some(d.diffuse * diffuse + specular), Coverage::of(true, d.transmits), over)
+                }
                 None => (None, Coverage::None, none),
             },
         };
@@ -199,7 +193,7 @@ impl Estimator<'_> {
             if let Some(hit) = hit.with_bsdf(scene) {
                 if rest {
                     add_other_lights(&mut l, &hit, coverage, scene, sampler, stats, &self.fallback);
-                    self.over_budget_lights(&mut l, &hit, coverage, over, scene, sampler, stats);
+                    self.over_budget_lights(&mut l, &hit, coverage, &over, scene, sampler, stats);
                 }
                 if follow && has_specular(&hit.bsdf) {
                     for kind in [BxdfFlags::REFLECTION, BxdfFlags::TRANSMISSION] {
@@ -230,7 +224,7 @@ impl Estimator<'_> {
         l: &mut Rgb,
         hit: &penumbra_core::scene::SurfaceHit,
         coverage: Coverage,
-        over: OverBudget,
+        over: &OverBudget,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -345,7 +339,7 @@ impl Integrator for LtcIntegrator {
             other_lights: scene.light_list().iter().any(|l| !matches!(l, Light::Area(_))),
             cutouts: cutout.is_some(),
         };
-        let mut stats = render_pixels(&est, scene, ctx, film)?;
+        let mut stats = est.shader.with_live_status(ctx, |ctx| render_pixels(&est, scene, ctx, film))?;
         est.shader.finish(&mut stats, ctx.warnings);
         Ok(stats)
     }

@@ -6,7 +6,7 @@
 use super::{ChainTerms, RatioSample};
 use crate::common::direct::{has_specular, specular_ray};
 use crate::common::ltc::{Ltc, LtcCoeffs};
-use crate::common::ltc_shading::{fresnel_at, AreaLighting, LtcShader};
+use crate::common::ltc_shading::{fresnel_at, BudgetedLighting, LtcShader, OverBudget};
 use crate::common::other_lights::{add_other_lights, Coverage, FallbackWarning};
 use crate::common::pixel_shading::SharedPixel;
 use glam::{DVec2, DVec3};
@@ -36,6 +36,8 @@ pub(super) struct SampleGroup {
     /// A `Light::Area` over all the group's triangles (with their area distribution).
     light: Light,
     bound: LightBound,
+    /// The shader's light group ([`LtcShader::light_groups`]; its bit in [`OverBudget`]).
+    group: usize,
 }
 
 impl SampleGroup {
@@ -45,7 +47,8 @@ impl SampleGroup {
         shader
             .light_groups()
             .iter()
-            .filter_map(|g| {
+            .enumerate()
+            .filter_map(|(group, g)| {
                 let mesh = scene.meshes.get(g.mesh)?;
                 let light = DiffuseAreaLight::over_triangles(
                     g.mesh as u32,
@@ -58,6 +61,7 @@ impl SampleGroup {
                 Some(SampleGroup {
                     light: Light::Area(light),
                     bound: LightBound { c: g.center, r: g.radius * (1.0 + 1e-6) + 1e-9 },
+                    group,
                 })
             })
             .collect()
@@ -374,7 +378,7 @@ impl Estimator<'_> {
         &self,
         ray: &RayDifferential,
         hit: &SurfaceHit,
-        area: Option<AreaLighting>,
+        area: Option<BudgetedLighting>,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -432,7 +436,7 @@ impl Estimator<'_> {
         &self,
         ray: &Ray,
         hit: &SurfaceHit,
-        area: Option<AreaLighting>,
+        area: Option<BudgetedLighting>,
         scene: &Scene,
         sampler: &mut dyn Sampler,
         stats: &mut ThreadStats,
@@ -446,14 +450,21 @@ impl Estimator<'_> {
         // Per stochastic sample index, its luminance contributions (shadowed, unshadowed) summed
         // over the lights: the noise estimate.
         let mut per_sample = vec![(0.0f32, 0.0f32); self.n as usize];
+        // The lights over the cost budget (`U` of a light of no simple shape, triangle by
+        // triangle, over `LIGHT_TRIANGLE_BUDGET` facing triangles): their stochastic shadowed
+        // estimate goes into `rest` as is (`directlighting`'s estimator with N samples), out of
+        // the ratio.
+        let mut over = OverBudget::default();
         if let Some(d) = &desc {
-            u = match area {
-                Some((diffuse, specular)) => d.diffuse * diffuse + specular,
-                // Unshadowed: never over the cost budget (which bounds occluder searches).
-                None => self.shader.area_lights(scene, si, d, false, &mut Vec::new()).unwrap_or(Rgb::ZERO),
+            let BudgetedLighting { lighting: (diffuse, specular), over: o } = match area {
+                Some(b) => b,
+                None => self.shader.area_lights_budgeted(scene, si, d, false, &mut Vec::new()),
             };
+            u = d.diffuse * diffuse + specular;
+            over = o;
         }
         let lobes = desc.as_ref().map(|d| Lobes::of(si, d));
+        let mut own = vec![(0.0f32, 0.0f32); self.n as usize];
         for g in &self.groups {
             // Always drawn, so that every light gets its own array whatever the material.
             us.clear();
@@ -462,9 +473,14 @@ impl Estimator<'_> {
                 None => us.extend((0..self.n).map(|_| sampler.get_2d())),
             }
             if let Some(lobes) = &lobes {
-                let (sk, uk) = stochastic(scene, hit, lobes, g, &us, &mut per_sample, stats);
-                s += sk;
-                un += uk;
+                if over.has(g.group) {
+                    let (sk, _) = stochastic(scene, hit, lobes, g, &us, &mut own, stats);
+                    rest += sk;
+                } else {
+                    let (sk, uk) = stochastic(scene, hit, lobes, g, &us, &mut per_sample, stats);
+                    s += sk;
+                    un += uk;
+                }
             }
         }
         let coverage = Coverage::of(desc.is_some(), desc.as_ref().is_some_and(|d| d.transmits));
@@ -524,7 +540,7 @@ fn moments(per_sample: &[(f32, f32)]) -> (f32, f32, f32) {
 }
 
 impl PixelEstimator for Estimator<'_> {
-    type Shared = SharedPixel<AreaLighting>;
+    type Shared = SharedPixel<BudgetedLighting>;
 
     fn request_samples(&self, sampler: &mut dyn Sampler) {
         for _ in &self.groups {
@@ -563,7 +579,7 @@ impl PixelEstimator for Estimator<'_> {
         scene: &Scene,
         stats: &mut ThreadStats,
     ) -> Option<Self::Shared> {
-        Some(self.shader.trace_pixel(rays, samples, scene, false, stats))
+        Some(self.shader.trace_pixel_budgeted(rays, samples, scene, false, stats))
     }
 
     fn li_shared(&self, ray: &RayDifferential, cx: SampleContext, shared: &Self::Shared, index: usize) -> Rgb {

@@ -331,7 +331,8 @@ impl Integrator for RatioIntegrator {
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         warn_infinite_lights("ratio", scene, ctx.warnings);
-        let shader = LtcShader::new(self.shading, scene, "ratio");
+        let shader = LtcShader::new(self.shading, scene, "ratio").with_unshadowed_budget();
+        shader.warn_slow_lights(scene, ctx.warnings);
         let groups = SampleGroup::of(&shader, scene);
         let est = Estimator {
             shader,
@@ -341,12 +342,13 @@ impl Integrator for RatioIntegrator {
             pixel_shading: self.pixel_shading,
             fallback: FallbackWarning::new("ratio", ctx.warnings),
         };
-        let (mut stats, (filtered, seconds)) =
+        let (mut stats, (filtered, seconds)) = est.shader.with_live_status(ctx, |ctx| {
             render_pixels_with_margin(&est, scene, ctx, film, self.margin(), |grown| {
                 let t = std::time::Instant::now();
                 let filtered = self.resolve(grown, est.n);
                 (filtered, t.elapsed().as_secs_f64())
-            })?;
+            })
+        })?;
         stats.counters.insert("denoise_seconds".into(), seconds);
         stats.counters.insert("mean_radius".into(), filtered);
         est.shader.finish(&mut stats, ctx.warnings);

@@ -25,6 +25,4 @@ mod shader;
 
 pub use fresnel::{fresnel_at, FresnelMode};
 pub use settings::{Glossy, Mode, ShaderSettings};
-pub use shader::{
-    AreaLighting, BudgetedLighting, LightGroup, LtcShader, OverBudget, BUDGET_GROUPS, LIGHT_TRIANGLE_BUDGET,
-};
+pub use shader::{AreaLighting, BudgetedLighting, LightGroup, LtcShader, OverBudget, LIGHT_TRIANGLE_BUDGET};

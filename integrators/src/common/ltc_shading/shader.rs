@@ -14,7 +14,7 @@ use glam::DVec3;
 use penumbra_core::accel::objects::ObjectBvh;
 use penumbra_core::camera::CameraSample;
 use penumbra_core::geometry::{Frame, RayDifferential};
-use penumbra_core::integrator::{RenderStats, ThreadStats};
+use penumbra_core::integrator::{RenderContext, RenderStats, ThreadStats};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::emitting_normal;
 use penumbra_core::material::LtcDescription;
@@ -31,26 +31,43 @@ pub type AreaLighting = (Rgb, Rgb);
 
 /// The lights a shading point leaves to `directlighting`'s estimator because taking them
 /// analytically would exceed the cost budget ([`LIGHT_TRIANGLE_BUDGET`]): bit `g` for the
-/// shader's light group `g` ([`LtcShader::light_groups`]; groups from [`BUDGET_GROUPS`] on have
-/// no bit, and a point that would leave one of them is shaded by the estimator whole).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct OverBudget(pub u64);
-
-/// Light groups that can be left to the estimator one by one ([`OverBudget`]'s bits).
-pub const BUDGET_GROUPS: usize = 64;
+/// shader's light group `g` ([`LtcShader::light_groups`]), for any number of groups (the first
+/// 64 inline; the others in words allocated only when one of them is over budget).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct OverBudget {
+    low: u64,
+    /// Groups 64.. (word `k` holds groups `64 (k + 1)…`); its last word is never 0, so that
+    /// equal sets compare equal.
+    more: Vec<u64>,
+}
 
 impl OverBudget {
-    pub fn is_empty(self) -> bool {
-        self.0 == 0
+    pub fn is_empty(&self) -> bool {
+        self.low == 0 && self.more.is_empty()
     }
     /// Whether group `g` is left to the estimator.
-    pub fn has(self, g: usize) -> bool {
-        g < BUDGET_GROUPS && self.0 >> g & 1 == 1
+    pub fn has(&self, g: usize) -> bool {
+        match g.checked_sub(64) {
+            None => self.low >> g & 1 == 1,
+            Some(h) => self.more.get(h / 64).is_some_and(|w| w >> (h % 64) & 1 == 1),
+        }
+    }
+    /// Leaves group `g` to the estimator.
+    pub fn insert(&mut self, g: usize) {
+        match g.checked_sub(64) {
+            None => self.low |= 1 << g,
+            Some(h) => {
+                if self.more.len() <= h / 64 {
+                    self.more.resize(h / 64 + 1, 0);
+                }
+                self.more[h / 64] |= 1 << (h % 64);
+            }
+        }
     }
 }
 
 /// [`AreaLighting`] of the lights taken analytically, and those left to the estimator.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct BudgetedLighting {
     pub lighting: AreaLighting,
     pub over: OverBudget,
@@ -62,11 +79,11 @@ pub struct BudgetedLighting {
 impl Blend for BudgetedLighting {
     fn blend(&self, other: &Self, w: f32) -> Self {
         if self.over == other.over {
-            BudgetedLighting { lighting: self.lighting.blend(&other.lighting, w), over: self.over }
+            BudgetedLighting { lighting: self.lighting.blend(&other.lighting, w), over: self.over.clone() }
         } else if w <= 0.0 {
-            *self
+            self.clone()
         } else {
-            *other
+            other.clone()
         }
     }
 }
@@ -286,6 +303,10 @@ pub struct LtcShader {
     name: &'static str,
     /// For each of the scene's lights ([`Scene::light_list`]), its group (area lights).
     light_group: Vec<Option<usize>>,
+    /// The cost bound applies without shadows too ([`Self::with_unshadowed_budget`]: `ratio`,
+    /// whose unshadowed `U` of a light of no simple shape is otherwise integrated triangle by
+    /// triangle, however many triangles face the point).
+    budget_unshadowed: bool,
 }
 
 /// What the shader counts over a render (for `stats.json`).
@@ -310,10 +331,6 @@ struct ShaderCounters {
     by_triangles_occluder: AtomicU64,
     /// Light triangles integrated one by one.
     light_triangles: AtomicU64,
-    /// Points over the cost budget on a light group without an [`OverBudget`] bit: shaded by
-    /// `directlighting`'s estimator whole (counted by the integrator through
-    /// [`LtcShader::count_over_budget`]).
-    over_budget: AtomicU64,
     /// (point, light) pairs over the cost budget ([`LIGHT_TRIANGLE_BUDGET`]), the light left to
     /// `directlighting`'s estimator, by the light's shape: convex, sphere, no simple shape.
     over_budget_convex: AtomicU64,
@@ -352,8 +369,6 @@ struct PointQuery<'s> {
     scratch: &'s mut Vec<usize>,
     /// The lights that would exceed [`LIGHT_TRIANGLE_BUDGET`]: left to the estimator.
     over: OverBudget,
-    /// One of them has no [`OverBudget`] bit: the point is not shaded analytically.
-    over_all: bool,
 }
 
 impl LtcShader {
@@ -405,36 +420,21 @@ impl LtcShader {
                 })
             })
             .collect();
-        LtcShader { settings, objects, groups, counters, name, light_group }
+        LtcShader { settings, objects, groups, counters, name, light_group, budget_unshadowed: false }
+    }
+
+    /// The cost bound ([`LIGHT_TRIANGLE_BUDGET`]) also without shadows: a light that would be
+    /// integrated triangle by triangle with more than the budget's triangles facing the point is
+    /// left to the caller's estimator there (`ratio`: its stochastic shadowed estimate of that
+    /// light, added as is).
+    pub fn with_unshadowed_budget(mut self) -> LtcShader {
+        self.budget_unshadowed = true;
+        self
     }
 
     /// Traces a pixel's camera `rays` and shades each surface they see once (with or without
-    /// `shadows`): `begin_pixel` of `ltc` and `ratio`.
-    pub fn trace_pixel(
-        &self,
-        rays: &[RayDifferential],
-        samples: &[CameraSample],
-        scene: &Scene,
-        shadows: bool,
-        stats: &mut ThreadStats,
-    ) -> SharedPixel<AreaLighting> {
-        let mut scratch = Vec::new();
-        SharedPixel::trace(
-            rays,
-            samples,
-            scene,
-            stats,
-            |p, extent| self.refine(scene, p, extent),
-            Some(|a: &AreaLighting, b: &AreaLighting| rgb_difference(a.0, b.0).max(rgb_difference(a.1, b.1))),
-            |h, _| {
-                let desc = self.lobes(scene, &h.si)?;
-                self.area_lights_split(scene, &h.si, &desc, shadows, &mut scratch)
-            },
-        )
-    }
-
-    /// [`Self::trace_pixel`] with the cost budget: each surface's analytic lighting and the
-    /// lights it leaves to `directlighting`'s estimator (`ltc`'s `begin_pixel`).
+    /// `shadows`): its analytic lighting and the lights it leaves to the estimator (the
+    /// `begin_pixel` of `ltc` and `ratio`).
     pub fn trace_pixel_budgeted(
         &self,
         rays: &[RayDifferential],
@@ -459,7 +459,7 @@ impl LtcShader {
             }),
             |h, _| {
                 let desc = self.lobes(scene, &h.si)?;
-                self.area_lights_budgeted(scene, &h.si, &desc, shadows, &mut scratch)
+                Some(self.area_lights_budgeted(scene, &h.si, &desc, shadows, &mut scratch))
             },
         )
     }
@@ -501,7 +501,6 @@ impl LtcShader {
             ("ltc_by_triangles_loops", get(&c.by_triangles_loops)),
             ("ltc_by_triangles_occluder", get(&c.by_triangles_occluder)),
             ("ltc_light_triangles", get(&c.light_triangles)),
-            ("ltc_over_budget_points", get(&c.over_budget)),
             ("ltc_over_budget_lights_convex", get(&c.over_budget_convex)),
             ("ltc_over_budget_lights_sphere", get(&c.over_budget_sphere)),
             ("ltc_over_budget_lights_triangles", get(&c.over_budget_triangles)),
@@ -529,17 +528,8 @@ impl LtcShader {
                 ),
             );
         }
-        let over = get(&c.over_budget);
-        if over > 0 {
-            warnings.warn(
-                None,
-                format!(
-                    "{}: {over} shading points would have taken a light (beyond the first {BUDGET_GROUPS} area \
-                     lights) triangle by triangle with more than {LIGHT_TRIANGLE_BUDGET} of its triangles facing \
-                     them: directlighting's estimator shaded every light there, to bound the cost",
-                    self.name
-                ),
-            );
+        if let Some(s) = self.live_status() {
+            warnings.set_status(s);
         }
         let beyond = get(&c.beyond_table);
         if beyond > 0 {
@@ -556,10 +546,39 @@ impl LtcShader {
         }
     }
 
-    /// Counts a point that [`Self::area_lights`] left to `directlighting`'s estimator (over the
-    /// cost budget): the integrator calls it once per such point it shades.
-    pub fn count_over_budget(&self) {
-        self.counters.over_budget.fetch_add(1, Ordering::Relaxed);
+    /// The render's status line so far ([`DiagSink::set_status`]: the progress bar's message and
+    /// the summary's last line): how many (point, light) pairs the cost bound left to the
+    /// estimator, against the points shaded; `None` while there are none, so that a user can
+    /// tell a render in the fallback path from one that is not (issue 42).
+    pub fn live_status(&self) -> Option<String> {
+        let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
+        let c = &self.counters;
+        let pairs: u64 = c.over_budget_groups.iter().map(get).sum();
+        if pairs == 0 {
+            return None;
+        }
+        let points = get(&c.points).max(1);
+        Some(format!(
+            "{}: cost bound: {pairs} (point, light) pairs ({:.1} % of {points} points) by the estimator",
+            self.name,
+            100.0 * pairs as f64 / points as f64
+        ))
+    }
+
+    /// Runs `render` with `ctx`'s progress reports preceded by [`Self::live_status`] into
+    /// `ctx.warnings` (the command line's progress bar shows it beside the tiles done).
+    pub fn with_live_status<R>(&self, ctx: &RenderContext, render: impl FnOnce(&RenderContext) -> R) -> R {
+        let report = |done: u64, total: u64| {
+            if let Some(s) = self.live_status() {
+                ctx.warnings.set_status(s);
+            }
+            if let Some(p) = ctx.progress {
+                p(done, total);
+            }
+        };
+        let inner =
+            RenderContext { threads: ctx.threads, cancel: ctx.cancel, progress: Some(&report), warnings: ctx.warnings };
+        render(&inner)
     }
 
     /// Zeroes the counters (a shader prepared with the scene is reused by each of its renders,
@@ -576,7 +595,6 @@ impl LtcShader {
             &c.by_triangles_loops,
             &c.by_triangles_occluder,
             &c.light_triangles,
-            &c.over_budget,
             &c.over_budget_convex,
             &c.over_budget_sphere,
             &c.over_budget_triangles,
@@ -594,6 +612,8 @@ impl LtcShader {
     pub fn light_plan(&self, scene: &Scene, g: &LightGroup) -> (String, Option<String>) {
         let n = g.tris.len();
         let shadows = self.settings.shadows;
+        // Whether the cost bound applies to a light taken triangle by triangle.
+        let budgeted = shadows || self.budget_unshadowed;
         // An occluder with a triangle inside the light's bounding sphere: it may reach into a
         // sphere light or fail a convex light's separation tests.
         let (c, r) = match &g.shape {
@@ -635,11 +655,11 @@ impl LtcShader {
             LightShape::Convex(_) => whole("convex: its outline (silhouette and boundary) as one polygon"),
             LightShape::Triangles if self.settings.mode == Mode::PerTriangle => (
                 "triangle by triangle (mode per-triangle)".into(),
-                (shadows && n > LIGHT_TRIANGLE_BUDGET).then_some(beyond),
+                (budgeted && n > LIGHT_TRIANGLE_BUDGET).then_some(beyond),
             ),
             LightShape::Triangles => (
                 "no simple shape: triangle by triangle".into(),
-                (shadows && n > LIGHT_TRIANGLE_BUDGET).then_some(beyond),
+                (budgeted && n > LIGHT_TRIANGLE_BUDGET).then_some(beyond),
             ),
         }
     }
@@ -699,46 +719,12 @@ impl LtcShader {
         m.ltc_diffuse(si, materials, tx)
     }
 
-    /// Analytic radiance reflected towards `si.wo` from all area lights, with analytic
-    /// visibility when `shadows`, else unshadowed; `None` when the point is over the cost budget
-    /// ([`LIGHT_TRIANGLE_BUDGET`]; never without shadows): `directlighting`'s estimator shades it.
-    pub fn area_lights(
-        &self,
-        scene: &Scene,
-        si: &SurfaceInteraction,
-        desc: &LtcDescription,
-        shadows: bool,
-        scratch: &mut Vec<usize>,
-    ) -> Option<Rgb> {
-        let (diffuse, specular) = self.area_lights_split(scene, si, desc, shadows, scratch)?;
-        Some(desc.diffuse * diffuse + specular)
-    }
-
-    /// [`area_lights`](Self::area_lights) as the light reaching the Lambertian lobe (to be
-    /// multiplied by the albedo: `Σ L · form factor`) and the glossy lobe's radiance; `None`
-    /// when a light is over the cost budget (never without shadows).
-    pub fn area_lights_split(
-        &self,
-        scene: &Scene,
-        si: &SurfaceInteraction,
-        desc: &LtcDescription,
-        shadows: bool,
-        scratch: &mut Vec<usize>,
-    ) -> Option<(Rgb, Rgb)> {
-        match self.area_lights_budgeted(scene, si, desc, shadows, scratch)? {
-            BudgetedLighting { lighting, over } if over.is_empty() => Some(lighting),
-            BudgetedLighting { over, .. } => {
-                // The analytic part is dropped: every light goes to the estimator.
-                self.uncount_over_budget(over);
-                None
-            }
-        }
-    }
-
-    /// [`area_lights_split`](Self::area_lights_split) of the lights within the cost budget
-    /// ([`LIGHT_TRIANGLE_BUDGET`], with shadows), and the lights over it, which the caller
-    /// shades with `directlighting`'s estimator ([`Self::light_group_of`]); `None` when one of
-    /// those has no [`OverBudget`] bit (every light to the estimator).
+    /// Analytic radiance reflected towards `si.wo` from the area lights within the cost budget
+    /// ([`LIGHT_TRIANGLE_BUDGET`]; with shadows, or without after
+    /// [`Self::with_unshadowed_budget`]), with analytic visibility when `shadows`, as the light
+    /// reaching the Lambertian lobe (to be multiplied by the albedo: `Σ L · form factor`) and the
+    /// glossy lobe's radiance; and the lights over the budget, which the caller shades with its
+    /// estimator ([`Self::light_group_of`]).
     pub fn area_lights_budgeted(
         &self,
         scene: &Scene,
@@ -746,36 +732,24 @@ impl LtcShader {
         desc: &LtcDescription,
         shadows: bool,
         scratch: &mut Vec<usize>,
-    ) -> Option<BudgetedLighting> {
+    ) -> BudgetedLighting {
         let (mut d, mut s) = (Rgb::ZERO, Rgb::ZERO);
         let facing = mesh_winding_normal(scene, si).dot(si.wo) as f64;
         let receiver = Receiver { mesh: si.mesh as usize, tri: si.tri as usize, facing };
         let Some(at) = piece_frame(si, desc) else {
-            return Some(BudgetedLighting { lighting: (d, s), over: OverBudget::default() });
+            return BudgetedLighting { lighting: (d, s), over: OverBudget::default() };
         };
-        let mut q = PointQuery { at, receiver, shadows, scratch, over: OverBudget::default(), over_all: false };
+        let mut q = PointQuery { at, receiver, shadows, scratch, over: OverBudget::default() };
         self.counters.points.fetch_add(1, Ordering::Relaxed);
         for (gi, g) in self.groups.iter().enumerate() {
             if scene.meshes.get(g.mesh).is_none() {
                 continue;
             }
             let (gd, gs) = self.area_group(scene, &mut q, gi, g);
-            if q.over_all {
-                self.uncount_over_budget(q.over);
-                return None;
-            }
             d += gd;
             s += gs;
         }
-        Some(BudgetedLighting { lighting: (d, s), over: q.over })
-    }
-
-    /// Takes back the per-light counts of `over` (the point went to the estimator whole).
-    fn uncount_over_budget(&self, over: OverBudget) {
-        for (gi, g) in self.groups.iter().enumerate().filter(|(gi, _)| over.has(*gi)) {
-            self.counters.over_budget_groups[gi].fetch_sub(1, Ordering::Relaxed);
-            self.over_budget_counter(g).fetch_sub(1, Ordering::Relaxed);
-        }
+        BudgetedLighting { lighting: (d, s), over: q.over }
     }
 
     /// The counter of (point, light) pairs over budget for `g`'s shape.
@@ -824,14 +798,13 @@ impl LtcShader {
             },
         };
         match by_triangles {
-            Some(_) if q.shadows && facing_triangles(scene, q.at.p, geom) > LIGHT_TRIANGLE_BUDGET => {
-                if gi < BUDGET_GROUPS {
-                    q.over.0 |= 1 << gi;
-                    self.counters.over_budget_groups[gi].fetch_add(1, Ordering::Relaxed);
-                    self.over_budget_counter(geom).fetch_add(1, Ordering::Relaxed);
-                } else {
-                    q.over_all = true;
-                }
+            Some(_)
+                if (q.shadows || self.budget_unshadowed)
+                    && facing_triangles(scene, q.at.p, geom) > LIGHT_TRIANGLE_BUDGET =>
+            {
+                q.over.insert(gi);
+                self.counters.over_budget_groups[gi].fetch_add(1, Ordering::Relaxed);
+                self.over_budget_counter(geom).fetch_add(1, Ordering::Relaxed);
                 return (Rgb::ZERO, Rgb::ZERO);
             }
             Some(counter) => {
