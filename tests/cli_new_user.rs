@@ -242,6 +242,33 @@ fn check_judges_a_cropped_render_on_the_pixels_of_the_whole_reference() {
     std::fs::remove_dir_all(&d).ok();
 }
 
+/// Item 9: the 219-byte scene that subdivides a tetrahedron 9 times (2^20 triangles from 4
+/// faces, 5 s and 330 MB to render before) is refused under the default budget at once, at its
+/// `nlevels`, with exit 1, naming the variable that allows it, and nothing written.
+#[test]
+fn a_few_bytes_subdivided_nine_times_are_refused_by_the_default_budget() {
+    let d = dir("amplified");
+    let text = "LookAt 0 0 5 0 0 0 0 1 0\nCamera \"perspective\"\nWorldBegin\nLightSource \"point\"\n\
+                Shape \"loopsubdiv\" \"integer nlevels\" [ 9 ] \"integer indices\" [ 0 1 2 0 3 1 0 2 3 1 3 2 ] \
+                \"point P\" [ 1 1 1 1 -1 -1 -1 1 -1 -1 -1 1 ]\nWorldEnd\n";
+    assert!(text.len() < 260, "{}", text.len());
+    std::fs::write(d.join("s.pbrt"), text).unwrap();
+    let t0 = std::time::Instant::now();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .current_dir(&d)
+        .env_remove("PENUMBRA_MAX_TRIANGLES")
+        .args(["render", "s.pbrt", "-q", "-o", "out.exr"])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(t0.elapsed().as_secs_f64() < 5.0, "{:?}", t0.elapsed());
+    assert!(err.contains("s.pbrt:5:20") && err.contains("1048576 triangles"), "{err}");
+    assert!(err.contains("PENUMBRA_MAX_TRIANGLES"), "{err}");
+    assert!(!d.join("out.exr").exists());
+    std::fs::remove_dir_all(&d).ok();
+}
+
 /// Item 9: a scene that asks for minutes of tessellation is refused at once with a located
 /// error. The scene's triangle budget (PENUMBRA_MAX_TRIANGLES, default 2^26) is charged by
 /// loopsubdiv with 4^nlevels × faces before it subdivides, and by every other shape (each object

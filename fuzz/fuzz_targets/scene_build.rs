@@ -16,10 +16,20 @@ use penumbra_parser::DiagSink;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
+/// The scene's triangle budget here (`PENUMBRA_MAX_TRIANGLES`, unless the run sets it): enough
+/// for every seed (the largest, scenes/real/sphere-lights, makes 63 022 triangles), and
+/// a bound on the time one input may take. An input over it is refused before its tessellation is
+/// made, through the same charge the command line makes.
+const FUZZ_MAX_TRIANGLES: &str = "131072";
+
 /// This process's temporary directory.
 fn dir() -> &'static PathBuf {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
+        if std::env::var_os("PENUMBRA_MAX_TRIANGLES").is_none() {
+            // Before any thread is started (this runs on the first input).
+            std::env::set_var("PENUMBRA_MAX_TRIANGLES", FUZZ_MAX_TRIANGLES);
+        }
         let d = std::env::temp_dir().join(format!("penumbra-fuzz-build-{}", std::process::id()));
         std::fs::create_dir_all(&d).expect("create the fuzz directory");
         d

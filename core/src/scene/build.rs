@@ -129,6 +129,16 @@ impl Scene {
                 what += &format!(", {moving} moving shapes (each a hierarchy of its own)");
             }
             what += by;
+            if a.duplicates > 0 {
+                warnings.warn(
+                    a.duplicates_in.and_then(|m| objects.get(m)).map(|o| o.loc.clone()),
+                    format!(
+                        "{} triangles repeat an earlier triangle of their shape (the same corners): \
+                         traced once",
+                        a.duplicates
+                    ),
+                );
+            }
             report.stages.push(("bvh".into(), a.build_seconds, what));
             Some(a)
         } else {

@@ -3,7 +3,7 @@
 use super::{loc_or_entity, ObjMesh, ShapeContext};
 use crate::parser::{Diagnostic, ShapeDesc};
 
-pub(crate) fn build(desc: &ShapeDesc, _ctx: &ShapeContext) -> Result<Option<ObjMesh>, Diagnostic> {
+pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMesh>, Diagnostic> {
     let ps = &desc.entity.params;
     let nu = ps.get_one_int("nu", -1);
     let nv = ps.get_one_int("nv", -1);
@@ -33,6 +33,7 @@ pub(crate) fn build(desc: &ShapeDesc, _ctx: &ShapeContext) -> Result<Option<ObjM
     if nu * nv > u32::MAX as usize / 2 {
         return Err(Diagnostic::error(loc_or_entity(desc, "Pz"), "heightfield: too many vertices"));
     }
+    ctx.budget.charge(2 * (nu - 1) * (nv - 1), "shape \"heightfield\"", Some(desc.entity.loc.clone()))?;
     let mut p = Vec::with_capacity(nu * nv);
     let mut uv = Vec::with_capacity(nu * nv);
     for y in 0..nv {

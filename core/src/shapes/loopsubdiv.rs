@@ -359,8 +359,9 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
     // Every level splits each triangle in four: the count is known before any work is done.
     let made = tris.len().saturating_mul(1usize.checked_shl(2 * levels).unwrap_or(usize::MAX));
     let at = if ps.get_ints("nlevels").is_some() { "nlevels" } else { "levels" };
-    ctx.budget.charge(
+    ctx.budget.charge_amplified(
         made,
+        tris.len(),
         &format!("loopsubdiv: {levels} levels of subdivision of {} triangles", tris.len()),
         loc_or_entity(desc, at),
     )?;
@@ -518,7 +519,7 @@ mod tests {
     fn the_triangle_budget_is_charged_before_subdividing() {
         let sink = DiagSink::new();
         let mut ctx = ShapeContext::new(Path::new("."), &sink);
-        ctx.budget = TriangleBudget::new(1000);
+        ctx.budget = TriangleBudget::explicit(1000);
         let t0 = std::time::Instant::now();
         let e = build_shape(&tet(12), &ctx).unwrap_err();
         // Nothing was subdivided (a 12-level build takes minutes; the refusal is immediate).
@@ -535,5 +536,32 @@ mod tests {
         }
         assert_eq!(ctx.budget.used(), 768);
         assert!(build_shape(&tet(3), &ctx).is_err());
+    }
+
+    /// Under the default budget, `nlevels` 9 of a tetrahedron (2^20 triangles from 4 faces, the
+    /// 219-byte scene of tests/cli_new_user.rs) is refused before subdividing, naming the knob;
+    /// 8 levels (2^18) are made. A budget the user sets is the only bound.
+    #[test]
+    fn the_default_budget_refuses_amplifying_a_few_faces_past_eight_levels() {
+        let sink = DiagSink::new();
+        let ctx = ShapeContext::new(Path::new("."), &sink);
+        let t0 = std::time::Instant::now();
+        let e = build_shape(&tet(9), &ctx).unwrap_err();
+        assert!(t0.elapsed().as_secs_f64() < 1.0);
+        assert!(
+            e.message.contains("1048576 triangles, 262144 per input face")
+                && e.message.contains("PENUMBRA_MAX_TRIANGLES"),
+            "{}",
+            e.message
+        );
+        assert_eq!(e.loc.as_ref().map(|l| l.line), Some(10));
+        assert_eq!(ctx.budget.used(), 0);
+        assert_eq!(build_shape(&tet(8), &ctx).unwrap().unwrap().triangle_count(), 1 << 18);
+        // Set explicitly, the budget alone decides (charged, not made, here).
+        let set = TriangleBudget::explicit(1 << 20);
+        assert!(set.charge_amplified(1 << 20, 4, "t", None).is_ok());
+        assert!(TriangleBudget::new(1 << 26).charge_amplified(1 << 20, 4, "t", None).is_err());
+        // Many faces amplified 4^8 each stay within the rule (the total budget still applies).
+        assert!(TriangleBudget::new(1 << 26).charge_amplified(1 << 22, 64, "t", None).is_ok());
     }
 }

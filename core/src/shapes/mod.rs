@@ -65,15 +65,35 @@ pub const MAX_TRIANGLES_ENV: &str = "PENUMBRA_MAX_TRIANGLES";
 /// 260-byte `loopsubdiv` with `nlevels` 9), so shapes whose tessellation grows beyond their
 /// input charge their count *before* making it, and the build stops at the first shape over
 /// the budget with an error at its location.
+///
+/// Under the default budget a shape may also not *amplify* its input beyond
+/// [`MAX_AMPLIFICATION`] triangles per input face once it makes more than [`AMPLIFIED_FLOOR`]:
+/// 2^26 triangles is about 20 GB of scene, which a 260-byte `loopsubdiv` with `nlevels` 11
+/// could ask for, and `nlevels` 9 of a tetrahedron (2^20 triangles from 4 faces) is already
+/// seconds and hundreds of megabytes from a few bytes. Setting [`MAX_TRIANGLES_ENV`] lifts
+/// that rule: the budget set is then the only bound.
 #[derive(Debug)]
 pub struct TriangleBudget {
     limit: usize,
     used: AtomicUsize,
+    /// Whether [`MAX_TRIANGLES_ENV`] set the limit (then amplification is not bounded).
+    explicit: bool,
 }
+
+/// Under the default budget, at most this many triangles per input face (`loopsubdiv`'s
+/// `nlevels` 8: every level makes four of one)…
+pub const MAX_AMPLIFICATION: usize = 1 << 16;
+/// …once a shape makes more than this many triangles (2^18, a tetrahedron at `nlevels` 8).
+pub const AMPLIFIED_FLOOR: usize = 1 << 18;
 
 impl TriangleBudget {
     pub fn new(limit: usize) -> Self {
-        TriangleBudget { limit, used: AtomicUsize::new(0) }
+        TriangleBudget { limit, used: AtomicUsize::new(0), explicit: false }
+    }
+
+    /// A budget of `limit` set by the user: only `limit` bounds what shapes make.
+    pub fn explicit(limit: usize) -> Self {
+        TriangleBudget { explicit: true, ..TriangleBudget::new(limit) }
     }
 
     /// [`MAX_TRIANGLES_ENV`] if set (a positive integer), else [`DEFAULT_MAX_TRIANGLES`].
@@ -81,7 +101,7 @@ impl TriangleBudget {
         match std::env::var(MAX_TRIANGLES_ENV) {
             Err(std::env::VarError::NotPresent) => Ok(TriangleBudget::new(DEFAULT_MAX_TRIANGLES)),
             Ok(v) => match v.trim().parse::<usize>() {
-                Ok(n) if n > 0 => Ok(TriangleBudget::new(n)),
+                Ok(n) if n > 0 => Ok(TriangleBudget::explicit(n)),
                 _ => Err(format!("{MAX_TRIANGLES_ENV}={v:?}: expected a positive number of triangles")),
             },
             Err(e) => Err(format!("{MAX_TRIANGLES_ENV}: {e}")),
@@ -95,6 +115,24 @@ impl TriangleBudget {
     /// Triangles charged so far.
     pub fn used(&self) -> usize {
         self.used.load(Ordering::Relaxed)
+    }
+
+    /// [`charge`](Self::charge)s `n` triangles that `what` is about to make from `input` faces,
+    /// after refusing, under the default budget, more than [`MAX_AMPLIFICATION`] per face
+    /// beyond [`AMPLIFIED_FLOOR`] (see the type's documentation).
+    pub fn charge_amplified(&self, n: usize, input: usize, what: &str, loc: Option<FileLoc>) -> Result<(), Diagnostic> {
+        if !self.explicit && n > AMPLIFIED_FLOOR && n / input.max(1) > MAX_AMPLIFICATION {
+            return Err(Diagnostic::error(
+                loc,
+                format!(
+                    "{what} makes {n} triangles, {} per input face: over the default triangle budget's \
+                     {MAX_AMPLIFICATION} per face beyond {AMPLIFIED_FLOOR} in all (set {MAX_TRIANGLES_ENV} \
+                     to a number of triangles to allow it)",
+                    n / input.max(1)
+                ),
+            ));
+        }
+        self.charge(n, what, loc)
     }
 
     /// Charges `n` triangles that `what` makes (or is about to make), or refuses with an error
@@ -203,8 +241,8 @@ pub fn build_shape_moving(
         }
     };
     let Some(obj) = obj else { return Ok(None) };
-    if kind != "loopsubdiv" {
-        // (loopsubdiv charged its count before subdividing.)
+    if matches!(kind, "trianglemesh" | "plymesh") {
+        // Their triangles are their input's; every other shape charged its count before making it.
         ctx.budget.charge(obj.tris.len(), &format!("shape \"{kind}\""), Some(desc.entity.loc.clone()))?;
     }
     if obj.tris.is_empty() {

@@ -119,7 +119,7 @@ fn basis(desc: &ShapeDesc, d: &str) -> Result<(usize, usize, Vec<f64>, f64, f64)
     Ok((n, order, knots, t0, t1))
 }
 
-pub(crate) fn build(desc: &ShapeDesc, _ctx: &ShapeContext) -> Result<Option<ObjMesh>, Diagnostic> {
+pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMesh>, Diagnostic> {
     let ps = &desc.entity.params;
     let (nu, uorder, uknots, u0, u1) = basis(desc, "u")?;
     let (nv, vorder, vknots, v0, v1) = basis(desc, "v")?;
@@ -140,6 +140,7 @@ pub(crate) fn build(desc: &ShapeDesc, _ctx: &ShapeContext) -> Result<Option<ObjM
     if cp.iter().any(|c| !c.is_finite() || c.w == 0.0) {
         return Err(error(desc, cp_name, "control points must be finite with a non-zero weight".into()));
     }
+    ctx.budget.charge(2 * (DICE - 1) * (DICE - 1), "shape \"nurbs\"", Some(desc.entity.loc.clone()))?;
     let bu = Basis { order: uorder, knots: &uknots, n: nu };
     let bv = Basis { order: vorder, knots: &vknots, n: nv };
     // pbrt-v3 lerps in single precision.

@@ -234,7 +234,8 @@ impl Surface {
         }
     }
 
-    fn tessellate(&self, eps: f64) -> ObjMesh {
+    /// The tessellation; `charge` is told its triangle count before any vertex is made.
+    fn tessellate(&self, eps: f64, charge: &dyn Fn(usize) -> Result<(), Diagnostic>) -> Result<ObjMesh, Diagnostic> {
         let eps = if eps.is_finite() { eps.clamp(1e-9, 1.0) } else { 1e-4 };
         let full = self.phi_max >= std::f64::consts::TAU * (1.0 - 1e-12);
         let dphi = 2.0 * (1.0 - eps / 2.0).acos();
@@ -244,6 +245,12 @@ impl Surface {
         // Rows in v: [v_lo, v_hi] bisected (depth ≤ 12) until within tolerance.
         let mut rows = vec![self.v_lo];
         self.refine(du, self.v_lo, self.v_hi, eps * self.r_ref, 0, &mut rows);
+        let per_row = |a: f64, b: f64| match (self.is_pole(a), self.is_pole(b)) {
+            (false, false) => 2 * nu,
+            (true, true) => 0,
+            _ => nu,
+        };
+        charge(rows.windows(2).map(|w| per_row(w[0], w[1])).sum())?;
         // Angles; the last column of a full revolution repeats the first bit for bit.
         let angles: Vec<(f64, f64)> = (0..=nu)
             .map(|i| if full && i == nu { (0.0f64, 1.0f64) } else { (i as f64 * du * self.phi_max).sin_cos() })
@@ -298,7 +305,7 @@ impl Surface {
         mesh.n = Some(n);
         mesh.uv = Some(uv);
         mesh.surface_n = (!sn.is_empty()).then_some(sn);
-        mesh
+        Ok(mesh)
     }
 }
 
@@ -405,6 +412,9 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
         return Ok(None);
     }
     let eps = ctx.tessellation.max_rel_error as f64;
+    // Charged before it is made: up to MAX_SEGMENTS × 4096 rows × 2 triangles from one line.
+    let charge =
+        |n: usize| ctx.budget.charge(n, &format!("shape \"{kind}\"'s tessellation"), Some(desc.entity.loc.clone()));
     let quadric = quadric.map(|q| (q, eps * r_ref));
     if let Meridian::Hyperboloid { p1, p2, a, c } = m {
         let pieces = hyperboloid_intervals(p1, p2, a, c);
@@ -445,11 +455,11 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
             // pbrt-v3 (directlighting, 48², 256 spp): worst 8×8 block +18.8 % at 1e-3, −5.3 %
             // at 1e-4, −6.7 % at 1e-5, for 4.7k, 46k and 474k triangles.
             let eps = eps / 10.0;
-            append(&mut mesh, Surface { v_lo, v_hi, r_ref, ..surf }.tessellate(eps));
+            append(&mut mesh, Surface { v_lo, v_hi, r_ref, ..surf }.tessellate(eps, &charge)?);
         }
         return Ok(Some(mesh));
     }
-    Ok(Some(ObjMesh { quadric, ..surf.tessellate(eps) }))
+    Ok(Some(ObjMesh { quadric, ..surf.tessellate(eps, &charge)? }))
 }
 
 /// Appends `b`'s vertices and triangles to `a` (both with normals and uv, as tessellated).
