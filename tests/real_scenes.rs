@@ -484,3 +484,21 @@ fn realistic_camera_with_a_lens_file_as_pbrt_v3() {
     check_with("realistic-dgauss", "path", &["maxdepth=1"]);
     check_with("realistic-dgauss", "ratio", &[]);
 }
+
+/// Subsurface in the regime of hackmad's `materials/subsurface.pbrt` (pbrt-v3's f11-15
+/// figure), where a 64×32, 64-spp comparison had read −3.46 % on the mean and −40.4 % on an
+/// 8×8 block: pbrt-v3's measured media by name at scale 1 (millimetre mean free paths in unit
+/// spheres), rough interfaces without roughness remapping, an image-textured `kdsubsurface`
+/// with mean free paths in metres, an importance-sampled environment map and a distant light,
+/// through `path` at the scene's 1024 spp (sobol). That figure did not reproduce: pbrt-v3's own
+/// 64-spp image of the hackmad scene differs from its 4096-spp one by up to 11 % in a block
+/// (fireflies from the BSSRDF probes), penumbra's 64-spp images over six seeds by −0.27 % to
+/// +0.37 % on the mean; penumbra at 1024 spp vs pbrt-v3 at 4096 spp there: mean +0.19 %
+/// (95 % CI −0.11 %, +0.50 %), worst block −2.5 %, none significant (and +0.20 % vs pbrt-v3's
+/// 800×400 render). Here, at 1024 spp on both: mean +0.04 % (95 % CI ±0.34 %), worst 8×8
+/// block −2.1 %; with Apple's "scale" at 0.5 the mean moves −3.47 % and the test fails.
+#[test]
+fn measured_subsurface_media_as_pbrt_v3() {
+    let r = check_with("subsurface-measured", "path", &[]);
+    assert!(!r.warnings.iter().any(|w| w.contains("BSSRDF")), "{:?}", r.warnings);
+}
