@@ -154,20 +154,7 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
         }
         Err(e) => return fail(e),
     }
-    if inputs.shard.is_some() && (args.variance || args.exposure != 0.0) {
-        eprintln!("warning: --variance and --exposure apply to the merged image: give them to penumbra merge (the shard keeps every sum)");
-    } else if args.variance && !has_extension(&inputs.output, "exr") {
-        eprintln!(
-            "warning: --variance: {} has no room for the variance channels (only .exr has): writing R, G, B only",
-            inputs.output.display()
-        );
-    }
-    if args.exposure != 0.0 && !has_extension(&inputs.output, "png") {
-        eprintln!(
-            "warning: --exposure applies to PNG output: {} keeps the rendered values (see penumbra convert)",
-            inputs.output.display()
-        );
-    }
+    warn_unused_output_options(&args, &inputs);
     let cancel = cancel_on_interrupt();
     let bar = (!args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(progress_bar);
     let progress = |done: u64, total: u64| {
@@ -255,6 +242,24 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
         }
     }
     ExitCode::SUCCESS
+}
+
+/// Says where `--variance` or `--exposure` will not apply to the file being written.
+fn warn_unused_output_options(args: &RenderArgs, inputs: &Inputs) {
+    if inputs.shard.is_some() && (args.variance || args.exposure != 0.0) {
+        eprintln!("warning: --variance and --exposure apply to the merged image: give them to penumbra merge (the shard keeps every sum)");
+    } else if args.variance && !has_extension(&inputs.output, "exr") {
+        eprintln!(
+            "warning: --variance: {} has no room for the variance channels (only .exr has): writing R, G, B only",
+            inputs.output.display()
+        );
+    }
+    if args.exposure != 0.0 && !has_extension(&inputs.output, "png") {
+        eprintln!(
+            "warning: --exposure applies to PNG output: {} keeps the rendered values (see penumbra convert)",
+            inputs.output.display()
+        );
+    }
 }
 
 /// Reports a failed render (status 130 when it was interrupted).

@@ -439,52 +439,66 @@ pub(crate) fn build(desc: &ShapeDesc, ctx: &ShapeContext) -> Result<Option<ObjMe
         |n: usize| ctx.budget.charge(n, &format!("shape \"{kind}\"'s tessellation"), Some(desc.entity.loc.clone()));
     let quadric = quadric.map(|q| (q, eps * r_ref));
     if let Meridian::Hyperboloid { p1, p2, a, c } = m {
-        let pieces = hyperboloid_intervals(p1, p2, a, c);
-        if pieces.is_empty() {
-            ctx.warnings.warn(
-                Some(desc.entity.loc.clone()),
-                format!("hyperboloid: pbrt-v3's implicit surface ({a} (x² + y²) − {c} z² = 1) has no point between z = {} and z = {}; skipped", p1[2].min(p2[2]), p1[2].max(p2[2])),
-            );
-            return Ok(None);
-        }
-        // pbrt-v3 bounds the shape by the radius of p1 and p2; where its fitted surface reaches
-        // further, rays that miss that box never test it and pbrt-v3's image loses parts of it
-        // (depending on the view). penumbra renders the whole surface and says so.
-        let reach = [p1[2], p2[2], 0.0]
-            .into_iter()
-            .filter(|z| *z >= p1[2].min(p2[2]) && *z <= p1[2].max(p2[2]))
-            .map(|z| ((1.0 + c * z * z) / a).max(0.0).sqrt())
-            .fold(0.0, f64::max);
-        if reach > r_ref * (1.0 + 1e-6) {
-            ctx.warnings.warn(
-                Some(desc.entity.loc.clone()),
-                format!(
-                    "hyperboloid: pbrt-v3's fitted surface reaches radius {reach:.4} but pbrt-v3 bounds it by \
-                     {r_ref:.4} (the radius of p1/p2), so pbrt-v3's image misses parts of it seen past that \
-                     box; penumbra renders the whole surface"
-                ),
-            );
-        }
-        let mut mesh = ObjMesh::default();
-        for (v_lo, v_hi) in pieces {
-            // The tolerance is relative to the radius the surface reaches, not to p1's and
-            // p2's (up to 4× larger on public scenes, which left chords 10° off the surface).
-            let r_ref = if reach > 0.0 { reach.min(r_ref) } else { r_ref };
-            let piece = Surface { v_lo, v_hi, r_ref, ..surf };
-            // Where pbrt-v3's normal is skewed off the surface, a tenth of the usual tolerance:
-            // pbrt-v3 shades over a hemisphere about that normal, so directions nearly tangent
-            // to the surface carry full weight and whether they pass is decided by the chords'
-            // angle to the surface (√(8ε): 5° at 1e-3, 1.6° at 1e-4). Measured on a two-sheet
-            // hyperboloid (skewed up to 90°) against pbrt-v3 (directlighting, 48², 256 spp):
-            // worst 8×8 block +18.8 % at 1e-3, −5.3 % at 1e-4, −6.7 % at 1e-5, for 4.7k, 46k
-            // and 474k triangles. A segment with its waist at z = 0 is not skewed and keeps ε
-            // (ten times the triangles made `ltc` on the matrix's hyperboloid 15× slower).
-            let eps = if piece.max_skew_degrees() > 5.0 { eps / 10.0 } else { eps };
-            append(&mut mesh, piece.tessellate(eps, &charge)?);
-        }
-        return Ok(Some(mesh));
+        return hyperboloid_mesh(surf, (p1, p2, a, c), eps, &charge, desc, ctx);
     }
     Ok(Some(ObjMesh { quadric, ..surf.tessellate(eps, &charge)? }))
+}
+
+/// pbrt-v3's hyperboloid: each piece of its z range where the fitted surface exists,
+/// tessellated (see `build`), with the warnings where it differs from what pbrt-v3 bounds.
+fn hyperboloid_mesh(
+    surf: Surface,
+    (p1, p2, a, c): (V3, V3, f64, f64),
+    eps: f64,
+    charge: &dyn Fn(usize) -> Result<(), Diagnostic>,
+    desc: &ShapeDesc,
+    ctx: &ShapeContext,
+) -> Result<Option<ObjMesh>, Diagnostic> {
+    let r_ref = surf.r_ref;
+    let pieces = hyperboloid_intervals(p1, p2, a, c);
+    if pieces.is_empty() {
+        ctx.warnings.warn(
+            Some(desc.entity.loc.clone()),
+            format!("hyperboloid: pbrt-v3's implicit surface ({a} (x² + y²) − {c} z² = 1) has no point between z = {} and z = {}; skipped", p1[2].min(p2[2]), p1[2].max(p2[2])),
+        );
+        return Ok(None);
+    }
+    // pbrt-v3 bounds the shape by the radius of p1 and p2; where its fitted surface reaches
+    // further, rays that miss that box never test it and pbrt-v3's image loses parts of it
+    // (depending on the view). penumbra renders the whole surface and says so.
+    let reach = [p1[2], p2[2], 0.0]
+        .into_iter()
+        .filter(|z| *z >= p1[2].min(p2[2]) && *z <= p1[2].max(p2[2]))
+        .map(|z| ((1.0 + c * z * z) / a).max(0.0).sqrt())
+        .fold(0.0, f64::max);
+    if reach > r_ref * (1.0 + 1e-6) {
+        ctx.warnings.warn(
+            Some(desc.entity.loc.clone()),
+            format!(
+                "hyperboloid: pbrt-v3's fitted surface reaches radius {reach:.4} but pbrt-v3 bounds it by \
+                 {r_ref:.4} (the radius of p1/p2), so pbrt-v3's image misses parts of it seen past that \
+                 box; penumbra renders the whole surface"
+            ),
+        );
+    }
+    let mut mesh = ObjMesh::default();
+    for (v_lo, v_hi) in pieces {
+        // The tolerance is relative to the radius the surface reaches, not to p1's and
+        // p2's (up to 4× larger on public scenes, which left chords 10° off the surface).
+        let r_ref = if reach > 0.0 { reach.min(r_ref) } else { r_ref };
+        let piece = Surface { v_lo, v_hi, r_ref, ..surf };
+        // Where pbrt-v3's normal is skewed off the surface, a tenth of the usual tolerance:
+        // pbrt-v3 shades over a hemisphere about that normal, so directions nearly tangent
+        // to the surface carry full weight and whether they pass is decided by the chords'
+        // angle to the surface (√(8ε): 5° at 1e-3, 1.6° at 1e-4). Measured on a two-sheet
+        // hyperboloid (skewed up to 90°) against pbrt-v3 (directlighting, 48², 256 spp):
+        // worst 8×8 block +18.8 % at 1e-3, −5.3 % at 1e-4, −6.7 % at 1e-5, for 4.7k, 46k
+        // and 474k triangles. A segment with its waist at z = 0 is not skewed and keeps ε
+        // (ten times the triangles made `ltc` on the matrix's hyperboloid 15× slower).
+        let eps = if piece.max_skew_degrees() > 5.0 { eps / 10.0 } else { eps };
+        append(&mut mesh, piece.tessellate(eps, charge)?);
+    }
+    Ok(Some(mesh))
 }
 
 /// Appends `b`'s vertices and triangles to `a` (both with normals and uv, as tessellated).
