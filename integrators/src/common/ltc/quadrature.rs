@@ -14,8 +14,10 @@
 //! into spherical triangles from its first vertex, and each triangle is integrated by a
 //! collapsed Gauss–Legendre rule on the flat triangle through its corners, radially projected
 //! (`dω = det[a, b, c] / |x|³ ds dt`, signed, so a fan covers any loop in an open hemisphere
-//! with its winding number). Each triangle is accepted when the 4×4 and 3×3 rules agree within
-//! its share of the tolerance, and split in four otherwise (at most [`MAX_DEPTH`] times).
+//! with its winding number). The error of a triangle's 4×4 rule is taken as its difference from
+//! the 3×3 rule's, and the whole region's triangles are refined globally: the one with the
+//! largest error is split in four until the errors sum to the tolerance (each at most
+//! [`MAX_DEPTH`] times).
 //!
 //! The result is the exact integral up to the tolerance asked for, whatever the LTC's fit error
 //! (it only decides how much work the quadrature does): the LTC's tails, its error at high
@@ -79,37 +81,98 @@ fn triangle_rule<const N: usize>(rule: &[(f64, f64); N], a: DVec3, b: DVec3, c: 
     sum * det
 }
 
-/// Adaptive integral of `h` over the spherical triangle `(a, b, c)` (unit corners) to the
-/// absolute tolerance `tol` (on the largest channel).
-fn triangle(a: DVec3, b: DVec3, c: DVec3, h: &impl Integrand, tol: f64, depth: u32, st: &mut QuadratureStats) -> DVec3 {
+/// A spherical triangle of the adaptive quadrature with its 4×4 estimate and that estimate's
+/// error (the largest channel's difference from the 3×3 rule's).
+struct Piece {
+    corners: [DVec3; 3],
+    q: DVec3,
+    err: f64,
+    depth: u32,
+}
+
+impl PartialEq for Piece {
+    fn eq(&self, o: &Self) -> bool {
+        self.err.total_cmp(&o.err).is_eq()
+    }
+}
+impl Eq for Piece {}
+impl PartialOrd for Piece {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Piece {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.err.total_cmp(&o.err)
+    }
+}
+
+/// The two rules on the spherical triangle `(a, b, c)` (unit corners); `None` for a degenerate
+/// one. A non-finite error is taken as settled (error 0), a non-finite estimate as 0.
+fn piece(corners: [DVec3; 3], depth: u32, h: &impl Integrand, st: &mut QuadratureStats) -> Option<Piece> {
+    let [a, b, c] = corners;
     let det = a.dot(b.cross(c));
     if det == 0.0 || !det.is_finite() {
-        return DVec3::ZERO;
+        return None;
     }
     let q4 = triangle_rule(&GL4, a, b, c, h);
     let q3 = triangle_rule(&GL3, a, b, c, h);
     st.evals += 25;
     let err = (q4 - q3).abs().max_element();
-    if !(err > tol) || depth >= MAX_DEPTH || !err.is_finite() {
-        return if q4.is_finite() { q4 } else { DVec3::ZERO };
+    let q = if q4.is_finite() { q4 } else { DVec3::ZERO };
+    Some(Piece { corners, q, err: if err.is_finite() { err } else { 0.0 }, depth })
+}
+
+/// Globally adaptive integral of `h` over the spherical triangles `tris` (unit corners; signed
+/// by orientation) to the absolute tolerance `tol` on the sum of their error estimates (the
+/// largest channel's): the piece with the largest error is split in four (at its edges'
+/// midpoints) until the errors sum to `tol` or less; a piece [`MAX_DEPTH`] splits deep is
+/// settled as it is. Refining where the error is, rather than giving every triangle of a fan an
+/// equal share of the tolerance, leaves the many thin triangles of a complex visible region
+/// (an occluder's silhouette) at one rule each.
+pub fn integrate_triangles(tris: &[[DVec3; 3]], h: &impl Integrand, tol: f64, st: &mut QuadratureStats) -> DVec3 {
+    let mut heap = std::collections::BinaryHeap::with_capacity(tris.len() * 2);
+    let mut err_sum = 0.0;
+    for &t in tris {
+        if let Some(p) = piece(t, 0, h, st) {
+            err_sum += p.err;
+            heap.push(p);
+        }
     }
-    st.splits += 1;
-    let (ab, bc, ca) = ((a + b).normalize(), (b + c).normalize(), (c + a).normalize());
-    let t = tol * 0.25;
-    triangle(a, ab, ca, h, t, depth + 1, st)
-        + triangle(ab, b, bc, h, t, depth + 1, st)
-        + triangle(ca, bc, c, h, t, depth + 1, st)
-        + triangle(ab, bc, ca, h, t, depth + 1, st)
+    let mut settled = DVec3::ZERO;
+    while err_sum > tol {
+        let Some(p) = heap.pop() else { break };
+        err_sum -= p.err;
+        if p.depth >= MAX_DEPTH || !(p.err > 0.0) {
+            settled += p.q;
+            continue;
+        }
+        st.splits += 1;
+        let [a, b, c] = p.corners;
+        let (ab, bc, ca) = ((a + b).normalize(), (b + c).normalize(), (c + a).normalize());
+        for t in [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]] {
+            if let Some(q) = piece(t, p.depth + 1, h, st) {
+                err_sum += q.err;
+                heap.push(q);
+            }
+        }
+    }
+    heap.into_iter().fold(settled, |s, p| s + p.q)
+}
+
+/// The fan of the loop `l` from its first vertex, as triangles.
+fn fan(l: &[DVec3], out: &mut Vec<[DVec3; 3]>) {
+    if l.len() >= 3 {
+        out.extend((1..l.len() - 1).map(|i| [l[0], l[i], l[i + 1]]));
+    }
 }
 
 /// Adaptive integral of `h` over the region of the loop `l` (unit directions in an open
 /// hemisphere; signed by orientation) to the absolute tolerance `tol`.
 pub fn integrate_loop(l: &[DVec3], h: &impl Integrand, tol: f64, st: &mut QuadratureStats) -> DVec3 {
-    if l.len() < 3 {
-        return DVec3::ZERO;
-    }
-    let share = tol / (l.len() - 2) as f64;
-    (1..l.len() - 1).map(|i| triangle(l[0], l[i], l[i + 1], h, share, 0, st)).sum()
+    let mut tris = Vec::new();
+    fan(l, &mut tris);
+    integrate_triangles(&tris, h, tol, st)
 }
 
 /// The lobe being integrated: the LTC's inverse matrix (local frame), the control variate's
@@ -124,7 +187,7 @@ pub struct Lobe<'a, F: Fn(DVec3) -> DVec3> {
 
 /// `∫_P f − base·∫_P D` over the region of `loops` (world-space directions, oriented as in
 /// [`crate::common::spherical_polygon`]; positive loops give positive values), by adaptive quadrature in the
-/// LTC's cosine space to the absolute tolerance `tol` per loop. Add `base ·`
+/// LTC's cosine space to the absolute tolerance `tol` (over all loops together). Add `base ·`
 /// [`super::ltc_integrate`] of the same loops for `∫_P f`.
 pub fn integrate_residual<F: Fn(DVec3) -> DVec3>(
     lobe: &Lobe<F>,
@@ -155,9 +218,12 @@ pub fn integrate_residual<F: Fn(DVec3) -> DVec3>(
             DVec3::ZERO
         }
     };
+    // Below the cosine horizon the control variate is 0, so `above` is `g` there: one
+    // integrand for both halves, which are still cut apart so that no triangle straddles the
+    // control variate's kink.
     let above = |u: DVec3| g(u) - base_over_pi * u.z.max(0.0);
     let sign = det_minv.signum();
-    let mut sum = DVec3::ZERO;
+    let mut tris = Vec::new();
     for l in loops {
         // The region above the surface's horizon, in the cosine space (orientation kept up to
         // det M⁻¹'s sign), then cut at the cosine space's horizon.
@@ -170,15 +236,10 @@ pub fn integrate_residual<F: Fn(DVec3) -> DVec3>(
         if u.contains(&DVec3::ZERO) {
             continue;
         }
-        let up = spherical::clip_to_halfspace(&u, DVec3::Z);
-        let down = spherical::clip_to_halfspace(&u, -DVec3::Z);
         let norm = |l: Vec<DVec3>| -> Vec<DVec3> { l.into_iter().map(|v| v.normalize_or_zero()).collect() };
-        if up.len() >= 3 {
-            sum += integrate_loop(&norm(up), &above, tol, st) * sign;
-        }
-        if down.len() >= 3 {
-            sum += integrate_loop(&norm(down), &g, tol, st) * sign;
-        }
+        fan(&norm(spherical::clip_to_halfspace(&u, DVec3::Z)), &mut tris);
+        fan(&norm(spherical::clip_to_halfspace(&u, -DVec3::Z)), &mut tris);
     }
-    sum
+    // One tolerance for the whole region, spent where the error is.
+    integrate_triangles(&tris, &above, tol, st) * sign
 }
