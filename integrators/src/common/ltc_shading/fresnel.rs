@@ -276,19 +276,28 @@ fn fresnel_circle(f: &LtcFresnel, y: f32) -> Option<f64> {
 /// than a general overlay. Caps of a hemisphere or more (t ≤ 0.02: not convex enough) go
 /// through [`spherical_polygon::intersection`].
 pub(super) fn clip_to_cap(region: &[Vec<DVec3>], axis: DVec3, t: f64, n: usize) -> Vec<Vec<DVec3>> {
+    clip_to_cap_inside(region, axis, t, n).0
+}
+
+/// [`clip_to_cap`], and whether every loop of `region` lay wholly inside the `n`-gon (nothing
+/// cut: the result is `region` itself); always `false` for a cap of a hemisphere or more.
+pub(super) fn clip_to_cap_inside(region: &[Vec<DVec3>], axis: DVec3, t: f64, n: usize) -> (Vec<Vec<DVec3>>, bool) {
     let cap = cap_loop(axis, t, n);
     if t <= 0.02 {
-        return spherical_polygon::intersection(region, &[cap]);
+        return (spherical_polygon::intersection(region, &[cap]), false);
     }
     let sign = if cap[0].cross(cap[1]).dot(axis) >= 0.0 { 1.0 } else { -1.0 };
     let planes: Vec<DVec3> = (0..n).map(|i| cap[i].cross(cap[(i + 1) % n]) * sign).collect();
-    region
+    let mut inside = true;
+    let loops = region
         .iter()
         .filter_map(|l| {
-            let (c, _) = spherical_polygon::clip_to_halfspaces(l, planes.iter().copied());
+            let (c, cut) = spherical_polygon::clip_to_halfspaces(l, planes.iter().copied());
+            inside &= !cut;
             (c.len() >= 3).then_some(c)
         })
-        .collect()
+        .collect();
+    (loops, inside)
 }
 
 /// The circle `{ω : ω·axis = t}` as an `n`-gon of unit directions (its arcs bow slightly

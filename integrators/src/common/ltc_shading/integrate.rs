@@ -4,7 +4,7 @@
 //! material's own lobe by quadrature, [`crate::common::ltc::quadrature`]) or the LTC's alone
 //! with its Fresnel factor (`"ltc"`).
 
-use super::fresnel::{clip_to_cap, tir_threshold, FresnelAverage, FresnelMode};
+use super::fresnel::{clip_to_cap_inside, tir_threshold, FresnelAverage, FresnelMode};
 use super::region::{cull_occluders, LightLoop, Occluders, Visible};
 use super::settings::{Glossy, ShaderSettings};
 use crate::common::ltc::quadrature::{integrate_residual, Lobe, QuadratureStats};
@@ -65,7 +65,8 @@ const TIR_SIDES: usize = 64;
 /// A dielectric seen from its dense side (pbrt-v3's plastic) reflects totally beyond the
 /// critical circle `ωo·ωi = t_c`, where the Fresnel factor has a kink that would make the
 /// quadrature refine along it: the integral is taken as the lobe with F = 1 over the region,
-/// plus the lobe's `(F − 1)` part over the region's part inside the circle (smooth there).
+/// plus the lobe's `(F − 1)` part over the region's part inside the circle (smooth there); a
+/// region wholly inside the circle's inscribed polygon is integrated with F in one quadrature.
 fn exact_lobe(at: &PieceFrame, lc: &LobeLtc, loops: &[Vec<DVec3>], st: &mut QuadratureStats) -> DVec3 {
     let wo = at.wo_local;
     let fresnel = lc.lobe.fresnel();
@@ -73,10 +74,15 @@ fn exact_lobe(at: &PieceFrame, lc: &LobeLtc, loops: &[Vec<DVec3>], st: &mut Quad
         let e = lc.lobe.evaluator(wo);
         return exact_piece(at, &lc.coeffs.minv, loops, |w| e.f_cos(w), None, st).0;
     };
+    let wo_world = at.frame.from_local(at.wo_local);
+    let (inside, wholly_inside) = clip_to_cap_inside(loops, wo_world, tc, TIR_SIDES);
+    if wholly_inside {
+        // No kink in the region: the lobe with its Fresnel factor in one quadrature.
+        let e = lc.lobe.evaluator(wo);
+        return exact_piece(at, &lc.coeffs.minv, loops, |w| e.f_cos(w), None, st).0;
+    }
     let one = LtcLobe { kind: LtcLobeKind::Microfacet(LtcFresnel::NoOp), ..lc.lobe }.evaluator(wo);
     let (whole, tol) = exact_piece(at, &lc.coeffs.minv, loops, |w| one.f_cos(w), None, st);
-    let wo_world = at.frame.from_local(at.wo_local);
-    let inside = clip_to_cap(loops, wo_world, tc, TIR_SIDES);
     if inside.is_empty() {
         return whole;
     }
