@@ -209,7 +209,19 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
         }
         return ExitCode::SUCCESS;
     }
-    let result = pipeline::render(&parsed.scene, &opts, &warnings);
+    // The integrator's cost estimate (e.g. `silhouette` on a fine mesh), before it renders.
+    let quiet = args.quiet;
+    let announce = |e: &penumbra_core::integrator::CostEstimate| {
+        if !quiet {
+            for line in &e.lines {
+                eprintln!("{line}");
+            }
+        }
+        if let Some(w) = &e.warning {
+            eprintln!("warning: {w}");
+        }
+    };
+    let result = pipeline::render_estimated(&parsed.scene, &opts, &warnings, &announce);
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
