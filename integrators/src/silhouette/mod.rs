@@ -817,8 +817,9 @@ impl Integrator for Silhouette {
     fn estimates_cost(&self) -> bool {
         true
     }
+    /// Nothing for a scene the render refuses (cut-outs, curves, moving occluders).
     fn estimate_cost(&self, scene: &Scene, threads: usize) -> Option<CostEstimate> {
-        Some(cost::estimate(self, scene, threads))
+        scene.non_polygonal_occluder().is_none().then(|| cost::estimate(self, scene, threads))
     }
     fn extra_channels(&self) -> Vec<String> {
         match self.mode {
