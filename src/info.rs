@@ -1,7 +1,7 @@
 //! `penumbra info [SCENE] [-i NAME]`: what a scene contains, checked as `render` checks it.
 
 use crate::{cli_params, pipeline};
-use penumbra_core::integrator::check_scene;
+use penumbra_core::integrator::{build_scene, check_scene};
 use penumbra_core::scene::BuildOptions;
 use penumbra_parser::{DiagSink, Entity, Param, ParamValue, SceneDescription, ShapeDesc};
 use std::collections::BTreeMap;
@@ -66,8 +66,13 @@ fn check(desc: &SceneDescription, args: &InfoArgs, params: &[Param], warnings: &
     let integrator =
         pipeline::choose_integrator(desc, args.integrator.as_deref(), params, warnings).map_err(|d| d.to_string())?;
     let req = integrator.requirements();
-    let scene =
-        check_scene(integrator.as_ref(), desc, &BuildOptions::default(), warnings).map_err(|d| d.to_string())?;
+    // The cost estimate traces camera rays: only then is the acceleration structure built.
+    let scene = if integrator.estimates_cost() {
+        build_scene(integrator.as_ref(), desc, &BuildOptions::default(), warnings)
+    } else {
+        check_scene(integrator.as_ref(), desc, &BuildOptions::default(), warnings)
+    }
+    .map_err(|d| d.to_string())?;
     let mut o = String::new();
     let mut builds: Vec<&str> = Vec::new();
     for (on, what) in
@@ -92,11 +97,19 @@ fn check(desc: &SceneDescription, args: &InfoArgs, params: &[Param], warnings: &
             if detail.is_empty() { String::new() } else { format!(" ({detail})") }
         );
     }
-    if req.accel {
+    if req.accel && !integrator.estimates_cost() {
         let _ = writeln!(o, "  bvh: not built by info");
     }
     for line in &scene.report.details {
         let _ = writeln!(o, "    {line}");
+    }
+    if let Some(e) = integrator.estimate_cost(&scene, pipeline::resolve_threads(0)) {
+        for line in &e.lines {
+            let _ = writeln!(o, "{line}");
+        }
+        if let Some(w) = &e.warning {
+            let _ = writeln!(o, "warning: {w}");
+        }
     }
     Ok(o)
 }

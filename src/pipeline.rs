@@ -3,7 +3,7 @@
 use crate::cli_params;
 use penumbra_core::film::{Film, FilmSpec};
 use penumbra_core::image::Image;
-use penumbra_core::integrator::{build_scene, Integrator, RenderContext, RenderError, RenderStats};
+use penumbra_core::integrator::{build_scene, CostEstimate, Integrator, RenderContext, RenderError, RenderStats};
 use penumbra_core::scene::{BuildOptions, BuildReport, Scene};
 use penumbra_parser::{DiagSink, Diagnostic, Param, ParamSet, ParseOutput, SceneDescription};
 use std::path::Path;
@@ -176,8 +176,50 @@ pub fn render_with(
     opts: &RenderOptions,
     warnings: &DiagSink,
 ) -> Result<Rendered, PipelineError> {
+    render_announced(name, integrator, desc, opts, warnings, None)
+}
+
+/// [`render`], calling `announce` with the integrator's [`Integrator::estimate_cost`] (if it
+/// makes one) after the scene build and before rendering (`penumbra render` prints it).
+pub fn render_estimated(
+    desc: &SceneDescription,
+    opts: &RenderOptions,
+    warnings: &DiagSink,
+    announce: &dyn Fn(&CostEstimate),
+) -> Result<Rendered, PipelineError> {
+    let integrator = choose_integrator(desc, opts.integrator, opts.params, warnings)?;
+    let name = integrator_name(desc, opts.integrator);
+    render_announced(name, integrator.as_ref(), desc, opts, warnings, Some(announce))
+}
+
+/// The number of worker threads `threads` means (0: one per core, as the render takes it).
+pub fn resolve_threads(threads: usize) -> usize {
+    if threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        threads
+    }
+}
+
+fn render_announced(
+    name: &str,
+    integrator: &dyn Integrator,
+    desc: &SceneDescription,
+    opts: &RenderOptions,
+    warnings: &DiagSink,
+    announce: Option<&dyn Fn(&CostEstimate)>,
+) -> Result<Rendered, PipelineError> {
     let scene = build_scene(integrator, desc, &opts.build, warnings)?;
-    let (film, stats) = render_film(integrator, &scene, scene.film.clone(), opts, warnings)?;
+    let estimate = announce.and_then(|announce| {
+        let e = integrator.estimate_cost(&scene, resolve_threads(opts.threads))?;
+        announce(&e);
+        Some(e.seconds)
+    });
+    let (film, mut stats) = render_film(integrator, &scene, scene.film.clone(), opts, warnings)?;
+    // stats.json keeps the estimate beside the measured `render_seconds`.
+    if let Some(seconds) = estimate {
+        stats.counters.insert("estimate.render_seconds".into(), seconds);
+    }
     Ok(Rendered {
         integrator: name.to_string(),
         image: film.to_image(opts.with_variance),

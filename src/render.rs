@@ -7,6 +7,7 @@ use penumbra::cli_params;
 use penumbra::output::{self, MissingDir};
 use penumbra::pipeline::{self, RenderOptions};
 use penumbra::shard::{self, ShardRequest};
+use penumbra_core::integrator::CostEstimate;
 use penumbra_core::scene::{BuildOptions, Crop};
 use penumbra_core::shard_rects::TileLayout;
 use penumbra_parser::{DiagSink, Param, SceneDescription};
@@ -209,7 +210,8 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
         }
         return ExitCode::SUCCESS;
     }
-    let result = pipeline::render(&parsed.scene, &opts, &warnings);
+    let announce = |e: &CostEstimate| announce_estimate(e, args.quiet);
+    let result = pipeline::render_estimated(&parsed.scene, &opts, &warnings, &announce);
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
@@ -242,6 +244,19 @@ pub fn run(mut args: RenderArgs) -> ExitCode {
         }
     }
     ExitCode::SUCCESS
+}
+
+/// Prints the integrator's cost estimate (e.g. `silhouette` on a fine mesh) before it renders:
+/// its lines unless `quiet`, its warning always.
+fn announce_estimate(e: &CostEstimate, quiet: bool) {
+    if !quiet {
+        for line in &e.lines {
+            eprintln!("{line}");
+        }
+    }
+    if let Some(w) = &e.warning {
+        eprintln!("warning: {w}");
+    }
 }
 
 /// Says where `--variance` or `--exposure` will not apply to the file being written.

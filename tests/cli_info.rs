@@ -47,3 +47,64 @@ fn info_with_shexp_reports_sphere_sets() {
     assert!(stdout.contains("Exact, 1 spheres"), "{stdout}");
     assert!(stdout.contains("object 2 (ground plane)"), "{stdout}");
 }
+
+/// `silhouette`'s cost estimate (issue 37 item 3): `info` prints it, and warns on a heavy mesh
+/// (killeroo-simple, 79k triangles: ~6 000 contour edges per point, measured 100–300× the
+/// estimated `ambientocclusion` time) but not on the 134-triangle blinds (measured 0.3–0.8×).
+/// The warning's threshold is 10×, so both margins are more than tenfold and hold on a loaded
+/// machine. Mutations: a threshold of 1e9 fails the first, of 0 the second.
+#[test]
+fn info_estimates_silhouette_cost_and_warns_on_a_heavy_mesh() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_penumbra")).args(args).output().unwrap();
+        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        (String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let killeroo = format!("{root}/scenes/public/mmp-pbrt-v3/scenes/killeroo-simple.pbrt");
+    let (out, _) = run(&["info", &killeroo, "-i", "silhouette", "--param", "mode=ao"]);
+    assert!(out.contains("silhouette cost estimate: ") && out.contains("contour edges per shading point"), "{out}");
+    assert!(out.contains("points to integrate (490000 px"), "{out}");
+    assert!(out.contains("warning: silhouette will be about") && out.contains("-i ambientocclusion"), "{out}");
+    let blinds = format!("{root}/scenes/suite/ao/blinds.pbrt");
+    let (out, err) = run(&["info", &blinds, "-i", "silhouette"]);
+    assert!(out.contains("silhouette cost estimate: "), "{out}");
+    assert!(!out.contains("warning: silhouette will be") && !err.contains("slower than"), "{out}{err}");
+    // Other integrators estimate nothing (and info still skips their BVH).
+    let (out, _) = run(&["info", &blinds, "-i", "ambientocclusion"]);
+    assert!(!out.contains("cost estimate") && out.contains("bvh: not built by info"), "{out}");
+}
+
+/// The start of `penumbra render -i silhouette` states the estimate and the warning (before
+/// the render: stderr's first lines after the build); `-q` keeps only the warning.
+#[test]
+fn render_states_silhouette_estimate_before_rendering() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let dir = std::env::temp_dir().join(format!("penumbra-cli-info-cost-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let killeroo = format!("{root}/scenes/public/mmp-pbrt-v3/scenes/killeroo-simple.pbrt");
+    let img = dir.join("k.exr");
+    let img = img.to_str().unwrap();
+    let base = ["render", &killeroo, "-i", "silhouette", "--param", "mode=ao", "--resolution", "8x8", "--spp", "1"];
+    for quiet in [false, true] {
+        let mut args = base.to_vec();
+        args.extend(["-o", img]);
+        if quiet {
+            args.push("-q");
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_penumbra")).args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        let (estimate, warning) =
+            (err.find("silhouette cost estimate:"), err.find("warning: silhouette will be about"));
+        assert!(warning.is_some(), "{err}");
+        if quiet {
+            assert!(estimate.is_none(), "{err}");
+        } else {
+            let done = err.find("k.exr: silhouette at 1 spp").expect("the render's summary");
+            assert!(estimate.unwrap() < done && warning.unwrap() < done, "{err}");
+            assert!(err.contains("64 points to integrate (64 px × 1.00: every camera sample"), "{err}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

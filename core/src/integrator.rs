@@ -112,6 +112,32 @@ pub trait Integrator: Send + Sync {
     fn radiance_bound(&self) -> Option<RadianceBound> {
         None
     }
+    /// Whether [`estimate_cost`](Self::estimate_cost) has anything to say (`penumbra info`
+    /// then builds the acceleration structure it otherwise skips, since the estimate traces
+    /// camera rays).
+    fn estimates_cost(&self) -> bool {
+        false
+    }
+    /// For integrators whose cost per shading point varies by orders of magnitude with the
+    /// scene (e.g. with its triangle count): a cheap probe over the built and prepared `scene`
+    /// (its film, sampler and camera as the render will use them) estimating the render's
+    /// time on `threads` threads, printed by `penumbra info` and at the start of `penumbra
+    /// render`. The default estimates nothing.
+    fn estimate_cost(&self, _scene: &Scene, _threads: usize) -> Option<CostEstimate> {
+        None
+    }
+}
+
+/// What [`Integrator::estimate_cost`] measured and predicts.
+#[derive(Clone, Debug, Default)]
+pub struct CostEstimate {
+    /// The estimated render time in seconds (wall, on the threads given).
+    pub seconds: f64,
+    /// Lines stating the estimate, what was measured and what is assumed.
+    pub lines: Vec<String>,
+    /// Set when the render will be far slower than a ray-traced alternative: says so, with the
+    /// numbers and what to do instead.
+    pub warning: Option<String>,
 }
 
 /// What [`Integrator::prepare`] built.

@@ -182,3 +182,33 @@ impl Integrator for AmbientOcclusion {
         Some(RadianceBound::Constant(if self.cos_sample { PI } else { 2.0 * PI }))
     }
 }
+
+/// Seconds `ambientocclusion` at its defaults (64 cosine-weighted rays) takes for the first
+/// camera sample of each of `pixels` (the lower of two runs each, so a thread switch does not
+/// count), for [`crate::silhouette::cost`]'s estimate of how much faster ray tracing would be.
+pub(crate) fn time_first_samples(scene: &Scene, pixels: &[glam::IVec2]) -> Vec<f64> {
+    let ao =
+        AmbientOcclusion { nsamples: 64, cos_sample: true, max_distance: f32::INFINITY, sh: None, fixed_epsilon: None };
+    let est = Estimator { ao: &ao, n: scene.sampler.round_count(ao.nsamples) };
+    let mut sampler = scene.sampler.clone_box();
+    est.request_samples(sampler.as_mut());
+    let full = scene.film.sample_bounds(scene.filter.radius());
+    sampler.set_sample_bounds(full.min, full.max);
+    let mut stats = penumbra_core::integrator::ThreadStats::default();
+    pixels
+        .iter()
+        .map(|&p| {
+            let mut best = f64::INFINITY;
+            for _ in 0..2 {
+                let t = std::time::Instant::now();
+                sampler.start_pixel_sample(p, 0);
+                let cs = penumbra_core::integrator::draw_camera_sample(sampler.as_mut(), p, true, true);
+                let ray = scene.camera.generate_ray_differential(&cs);
+                let cx = SampleContext { scene, sampler: sampler.as_mut(), stats: &mut stats, aov: &mut [] };
+                std::hint::black_box(est.li(&ray, cx));
+                best = best.min(t.elapsed().as_secs_f64());
+            }
+            best
+        })
+        .collect()
+}

@@ -72,10 +72,10 @@ use penumbra_core::bxdf::BxdfFlags;
 use penumbra_core::camera::CameraSample;
 use penumbra_core::film::Film;
 use penumbra_core::geometry::{face_forward, offset_ray_origin, Frame, Ray, RayDifferential};
-use penumbra_core::integrator::Preparation;
 use penumbra_core::integrator::{
     render_pixels, Integrator, PixelEstimator, RenderContext, RenderError, RenderStats, SampleContext, ThreadStats,
 };
+use penumbra_core::integrator::{CostEstimate, Preparation};
 use penumbra_core::interaction::SurfaceInteraction;
 use penumbra_core::light::Light;
 use penumbra_core::sampler::Sampler;
@@ -91,6 +91,7 @@ use std::sync::{Arc, OnceLock};
 use table::MomentTable;
 use traverse::{Interval, Traversal};
 
+pub mod cost;
 pub mod dual;
 pub mod glossy;
 pub mod orient;
@@ -210,6 +211,33 @@ fn warn_prt_lights(scene: &Scene, warnings: &DiagSink) {
                 "silhouette: \"mode\" \"prt\" renders ambient occlusion plus SH transfer channels for distant \
                  lighting: the scene's {} light(s) are not in its image (\"mode\" \"shade\" shades them)",
                 kinds.join(", ")
+            ),
+        );
+    }
+}
+
+/// `prt`'s transfer is a Lambertian cosine relit with the diffuse albedo: the scene's other
+/// lobes (glossy, specular) are in `shade`'s image but not in the relit one. Says so, naming
+/// the materials (issue 37 item 5: under the studio map a plastic sphere's highlight leaves
+/// 7 % RMSE at any SH order).
+fn warn_prt_materials(scene: &Scene, warnings: &DiagSink) {
+    let Some(materials) = &scene.materials else { return };
+    let mut names: Vec<&str> = scene
+        .objects
+        .iter()
+        .filter_map(|o| materials.get(o.material?))
+        .map(|m| m.type_name())
+        .filter(|n| *n != "matte")
+        .collect();
+    names.sort_unstable();
+    names.dedup();
+    if !names.is_empty() {
+        warnings.warn(
+            None,
+            format!(
+                "silhouette: \"mode\" \"prt\"'s transfer channels relight the diffuse albedo only: the other lobes of \
+                 the scene's {} material(s) are in \"mode\" \"shade\"'s image, not in the relit one",
+                names.join(", ")
             ),
         );
     }
@@ -784,6 +812,15 @@ impl Integrator for Silhouette {
             value: Arc::new(d),
         })
     }
+    /// The probe of [`cost`]: contour edges per point and the render's time against
+    /// `ambientocclusion`'s.
+    fn estimates_cost(&self) -> bool {
+        true
+    }
+    /// Nothing for a scene the render refuses (cut-outs, curves, moving occluders).
+    fn estimate_cost(&self, scene: &Scene, threads: usize) -> Option<CostEstimate> {
+        scene.non_polygonal_occluder().is_none().then(|| cost::estimate(self, scene, threads))
+    }
     fn extra_channels(&self) -> Vec<String> {
         match self.mode {
             Some(Mode::Prt) => TransferChannels::new(self.sh_order, 0).names(),
@@ -817,6 +854,7 @@ impl Integrator for Silhouette {
         }
         if mode == Mode::Prt {
             warn_prt_lights(scene, ctx.warnings);
+            warn_prt_materials(scene, ctx.warnings);
         }
         let meridians = Meridians::new(self.resolution);
         let table_spacing = table_spacing(&infinite);
