@@ -20,9 +20,11 @@
 //! [`DualEdges::contours`] returns exactly [`DualEdges::contours_brute_force`]'s set
 //! (property-tested). A node's offsets are taken from the centre of its primal box, and the
 //! tree splits space first and normals only where the node is small against its mesh
-//! ([`NORMAL_WEIGHT`]): on two 66k-triangle killeroos that examines 2.8 edges per contour
-//! instead of 8.1. Nodes also keep the primal box of their edges: a node wholly behind the
-//! shading point's tangent plane is skipped, and so is every edge with both ends behind it.
+//! ([`NORMAL_WEIGHT`]): on two 66k-triangle killeroos that examined 2.8 edges per contour
+//! instead of 8.1 (3.9 now with 8-edge leaves, which test fewer boxes: [`LEAF`]). Nodes also
+//! keep the primal box of their edges: a node wholly behind the shading point's tangent plane
+//! is skipped, and so is every edge with both ends behind it. The binary tree is stored 4-wide
+//! ([`Node4`]: four grandchildren tested side by side in f32, with slacks for its rounding).
 //!
 //! Geometry is translated to its centre and scaled by a power of two to an extent of about 1
 //! (exact for the f32 input in all but pathological cases), so every tolerance is relative
@@ -32,8 +34,10 @@ use super::orient::orient3d;
 use glam::{DVec3, Vec3};
 use penumbra_core::mesh::TriangleMesh;
 
-/// Edges per leaf.
-const LEAF: usize = 4;
+/// Edges per leaf. On killeroo-simple (mode=ao, 16², callgrind) with the 4-wide nodes:
+/// 4 tests 15.3k boxes and 16.5k edges per point (contour search 2.43 M Ir), 8 tests 9.2k and
+/// 23.1k (2.08 M), 16 tests 6.3k and 31.3k (2.33 M).
+const LEAF: usize = 8;
 /// The split's weight of the normals' extents, times the extent of the mesh the node's edges
 /// come from (a length: a node's dual test spans about `Δn·|p − c|` plus its offsets, and
 /// shading points see contours at distances of about the mesh's size). Measured on
@@ -93,30 +97,41 @@ pub struct QueryCost {
     pub nodes: usize,
 }
 
-/// A node while the hierarchy is built (f64 bounds).
+/// A node while the hierarchy is built (f64 bounds; `c` and `r` exact in f32).
 #[derive(Clone, Copy, Debug)]
 struct BuildNode {
     lo: [f64; 4],
     hi: [f64; 4],
-    plo: DVec3,
-    phi: DVec3,
+    /// The centre of the primal box (the node's offsets are taken about it) and its half
+    /// extents, rounded up: `[c − r, c + r]` contains the node's edges.
+    c: DVec3,
+    r: DVec3,
     /// Leaf: `count > 0`, items `first..first+count` of `order`; inner: children `first`, `first+1`.
     first: u32,
     count: u32,
 }
 
-/// A node of the hierarchy: the dual box (components 0–2 the planes' normals, 3 their
-/// offsets from the centre of the node's primal box, `g₃ + n·c`, padded by the rounding bound) and the primal box of its edges, in f32 rounded
-/// outwards — the bounds only filter, so a looser box is safe — making a node one 64-byte
-/// cache line instead of 120 bytes.
+/// A node of the 4-wide hierarchy: up to four boxes tested together (the grandchildren of a
+/// node of the binary tree the build splits, or a child where that is a leaf), structure of
+/// arrays. Per slot the dual box (components 0–2 the planes' normals, 3 their offsets from
+/// the centre `c` of the slot's primal box, `g₃ + n·c`, padded by the rounding bound) and the
+/// primal box as centre and half extent, in f32 rounded outwards (the bounds only filter, so
+/// a looser box is safe; the centre is exact, the offsets are taken about it). Measured
+/// against the binary tree with one 64-byte node per box: see docs/integrators/silhouette.md.
 #[derive(Clone, Copy, Debug, Default)]
-struct Node {
-    lo: [f32; 4],
-    hi: [f32; 4],
-    plo: [f32; 3],
-    phi: [f32; 3],
-    first: u32,
-    count: u32,
+#[repr(C, align(64))]
+struct Node4 {
+    /// `[component][slot]`, so the four slots' tests run side by side.
+    lo: [[f32; 4]; 4],
+    hi: [[f32; 4]; 4],
+    c: [[f32; 4]; 3],
+    r: [[f32; 4]; 3],
+    /// Leaf slot: its first edge in `order`; inner slot: the index of its `Node4`.
+    first: [u32; 4],
+    /// Leaf slot: its edge count; inner slot: 0.
+    count: [u32; 4],
+    /// Slots in use (1..=4).
+    len: u32,
 }
 
 /// `x` rounded down / up to f32.
@@ -137,67 +152,118 @@ fn up(x: f64) -> f32 {
     }
 }
 
-impl BuildNode {
-    fn compact(&self) -> Node {
-        Node {
-            lo: self.lo.map(down),
-            hi: self.hi.map(up),
-            plo: self.plo.to_array().map(down),
-            phi: self.phi.to_array().map(up),
-            first: self.first,
-            count: self.count,
+impl Node4 {
+    fn set(&mut self, j: usize, b: &BuildNode, first: u32) {
+        for k in 0..4 {
+            self.lo[k][j] = down(b.lo[k]);
+            self.hi[k][j] = up(b.hi[k]);
         }
+        for k in 0..3 {
+            self.c[k][j] = b.c[k] as f32;
+            self.r[k][j] = up(b.r[k]);
+        }
+        self.first[j] = first;
+        self.count[j] = b.count;
     }
 }
 
-/// A query's constants for the node tests: per axis which corner is farthest along the
-/// normal, and slacks bounding the rounding of both tests for every node (from bounds over
-/// all nodes: conservative for each).
+/// The 4-wide hierarchy of a binary one: each 4-wide node holds the grandchildren of an inner
+/// binary node (a leaf child stands for itself); the root's is node 0, and a tree of one leaf
+/// is one node of one slot.
+fn collapse(b: &[BuildNode]) -> Vec<Node4> {
+    let mut out = vec![Node4::default()];
+    if b[0].count > 0 {
+        out[0].set(0, &b[0], b[0].first);
+        out[0].len = 1;
+        return out;
+    }
+    let mut work = vec![(0usize, 0usize)];
+    while let Some((bi, oi)) = work.pop() {
+        let x = b[bi];
+        let mut node = Node4::default();
+        let mut j = 0;
+        for ch in [x.first as usize, x.first as usize + 1] {
+            let slots =
+                if b[ch].count > 0 { [ch, usize::MAX] } else { [b[ch].first as usize, b[ch].first as usize + 1] };
+            for s in slots.into_iter().filter(|&s| s != usize::MAX) {
+                let first = if b[s].count > 0 {
+                    b[s].first
+                } else {
+                    out.push(Node4::default());
+                    work.push((s, out.len() - 1));
+                    (out.len() - 1) as u32
+                };
+                node.set(j, &b[s], first);
+                j += 1;
+            }
+        }
+        node.len = j as u32;
+        out[oi] = node;
+    }
+    out
+}
+
+/// Unit roundoff of f32.
+const U32: f64 = f32::EPSILON as f64 / 2.0;
+
+/// A query's constants for the node tests, in f32 (the four slots of a node are tested in one
+/// SIMD lane each), with slacks bounding the rounding of both tests for every node (from
+/// bounds over all nodes: conservative for each).
 struct NodeQuery {
-    p: DVec3,
-    n: DVec3,
-    n_pos: [bool; 3],
+    p: [f32; 3],
+    n: [f32; 3],
+    abs_n: [f32; 3],
     /// Rounding slack of the dual test.
-    slack: f64,
-    /// Rounding margin of the tangent-plane test; `None`: no tangent-plane cull (`tol < 0`).
-    margin: Option<f64>,
+    slack: f32,
+    /// Rounding margin of the tangent-plane test; infinite: no tangent-plane cull (`tol < 0`).
+    margin: f32,
 }
 
 impl NodeQuery {
-    fn new(p: DVec3, n: DVec3, tol: f64, root: &Node, dmax: f64, cmax: f64) -> NodeQuery {
-        let f = |a: [f32; 3]| DVec3::new(a[0] as f64, a[1] as f64, a[2] as f64);
-        let (plo, phi) = (f(root.plo), f(root.phi));
-        // |terms| of the dual dot product: the node's offset (≤ dmax) and normals of length ≤ 1
-        // (+ the f32 rounding) times |p_k − c_k| ≤ |p_k| + |c_k|.
-        let slack = DOT_ROUNDING * (dmax + 1.001 * (p.x.abs() + p.y.abs() + p.z.abs() + cmax));
-        let reach = (plo - p).abs().max((phi - p).abs());
-        let margin = (tol >= 0.0).then(|| 2.0 * DOT_ROUNDING * n.abs().dot(reach));
-        NodeQuery { p, n, n_pos: [n.x > 0.0, n.y > 0.0, n.z > 0.0], slack, margin }
+    fn new(p: DVec3, n: DVec3, tol: f64, root: (DVec3, DVec3), dmax: f64, cmax: f64) -> NodeQuery {
+        let (plo, phi) = root;
+        // The dual test computes lo₃ + Σ_k (lo_k or hi_k)·q_k, q_k = p_k − c_k, in f32 with p
+        // rounded to f32: |q_k − q̃_k| ≤ 2.01u(|p_k| + |c_k|); the products and the 4-term sum
+        // add at most 4u times the terms' magnitudes (the offset ≤ dmax, normals ≤ 1.001 in
+        // f32, times |q_k|), and where q̃_k's sign differs from q_k's the wrong bound costs at
+        // most (hi_k − lo_k)|q_k| ≤ 2.002 · 2.01u(|p_k| + |c_k|): with S = Σ|p_k| + cmax, at
+        // most 11u(dmax + 1.01 S). Doubled, and an absolute floor for underflow.
+        let s = p.x.abs() + p.y.abs() + p.z.abs() + cmax;
+        let slack = 32.0 * U32 * (dmax + 1.01 * s) + 1e-30;
+        // The tangent-plane test sums 6 terms |n_k| r_k and −n_k q_k, each at most |n_k| times
+        // the root's reach from p (up to the f32 rounding): with n and q rounded to f32 and a
+        // 6-term sum, at most 10u of twice that plus the q error 2.01u·S.
+        let reach = (plo - p).abs().max((phi - p).abs()) * 1.001;
+        let margin = if tol >= 0.0 { 32.0 * U32 * (n.abs().dot(reach) + s) + 1e-30 } else { f64::INFINITY };
+        let f = |v: DVec3| v.to_array().map(|x| x as f32);
+        NodeQuery { p: f(p), n: f(n), abs_n: f(n.abs()), slack: slack as f32, margin: margin as f32 }
     }
 
-    /// Whether the hyperplane `x·(p, 1) = 0` can touch the node's dual box and some of its
-    /// edges can be in front of the tangent plane ([`Cull::box_behind`] with one margin).
-    fn visits(&self, node: &Node) -> bool {
-        let (mut mn, mut mx) = (node.lo[3] as f64, node.hi[3] as f64);
+    /// The slots of `node` (a bit each) where the hyperplane `x·(p, 1) = 0` can touch the
+    /// dual box and some of the edges can be in front of the tangent plane ([`Cull::behind`]
+    /// with one margin: the farthest corner along `n`, `n·(c − p) + |n|·r`).
+    fn visits(&self, node: &Node4) -> u32 {
+        let (mut mn, mut mx) = (node.lo[3], node.hi[3]);
+        let mut e = [0.0f32; 4];
         for k in 0..3 {
-            let q = self.p[k] - 0.5 * (node.plo[k] as f64 + node.phi[k] as f64);
-            // lo ≤ hi, and rounding is monotonic: the order of the products is q's sign
-            // (cheaper than f64::min/max, which handle NaN).
-            let (l, h) = (node.lo[k] as f64 * q, node.hi[k] as f64 * q);
-            let (a, b) = if q >= 0.0 { (l, h) } else { (h, l) };
-            mn += a;
-            mx += b;
+            let (lo, hi, c, r) = (&node.lo[k], &node.hi[k], &node.c[k], &node.r[k]);
+            for j in 0..4 {
+                let q = self.p[k] - c[j];
+                // lo ≤ hi, and rounding is monotonic: the order of the products is q's sign
+                // (cheaper than f32::min/max, which handle NaN).
+                let (l, h) = (lo[j] * q, hi[j] * q);
+                let pos = q >= 0.0;
+                mn[j] += if pos { l } else { h };
+                mx[j] += if pos { h } else { l };
+                e[j] += self.abs_n[k] * r[j] - self.n[k] * q;
+            }
         }
-        if mn > self.slack || mx < -self.slack {
-            return false;
+        let mut mask = 0;
+        for j in 0..4 {
+            let hit = !(mn[j] > self.slack) & !(mx[j] < -self.slack) & (e[j] > -self.margin);
+            mask |= (hit as u32) << j;
         }
-        let Some(margin) = self.margin else { return true };
-        let mut e = 0.0;
-        for k in 0..3 {
-            let far = if self.n_pos[k] { node.phi[k] } else { node.plo[k] };
-            e += self.n[k] * (far as f64 - self.p[k]);
-        }
-        e > -margin
+        mask & ((1u32 << node.len) - 1)
     }
 }
 
@@ -213,7 +279,9 @@ pub struct DualEdges {
     opposite: Vec<u32>,
     /// Edges tested at every point: boundary, non-manifold, degenerate incident triangle.
     always: Vec<u32>,
-    nodes: Vec<Node>,
+    nodes: Vec<Node4>,
+    /// The primal box of all hierarchy edges (the query's rounding margins).
+    root_box: (DVec3, DVec3),
     /// Edges of the hierarchy in leaf order, with their dual endpoints and rounding pad.
     order: Vec<u32>,
     dual: Vec<[[f64; 4]; 2]>,
@@ -346,7 +414,7 @@ impl DualEdges {
             return;
         }
         let mut nodes =
-            vec![BuildNode { lo: [0.0; 4], hi: [0.0; 4], plo: DVec3::ZERO, phi: DVec3::ZERO, first: 0, count: 0 }];
+            vec![BuildNode { lo: [0.0; 4], hi: [0.0; 4], c: DVec3::ZERO, r: DVec3::ZERO, first: 0, count: 0 }];
         let mut stack = vec![(0usize, 0usize, items.len())];
         while let Some((node, begin, end)) = stack.pop() {
             let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
@@ -368,12 +436,13 @@ impl DualEdges {
                     phi = phi.max(self.verts[v as usize]);
                 }
             }
-            // The offsets relative to the node's centre `c` (of its f32 primal box, as the
-            // query computes it): g·(p, 1) = n·(p − c) + (g₃ + n·c), and the second term ranges
-            // over about the node's size, where g₃ ranged over |n|·|c| more.
+            // The offsets relative to the node's centre `c` (in f32, as the query reads it):
+            // g·(p, 1) = n·(p − c) + (g₃ + n·c), and the second term ranges over about the
+            // node's size, where g₃ ranged over |n|·|c| more.
+            let c = (0.5 * (plo + phi)).as_vec3().as_dvec3();
+            // Half extents about c, rounded up (Node4::set rounds them up to f32 again).
+            let r = (phi - c).max(c - plo) * (1.0 + 4.0 * f64::EPSILON);
             {
-                let f32_box = |v: DVec3, r: fn(f64) -> f32| DVec3::from_array(v.to_array().map(|x| r(x) as f64));
-                let c = 0.5 * (f32_box(plo, down) + f32_box(phi, up));
                 let (mut dlo, mut dhi) = (f64::INFINITY, f64::NEG_INFINITY);
                 for (_, d, pad) in &items[begin..end] {
                     for g in d {
@@ -388,9 +457,12 @@ impl DualEdges {
                 lo[3] = dlo;
                 hi[3] = dhi;
             }
+            if node == 0 {
+                self.root_box = (plo, phi);
+            }
             let n = end - begin;
             if n <= LEAF {
-                nodes[node] = BuildNode { lo, hi, plo, phi, first: self.order.len() as u32, count: n as u32 };
+                nodes[node] = BuildNode { lo, hi, c, r, first: self.order.len() as u32, count: n as u32 };
                 for (id, d, pad) in &items[begin..end] {
                     self.order.push(*id);
                     self.dual.push(*d);
@@ -423,14 +495,14 @@ impl DualEdges {
             let mid = n / 2;
             items[begin..end].select_nth_unstable_by(mid, |x, y| key(x).total_cmp(&key(y)).then(x.0.cmp(&y.0)));
             let first = nodes.len();
-            let empty = BuildNode { lo, hi, plo, phi, first: 0, count: 0 };
+            let empty = BuildNode { lo, hi, c, r, first: 0, count: 0 };
             nodes.push(empty);
             nodes.push(empty);
-            nodes[node] = BuildNode { lo, hi, plo, phi, first: first as u32, count: 0 };
+            nodes[node] = BuildNode { lo, hi, c, r, first: first as u32, count: 0 };
             stack.push((first + 1, begin + mid, end));
             stack.push((first, begin, begin + mid));
         }
-        self.nodes = nodes.iter().map(BuildNode::compact).collect();
+        self.nodes = collapse(&nodes);
     }
 
     /// A world point in the hierarchy's normalised coordinates.
@@ -494,19 +566,27 @@ impl DualEdges {
         if self.nodes.is_empty() {
             return QueryCost { edges: examined, nodes: 0 };
         }
-        let query = NodeQuery::new(p, n, tol, &self.nodes[0], self.dmax, self.cmax);
+        let query = NodeQuery::new(p, n, tol, self.root_box, self.dmax, self.cmax);
         let mut stack = [0u32; 128];
         let mut sp = 1;
         while sp > 0 {
             sp -= 1;
             let node = &self.nodes[stack[sp] as usize];
-            visited += 1;
-            if !query.visits(node) {
-                continue;
-            }
-            if node.count > 0 {
-                examined += node.count as usize;
-                for i in node.first..node.first + node.count {
+            visited += node.len as usize;
+            let mut mask = query.visits(node);
+            while mask != 0 {
+                let j = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let (first, count) = (node.first[j], node.count[j]);
+                if count == 0 {
+                    // Deeper than the stack is impossible for a median split of < 2^80 edges.
+                    assert!(sp < stack.len(), "dual-edge hierarchy deeper than its traversal stack");
+                    stack[sp] = first;
+                    sp += 1;
+                    continue;
+                }
+                examined += count as usize;
+                for i in first..first + count {
                     let i = i as usize;
                     let [g1, g2] = &self.dual[i];
                     let (v1, v2) = (dot4(g1, p), dot4(g2, p));
@@ -521,13 +601,6 @@ impl DualEdges {
                     let certain = (near && v1.abs() > pad && v2.abs() > pad).then_some(if v1 > 0.0 { 2 } else { -2 });
                     self.emit(self.order[i], p, &cull, certain, out);
                 }
-            } else if sp + 2 <= stack.len() {
-                stack[sp] = node.first;
-                stack[sp + 1] = node.first + 1;
-                sp += 2;
-            } else {
-                // Deeper than the stack (impossible for a median split of < 2^120 edges).
-                unreachable!("dual-edge hierarchy deeper than its traversal stack");
             }
         }
         QueryCost { edges: examined, nodes: visited }
