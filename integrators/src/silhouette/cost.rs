@@ -12,7 +12,7 @@
 use super::dual::DualEdges;
 use super::param::Meridians;
 use super::traverse::Traversal;
-use super::{dual_edges, integration_axes, Estimator, Mode, Silhouette, CULL_TOL};
+use super::{integration_axes, prepared_dual_edges, Estimator, Mode, Silhouette, CULL_TOL};
 use penumbra_core::camera::CameraSample;
 use penumbra_core::geometry::{face_forward, offset_ray_origin};
 use penumbra_core::integrator::{CostEstimate, ThreadStats};
@@ -128,14 +128,8 @@ fn human(seconds: f64) -> String {
 
 /// `silhouette`'s [`Integrator::estimate_cost`](penumbra_core::integrator::Integrator::estimate_cost).
 pub fn estimate(s: &Silhouette, scene: &Scene, threads: usize) -> CostEstimate {
-    let built;
-    let dual = match scene.prepared::<DualEdges>() {
-        Some(d) => d,
-        None => {
-            built = dual_edges(scene);
-            &built
-        }
-    };
+    let mut built = None;
+    let dual = prepared_dual_edges(scene, &mut built);
     let mode = s.mode.unwrap_or(if scene.light_list().is_empty() { Mode::Ao } else { Mode::Shade });
     let pb = scene.film.pixel_bounds;
     let pixels = pb.area().max(0) as f64;

@@ -788,6 +788,15 @@ fn dual_edges(scene: &Scene) -> DualEdges {
     DualEdges::build(&scene.meshes, &occluders)
 }
 
+/// The hierarchy prepared with the scene (`build_scene`), or built into `slot` for a scene
+/// built without it.
+fn prepared_dual_edges<'a>(scene: &'a Scene, slot: &'a mut Option<DualEdges>) -> &'a DualEdges {
+    match scene.prepared::<DualEdges>() {
+        Some(d) => d,
+        None => slot.insert(dual_edges(scene)),
+    }
+}
+
 impl Integrator for Silhouette {
     /// Sample shading, or `prt` (whose samples never share).
     fn merges_sample_ranges(&self) -> bool {
@@ -829,15 +838,8 @@ impl Integrator for Silhouette {
     }
     fn render(&self, scene: &Scene, ctx: &RenderContext, film: &mut Film) -> Result<RenderStats, RenderError> {
         crate::common::refuse_cutouts("silhouette", "visibility silhouettes (the meshes' dual edges)", scene)?;
-        // Prepared with the scene (`build_scene`), or built here for a scene built without it.
-        let built;
-        let dual = match scene.prepared::<DualEdges>() {
-            Some(d) => d,
-            None => {
-                built = dual_edges(scene);
-                &built
-            }
-        };
+        let mut built = None;
+        let dual = prepared_dual_edges(scene, &mut built);
         let infinite: Vec<&Light> = scene.light_list().iter().filter(|l| l.is_infinite()).collect();
         let mode = self.mode.unwrap_or_else(|| default_mode(scene, ctx.warnings));
         if mode == Mode::Shade && infinite.len() < scene.light_list().len() {
