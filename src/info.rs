@@ -1,7 +1,7 @@
 //! `penumbra info [SCENE] [-i NAME]`: what a scene contains, checked as `render` checks it.
 
 use crate::{cli_params, pipeline};
-use penumbra_core::integrator::{build_scene, check_scene};
+use penumbra_core::integrator::{build_scene, check_scene, resolve_threads};
 use penumbra_core::scene::BuildOptions;
 use penumbra_parser::{DiagSink, Entity, Param, ParamValue, SceneDescription, ShapeDesc};
 use std::collections::BTreeMap;
@@ -103,7 +103,7 @@ fn check(desc: &SceneDescription, args: &InfoArgs, params: &[Param], warnings: &
     for line in &scene.report.details {
         let _ = writeln!(o, "    {line}");
     }
-    if let Some(e) = integrator.estimate_cost(&scene, pipeline::resolve_threads(0)) {
+    if let Some(e) = integrator.estimate_cost(&scene, resolve_threads(0)) {
         for line in &e.lines {
             let _ = writeln!(o, "{line}");
         }

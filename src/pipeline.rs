@@ -3,7 +3,9 @@
 use crate::cli_params;
 use penumbra_core::film::{Film, FilmSpec};
 use penumbra_core::image::Image;
-use penumbra_core::integrator::{build_scene, CostEstimate, Integrator, RenderContext, RenderError, RenderStats};
+use penumbra_core::integrator::{
+    build_scene, resolve_threads, CostEstimate, Integrator, RenderContext, RenderError, RenderStats,
+};
 use penumbra_core::scene::{BuildOptions, BuildReport, Scene};
 use penumbra_parser::{DiagSink, Diagnostic, Param, ParamSet, ParseOutput, SceneDescription};
 use std::path::Path;
@@ -190,15 +192,6 @@ pub fn render_estimated(
     let integrator = choose_integrator(desc, opts.integrator, opts.params, warnings)?;
     let name = integrator_name(desc, opts.integrator);
     render_announced(name, integrator.as_ref(), desc, opts, warnings, Some(announce))
-}
-
-/// The number of worker threads `threads` means (0: one per core, as the render takes it).
-pub fn resolve_threads(threads: usize) -> usize {
-    if threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        threads
-    }
 }
 
 fn render_announced(

@@ -342,7 +342,7 @@ pub fn render_pixels<E: PixelEstimator + ?Sized>(
     }
     let mut stats = merge_tiles(film, results.into_iter().flatten());
     stats.spp = spp;
-    stats.threads = rayon_threads(ctx.threads);
+    stats.threads = resolve_threads(ctx.threads);
     stats.render_seconds = start.elapsed().as_secs_f64();
     if stats.bad_samples > 0 {
         ctx.warnings.warn(
@@ -579,7 +579,8 @@ pub fn render_pixels_with_margin<E: PixelEstimator + ?Sized, R>(
     Ok((stats, out))
 }
 
-fn rayon_threads(requested: usize) -> usize {
+/// The number of worker threads a requested count means (0: one per core).
+pub fn resolve_threads(requested: usize) -> usize {
     if requested > 0 {
         requested
     } else {

@@ -88,11 +88,7 @@ pub struct Outputs<'a> {
 impl<'a> Outputs<'a> {
     /// The outputs under `--output`, with the reference as `sweep.json` and the summary name it.
     pub fn new(args: &'a SweepArgs, integrators: &[String], reference: Value, reference_label: String) -> Self {
-        let threads = if args.flags.threads == 0 {
-            std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
-        } else {
-            args.flags.threads
-        };
+        let threads = penumbra_core::integrator::resolve_threads(args.flags.threads);
         Outputs {
             dir: &args.output,
             scene: args.scene.display().to_string(),
