@@ -130,7 +130,7 @@ fn piece(corners: [DVec3; 3], depth: u32, h: &impl Integrand, st: &mut Quadratur
 /// settled as it is. Refining where the error is, rather than giving every triangle of a fan an
 /// equal share of the tolerance, leaves the many thin triangles of a complex visible region
 /// (an occluder's silhouette) at one rule each.
-pub fn integrate_triangles(tris: &[[DVec3; 3]], h: &impl Integrand, tol: f64, st: &mut QuadratureStats) -> DVec3 {
+fn integrate_triangles(tris: &[[DVec3; 3]], h: &impl Integrand, tol: f64, st: &mut QuadratureStats) -> DVec3 {
     let mut heap = std::collections::BinaryHeap::with_capacity(tris.len() * 2);
     let mut err_sum = 0.0;
     for &t in tris {
@@ -165,14 +165,6 @@ fn fan(l: &[DVec3], out: &mut Vec<[DVec3; 3]>) {
     if l.len() >= 3 {
         out.extend((1..l.len() - 1).map(|i| [l[0], l[i], l[i + 1]]));
     }
-}
-
-/// Adaptive integral of `h` over the region of the loop `l` (unit directions in an open
-/// hemisphere; signed by orientation) to the absolute tolerance `tol`.
-pub fn integrate_loop(l: &[DVec3], h: &impl Integrand, tol: f64, st: &mut QuadratureStats) -> DVec3 {
-    let mut tris = Vec::new();
-    fan(l, &mut tris);
-    integrate_triangles(&tris, h, tol, st)
 }
 
 /// The lobe being integrated: the LTC's inverse matrix (local frame), the control variate's

@@ -70,16 +70,16 @@ const TIR_SIDES: usize = 64;
 fn exact_lobe(at: &PieceFrame, lc: &LobeLtc, loops: &[Vec<DVec3>], st: &mut QuadratureStats) -> DVec3 {
     let wo = at.wo_local;
     let fresnel = lc.lobe.fresnel();
-    let Some(tc) = tir_threshold(&fresnel) else {
+    // The lobe with its Fresnel factor in one quadrature, where the region holds no kink.
+    let plain = |st: &mut QuadratureStats| {
         let e = lc.lobe.evaluator(wo);
-        return exact_piece(at, &lc.coeffs.minv, loops, |w| e.f_cos(w), None, st).0;
+        exact_piece(at, &lc.coeffs.minv, loops, |w| e.f_cos(w), None, st).0
     };
+    let Some(tc) = tir_threshold(&fresnel) else { return plain(st) };
     let wo_world = at.frame.from_local(at.wo_local);
     let (inside, wholly_inside) = clip_to_cap_inside(loops, wo_world, tc, TIR_SIDES);
     if wholly_inside {
-        // No kink in the region: the lobe with its Fresnel factor in one quadrature.
-        let e = lc.lobe.evaluator(wo);
-        return exact_piece(at, &lc.coeffs.minv, loops, |w| e.f_cos(w), None, st).0;
+        return plain(st);
     }
     let one = LtcLobe { kind: LtcLobeKind::Microfacet(LtcFresnel::NoOp), ..lc.lobe }.evaluator(wo);
     let (whole, tol) = exact_piece(at, &lc.coeffs.minv, loops, |w| one.f_cos(w), None, st);
