@@ -14,10 +14,12 @@ budget, extrapolated along its last two renders and marked ~), and the ratio of 
 is that of a 64-spp render of each (rendered by --run).
 """
 import json
-import math
 import os
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from sweeplib import loglog, pfm_mean  # noqa: E402
 
 SCENES = ["quad-cube", "cylinder-icosphere-ellipsoid", "table-convex-parts", "torus-nonconvex",
           "two-lights-metal"]
@@ -40,22 +42,6 @@ def run(out):
             means(out, s, i)
 
 
-def pfm_mean(path):
-    """Mean of R, G, B of a PFM image."""
-    import array
-    with open(path, "rb") as f:
-        kind = f.readline().strip()
-        w, h = map(int, f.readline().split())
-        scale = float(f.readline())
-        a = array.array("f")
-        a.frombytes(f.read())
-    if scale > 0:
-        a.byteswap()
-    n = 3 if kind == b"PF" else 1
-    assert len(a) == w * h * n
-    return sum(a) / len(a)
-
-
 def means(out, s, i):
     """Image means of the 64-spp render and of pbrt-v3's reference (through PFM copies)."""
     img = f"{out}/{s}/{i}-64.exr"
@@ -66,24 +52,6 @@ def means(out, s, i):
     with open(f"{out}/{s}/{i}-64.mean.json", "w") as f:
         json.dump({"render": pfm_mean(img + ".pfm"), "reference": pfm_mean(f"{out}/{s}/ref.pfm")},
                   f)
-
-
-def loglog(xs, ys, y):
-    """x at which the piecewise log-log curve (xs, ys) with ys decreasing reaches y."""
-    pts = sorted(zip(xs, ys))
-    for (x0, y0), (x1, y1) in zip(pts, pts[1:]):
-        if (y0 >= y >= y1) or (y0 <= y <= y1):
-            if y0 == y1:
-                return x0, False
-            t = (math.log(y) - math.log(y0)) / (math.log(y1) - math.log(y0))
-            return math.exp(math.log(x0) + t * (math.log(x1) - math.log(x0))), False
-    if y > max(ys):
-        return None, False
-    (x0, y0), (x1, y1) = pts[-2], pts[-1]
-    slope = (math.log(y1) - math.log(y0)) / (math.log(x1) - math.log(x0))
-    if slope >= 0:
-        return None, True
-    return math.exp(math.log(x1) + (math.log(y) - math.log(y1)) / slope), True
 
 
 def mean_error(out, s, i):

@@ -1,0 +1,57 @@
+//! `silhouette` on real meshes (issue 37's check): two loop-subdivided killeroos, 66.5k
+//! triangles, on a ground plane before a wall (`scenes/meshes/`), under a uniform white sky
+//! (`mode=ao` against pbrt-v3's `ambientocclusion`) and under the studio map (`shade` against
+//! pbrt-v3's `directlighting`). References: the real pbrt-v3 at 256², 4096 spp (sky) and 1024
+//! spp (studio), box-downsampled to 64² (`tools/silhouette_equal_error.py --references`).
+
+mod common;
+use common::*;
+
+/// Relative error of the image mean and the largest relative error of an 8×8 block mean.
+fn errors(label: &str, ours: &Render, reference: &penumbra_core::image::Image) -> (f64, f64) {
+    let rel = mean(&ours.image) / mean(reference) - 1.0;
+    let worst = block_means(&ours.image)
+        .iter()
+        .zip(block_means(reference))
+        .map(|(o, r)| (o / r - 1.0).abs())
+        .fold(0.0f64, f64::max);
+    eprintln!("{label}: image mean {:+.3} %, worst 8×8 block {:.3} %", rel * 100.0, worst * 100.0);
+    (rel, worst)
+}
+
+/// Issue 37 asks for 1 % (AO). Measured at 64², 4 spp: image mean +0.024 %, worst 8×8 block
+/// 0.99 % (RMS over the 64 blocks 0.25 %); at 16 spp +0.020 % / 0.51 % (RMS 0.13 %): the blocks'
+/// error is the anti-aliasing noise of 256 camera samples per block, halving with 4× the
+/// samples, and the mean's noise is about 0.25 % / √64 = 0.03 %. Bounds: the measured figures
+/// plus about five of those noise units (mean 0.2 %), and 1.5 × the worst block (1.5 %).
+#[test]
+fn killeroos_under_a_white_sky_match_pbrt_v3_ao() {
+    let ours = render_path(
+        &scene("meshes/killeroos-sky.pbrt"),
+        &Opts { integrator: Some("silhouette"), params: &["mode=ao"], spp: Some(4), ..Default::default() },
+    );
+    let (rel, worst) = errors("killeroos-sky", &ours, &reference("meshes/killeroos-sky.ao.exr"));
+    assert!(rel.abs() < MEAN_TOL_SKY, "image mean {rel:+.4}");
+    assert!(worst < BLOCK_TOL_SKY, "worst block {worst:.4}");
+}
+
+/// Issue 37 asks for 2 % (studio). Measured at 64², 4 spp: image mean +0.019 %, worst 8×8 block
+/// 1.22 % (RMS 0.34 %); at 16 spp +0.027 % / 0.74 % (RMS 0.14 %), anti-aliasing noise as above
+/// (`directlighting` at 256 spp: +0.016 % / 0.47 %). Bounds as for the sky: mean 0.2 %, blocks
+/// 1.5 × the worst measured (1.8 %). With `resolution=8` (8 meridians) the render is +2.47 % /
+/// 29.6 % off (the sky's −0.62 % / 9.9 %): both bounds catch a coarse azimuth.
+#[test]
+fn killeroos_under_the_studio_map_match_pbrt_v3() {
+    let ours = render_path(
+        &scene("meshes/killeroos-studio.pbrt"),
+        &Opts { integrator: Some("silhouette"), spp: Some(4), ..Default::default() },
+    );
+    let (rel, worst) = errors("killeroos-studio", &ours, &reference("meshes/killeroos-studio.exr"));
+    assert!(rel.abs() < MEAN_TOL_STUDIO, "image mean {rel:+.4}");
+    assert!(worst < BLOCK_TOL_STUDIO, "worst block {worst:.4}");
+}
+
+const MEAN_TOL_SKY: f64 = 0.002;
+const BLOCK_TOL_SKY: f64 = 0.015;
+const MEAN_TOL_STUDIO: f64 = 0.002;
+const BLOCK_TOL_STUDIO: f64 = 0.018;

@@ -1,0 +1,163 @@
+#!/usr/bin/env python3
+"""Equal-error time of `silhouette` against `ambientocclusion` and `directlighting` on
+66.5k-triangle meshes under an environment (issue 37 item 2), generated from `penumbra sweep`.
+
+    python3 tools/silhouette_equal_error.py --references REF    # pbrt-v3 ground truth (minutes)
+    python3 tools/silhouette_equal_error.py --run OUT REF       # the sweeps (quiet machine!)
+    python3 tools/silhouette_equal_error.py OUT > docs/integrators/silhouette-equal-error.md
+
+Scenes: scenes/meshes/killeroos-sky.pbrt (uniform white sky; `silhouette --param mode=ao`
+against `ambientocclusion --param nsamples=1`, pbrt-v3's `ambientocclusion` value) and
+scenes/meshes/killeroos-studio.pbrt (the studio map; `silhouette`'s default `shade` against
+`directlighting`), 256², 2 threads. References: the real pbrt-v3
+(../shared/tools/pbrt-v3/pbrt) at 4096 spp (sky, `ambientocclusion` nsamples 1, cossample) and
+1024 spp (studio, `directlighting`), written as PFM and converted to EXR by `penumbra convert`
+(REF/NAME.exr, 256², for the sweeps; and box-downsampled 4×4 to 64² into
+tests/data/references/meshes/, for tests/silhouette_meshes.rs).
+Each sweep: `penumbra sweep SCENE --reference REF/NAME.exr -i INTEGRATOR [--param ...]
+--time-limit T --threads 2 --no-flip`, one integrator per sweep (their `--param`s differ).
+"""
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from sweeplib import loglog  # noqa: E402
+
+EXE = os.environ.get("PENUMBRA", "target/release/penumbra")
+PBRT = os.environ.get("PBRT", "../shared/tools/pbrt-v3/pbrt")
+# scene, reference spp, [(label, integrator, params, time limit, max budget)]
+SCENES = [
+    ("killeroos-sky", 4096, [
+        ("silhouette", "silhouette", ["mode=ao"], 200, 16),
+        ("ambientocclusion", "ambientocclusion", ["nsamples=1"], 90, 65536),
+    ]),
+    ("killeroos-studio", 1024, [
+        ("silhouette", "silhouette", [], 200, 16),
+        ("directlighting", "directlighting", [], 90, 65536),
+    ]),
+]
+
+
+def references(ref):
+    """Render pbrt-v3's ground truth for both scenes into REF/NAME.exr."""
+    os.makedirs(ref, exist_ok=True)
+    for name, spp, _ in SCENES:
+        path = f"scenes/meshes/{name}.pbrt"
+        text = open(path).read()
+        with tempfile.TemporaryDirectory() as tmp:
+            pfm = os.path.join(tmp, name + ".pfm")
+            text = re.sub(r'"integer pixelsamples" \[ \d+ \]', f'"integer pixelsamples" [ {spp} ]', text)
+            text = re.sub(r'"string filename" \[ "[^"]*" \]', f'"string filename" [ "{pfm}" ]', text)
+            # Next to the original, so that its relative includes and map resolve.
+            copy = os.path.join("scenes/meshes", f".ref-{name}.pbrt")
+            open(copy, "w").write(text)
+            try:
+                subprocess.run([PBRT, "--quiet", "--nthreads", "2", copy], check=True)
+            finally:
+                os.remove(copy)
+            subprocess.run([EXE, "convert", pfm, os.path.join(ref, name + ".exr")], check=True)
+            small = os.path.join(tmp, name + ".64.pfm")
+            downsample_pfm(pfm, small, 4)
+            test_name = name + (".ao" if integrator_of(name) == "ambientocclusion" else "")
+            subprocess.run([EXE, "convert", small, f"tests/data/references/meshes/{test_name}.exr"],
+                           check=True)
+
+
+def integrator_of(name):
+    return next(r[1] for n, _, runs in SCENES if n == name for r in runs[1:])
+
+
+def downsample_pfm(src, dst, k):
+    """Box-downsample a colour PFM k×k (exact for the box pixel filter; divides noise by ~k)."""
+    import array
+    with open(src, "rb") as f:
+        assert f.readline().strip() == b"PF"
+        w, h = map(int, f.readline().split())
+        scale = float(f.readline())
+        a = array.array("f")
+        a.frombytes(f.read())
+    if scale > 0:
+        a.byteswap()
+    out = array.array("f", [0.0] * ((w // k) * (h // k) * 3))
+    for y in range(h - h % k):
+        for x in range(w - w % k):
+            o = ((y // k) * (w // k) + x // k) * 3
+            i = (y * w + x) * 3
+            for c in range(3):
+                out[o + c] += a[i + c] / (k * k)
+    with open(dst, "wb") as f:
+        f.write(b"PF\n%d %d\n-1.0\n" % (w // k, h // k))
+        out.tofile(f)
+
+
+def run(out, ref):
+    for name, _, runs in SCENES:
+        for label, integrator, params, limit, max_budget in runs:
+            cmd = [EXE, "sweep", f"scenes/meshes/{name}.pbrt", "--reference",
+                   f"{ref}/{name}.exr", "-i", integrator, "--time-limit", str(limit),
+                   "--max-budget", str(max_budget), "--threads", "2", "--no-flip", "-q",
+                   "-o", f"{out}/{name}/{label}"]
+            for p in params:
+                cmd += ["--param", p]
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+
+
+def rows(out, name, label):
+    return json.load(open(f"{out}/{name}/{label}/sweep.json"))["rows"]
+
+
+def table(out):
+    print(__doc__.split("\n\n")[0].replace('"""', ""))
+    print()
+    print("Generated by `python3 tools/silhouette_equal_error.py OUT` from the sweeps that "
+          "`python3 tools/silhouette_equal_error.py --run OUT REF` ran (its docstring gives the "
+          "commands). Wall times on 2 threads of an otherwise idle 2-core machine; times include "
+          "the scene build (for `silhouette` the dual-edge hierarchy and radiance tables), not "
+          "parsing. For each `silhouette` render: its RMSE against pbrt-v3, its time, the time "
+          "the ray tracer needs for the same RMSE (log-log interpolation between its two "
+          "renders that bracket it; ~ marks an extrapolation past its largest budget) and the "
+          "ratio of the two (below 1: `silhouette` is ahead).")
+    print()
+    print("| scene | `silhouette` spp | RMSE | time (s) | against | its time to that RMSE (s) "
+          "| time ratio |")
+    print("|---|---|---|---|---|---|---|")
+    for name, _, runs in SCENES:
+        other = runs[1][0]
+        o = rows(out, name, other)
+        ox = [r["total_s"] for r in o]
+        oy = [r["rmse"] for r in o]
+        first = True
+        for r in rows(out, name, "silhouette"):
+            t, extrap = loglog(ox, oy, r["rmse"])
+            if t is None:
+                ts, rs = ("below its curve" if extrap else "< its first render"), ""
+            else:
+                ts = ("~" if extrap else "") + f"{t:.3g}"
+                rs = ("~" if extrap else "") + f"{r['total_s'] / t:.2f}"
+            print(f"| {name if first else ''} | {r['spp']} | {r['rmse']:.3g} | "
+                  f"{r['total_s']:.3g} | `{other}` | {ts} | {rs} |")
+            first = False
+    print()
+    print("The ray tracers' renders (spp: RMSE at seconds):")
+    print()
+    for name, _, runs in SCENES:
+        for label, _, params, _, _ in runs:
+            p = " ".join(f"`{x}`" for x in params)
+            line = ", ".join(f"{r['spp']}: {r['rmse']:.3g} at {r['total_s']:.3g}"
+                             for r in rows(out, name, label))
+            print(f"- {name}, `{label}` {p}: {line}")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) == 3 and sys.argv[1] == "--references":
+        references(sys.argv[2])
+    elif len(sys.argv) == 4 and sys.argv[1] == "--run":
+        run(sys.argv[2], sys.argv[3])
+    elif len(sys.argv) == 2:
+        table(sys.argv[1])
+    else:
+        sys.exit(__doc__)
