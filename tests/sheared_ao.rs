@@ -280,3 +280,50 @@ fn sh_relit_under_the_studio_map_matches_directlighting_mean() {
     );
     assert!(rel.abs() < 0.02, "relit mean {:+.2} % from directlighting's", 100.0 * rel);
 }
+
+/// Box-downsamples an RGB image k×k (exact for the box pixel filter: a 256² render so reduced
+/// estimates the same pixels as a 64² one).
+fn downsample(img: &penumbra_core::image::Image, k: usize) -> penumbra_core::image::Image {
+    let (w, h) = (img.width as usize, img.height as usize);
+    let mut out = img.clone();
+    out.width = (w / k) as u32;
+    out.height = (h / k) as u32;
+    out.data = vec![0.0; (w / k) * (h / k) * 3];
+    for y in 0..h - h % k {
+        for x in 0..w - w % k {
+            for c in 0..3 {
+                out.data[((y / k) * (w / k) + x / k) * 3 + c] += img.data[(y * w + x) * 3 + c] / (k * k) as f32;
+            }
+        }
+    }
+    out
+}
+
+/// Issue 38's check on mesh-heavy scenes of the held-out kind (`scenes/meshes/`: a staircase of
+/// box steps by a wall; the 66.5k-triangle killeroos), at the scenes' 256², against pbrt-v3's
+/// 4096-spp `ambientocclusion` (64² copies, so our render is box-downsampled 4×4). The issue asks
+/// for the mean within 2 %. Measured at the defaults (4 spp): killeroos +0.74 %, staircase
+/// +0.71 % (at 16 spp +0.37 % / +0.33 %: the filter's reprojection over the neighbourhood, which
+/// narrows with more samples per pixel; at 64² the neighbourhood spans 4× the surface and the
+/// killeroos are +2.0 %, so the test renders the scenes' own resolution). Bound: 1 %, the
+/// measured figures plus the mean's noise (RMSE 0.043–0.049 over 65k pixels: < 0.01 %) and
+/// room for a re-ordering of the filter's floating-point sums.
+#[test]
+fn mesh_scenes_match_pbrt_v3_mean_at_their_resolution() {
+    for name in ["killeroos-sky", "staircase-sky"] {
+        let ours = render_path(
+            &scene(&format!("meshes/{name}.pbrt")),
+            &Opts { integrator: Some("sheared-ao"), spp: Some(4), resolution: None, ..Default::default() },
+        );
+        assert_eq!(ours.image.width, 256, "{name}: the scene's resolution");
+        let reference = reference(&format!("meshes/{name}.ao.exr"));
+        let small = downsample(&ours.image, 4);
+        let rel = mean(&small) / mean(&reference) - 1.0;
+        eprintln!(
+            "{name}: sheared-ao mean {:+.3}% vs pbrt-v3, RMSE (64²) {:.4}",
+            rel * 100.0,
+            rmse(&small, &reference)
+        );
+        assert!(rel.abs() < 0.01, "{name}: mean differs by {:.3}%", rel * 100.0);
+    }
+}

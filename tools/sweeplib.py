@@ -1,5 +1,5 @@
 """Shared helpers of the tools that turn `penumbra sweep` runs into documentation tables
-(ltc_equal_time.py, silhouette_equal_error.py)."""
+(ltc_equal_time.py, meshes_equal_error.py)."""
 import array
 import math
 

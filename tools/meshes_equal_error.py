@@ -1,0 +1,175 @@
+#!/usr/bin/env python3
+"""Equal-error time of `silhouette` and `sheared-ao` against the ray tracers on mesh-heavy
+scenes under an environment (issues 37 item 2 and 38 item 2), generated from `penumbra sweep`.
+
+    python3 tools/meshes_equal_error.py --references REF    # pbrt-v3 ground truth (minutes)
+    python3 tools/meshes_equal_error.py --run OUT REF       # the sweeps (quiet machine!)
+    python3 tools/meshes_equal_error.py OUT > docs/integrators/meshes-equal-error.md
+
+Scenes (scenes/meshes/, 256², 2 threads): killeroos-sky (66.5k triangles, uniform white sky:
+`silhouette --param mode=ao` and `sheared-ao` against `ambientocclusion --param nsamples=1`,
+pbrt-v3's `ambientocclusion` value), staircase-sky (12 box steps and a wall, the same three)
+and killeroos-studio (the studio map: `silhouette`'s default `shade` against `directlighting`).
+References: the real pbrt-v3 (../shared/tools/pbrt-v3/pbrt) at 4096 spp (`ambientocclusion`
+nsamples 1, cossample) and 1024 spp (studio, `directlighting`), written as PFM and converted to
+EXR by `penumbra convert` (REF/NAME.exr, 256², for the sweeps; and box-downsampled 4×4 to 64²
+into tests/data/references/meshes/, for the tests). Each sweep: `penumbra sweep SCENE
+--reference REF/NAME.exr -i INTEGRATOR [--param ...] [--budgets ...] --time-limit T --threads 2
+--no-flip`, one integrator per sweep (their `--param`s differ); the time limit bounds the sum
+of an integrator's renders.
+"""
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from sweeplib import loglog  # noqa: E402
+
+EXE = os.environ.get("PENUMBRA", "target/release/penumbra")
+PBRT = os.environ.get("PBRT", "../shared/tools/pbrt-v3/pbrt")
+# scene, reference spp, baseline first: [(label, integrator, params, time limit, budgets)]
+# (budgets None: doubling from 1 spp until the time limit)
+AO = ("ambientocclusion", "ambientocclusion", ["nsamples=1"], 60, None)
+SCENES = [
+    ("killeroos-sky", 4096, [
+        AO,
+        ("silhouette", "silhouette", ["mode=ao"], 150, [1, 2, 4, 8]),
+        ("sheared-ao", "sheared-ao", [], 60, None),
+    ]),
+    ("staircase-sky", 4096, [
+        AO,
+        ("silhouette", "silhouette", ["mode=ao"], 60, [1, 2, 4, 8, 16]),
+        ("sheared-ao", "sheared-ao", [], 60, None),
+    ]),
+    ("killeroos-studio", 1024, [
+        ("directlighting", "directlighting", [], 60, None),
+        ("silhouette", "silhouette", [], 150, [1, 2, 4]),
+    ]),
+]
+
+
+def references(ref):
+    """Render pbrt-v3's ground truth for every scene into REF/NAME.exr (and the 64² copies)."""
+    os.makedirs(ref, exist_ok=True)
+    for name, spp, _ in SCENES:
+        path = f"scenes/meshes/{name}.pbrt"
+        text = open(path).read()
+        with tempfile.TemporaryDirectory() as tmp:
+            pfm = os.path.join(tmp, name + ".pfm")
+            text = re.sub(r'"integer pixelsamples" \[ \d+ \]', f'"integer pixelsamples" [ {spp} ]', text)
+            text = re.sub(r'"string filename" \[ "[^"]*" \]', f'"string filename" [ "{pfm}" ]', text)
+            # Next to the original, so that its relative includes and map resolve.
+            copy = os.path.join("scenes/meshes", f".ref-{name}.pbrt")
+            open(copy, "w").write(text)
+            try:
+                subprocess.run([PBRT, "--quiet", "--nthreads", "2", copy], check=True)
+            finally:
+                os.remove(copy)
+            subprocess.run([EXE, "convert", pfm, os.path.join(ref, name + ".exr")], check=True)
+            small = os.path.join(tmp, name + ".64.pfm")
+            downsample_pfm(pfm, small, 4)
+            test_name = name + (".ao" if integrator_of(name) == "ambientocclusion" else "")
+            subprocess.run([EXE, "convert", small, f"tests/data/references/meshes/{test_name}.exr"],
+                           check=True)
+
+
+def integrator_of(name):
+    return next(runs[0][1] for n, _, runs in SCENES if n == name)
+
+
+def downsample_pfm(src, dst, k):
+    """Box-downsample a colour PFM k×k (exact for the box pixel filter; divides noise by ~k)."""
+    import array
+    with open(src, "rb") as f:
+        assert f.readline().strip() == b"PF"
+        w, h = map(int, f.readline().split())
+        scale = float(f.readline())
+        a = array.array("f")
+        a.frombytes(f.read())
+    if scale > 0:
+        a.byteswap()
+    out = array.array("f", [0.0] * ((w // k) * (h // k) * 3))
+    for y in range(h - h % k):
+        for x in range(w - w % k):
+            o = ((y // k) * (w // k) + x // k) * 3
+            i = (y * w + x) * 3
+            for c in range(3):
+                out[o + c] += a[i + c] / (k * k)
+    with open(dst, "wb") as f:
+        f.write(b"PF\n%d %d\n-1.0\n" % (w // k, h // k))
+        out.tofile(f)
+
+
+def run(out, ref):
+    for name, _, runs in SCENES:
+        for label, integrator, params, limit, budgets in runs:
+            cmd = [EXE, "sweep", f"scenes/meshes/{name}.pbrt", "--reference",
+                   f"{ref}/{name}.exr", "-i", integrator, "--time-limit", str(limit),
+                   "--threads", "2", "--no-flip", "-q", "-o", f"{out}/{name}/{label}"]
+            if budgets:
+                cmd += ["--budgets", ",".join(map(str, budgets))]
+            for p in params:
+                cmd += ["--param", p]
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+
+
+def rows(out, name, label):
+    return json.load(open(f"{out}/{name}/{label}/sweep.json"))["rows"]
+
+
+def table(out):
+    print(__doc__.split("\n\n")[0].replace('"""', ""))
+    print()
+    print("Generated by `python3 tools/meshes_equal_error.py OUT` from the sweeps that "
+          "`python3 tools/meshes_equal_error.py --run OUT REF` ran (its docstring gives the "
+          "commands). Wall times on 2 threads of an otherwise idle 2-core machine; times include "
+          "the scene build (`silhouette`'s dual-edge hierarchy and radiance tables, the BVH), not "
+          "parsing. For each render of `silhouette` and `sheared-ao`: its RMSE against pbrt-v3, "
+          "its time, the time the ray tracer needs for the same RMSE (log-log interpolation "
+          "between its two renders that bracket it; ~ marks an extrapolation past its largest "
+          "budget) and the ratio of the two (below 1: ahead of the ray tracer).")
+    print()
+    print("| scene | integrator | spp | RMSE | time (s) | against | its time to that RMSE (s) "
+          "| time ratio |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, _, runs in SCENES:
+        base = runs[0][0]
+        o = rows(out, name, base)
+        ox = [r["total_s"] for r in o]
+        oy = [r["rmse"] for r in o]
+        first = True
+        for label, _, params, _, _ in runs[1:]:
+            p = "".join(f" `{x}`" for x in params)
+            for r in rows(out, name, label):
+                t, extrap = loglog(ox, oy, r["rmse"])
+                if t is None:
+                    ts, rs = ("below its curve" if extrap else "< its first render"), ""
+                else:
+                    ts = ("~" if extrap else "") + f"{t:.3g}"
+                    rs = ("~" if extrap else "") + f"{r['total_s'] / t:.2f}"
+                print(f"| {name if first else ''} | `{label}`{p} | {r['spp']} | {r['rmse']:.3g} | "
+                      f"{r['total_s']:.3g} | `{base}` | {ts} | {rs} |")
+                first = False
+    print()
+    print("The ray tracers' renders (spp: RMSE at seconds):")
+    print()
+    for name, _, runs in SCENES:
+        label, _, params, _, _ = runs[0]
+        p = "".join(f" `{x}`" for x in params)
+        line = ", ".join(f"{r['spp']}: {r['rmse']:.3g} at {r['total_s']:.3g}"
+                         for r in rows(out, name, label))
+        print(f"- {name}, `{label}`{p}: {line}")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) == 3 and sys.argv[1] == "--references":
+        references(sys.argv[2])
+    elif len(sys.argv) == 4 and sys.argv[1] == "--run":
+        run(sys.argv[2], sys.argv[3])
+    elif len(sys.argv) == 2:
+        table(sys.argv[1])
+    else:
+        sys.exit(__doc__)
