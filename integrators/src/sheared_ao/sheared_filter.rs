@@ -238,7 +238,7 @@ impl Grid32 {
 #[inline(always)]
 fn atan_unit32(x: f32) -> f32 {
     let x2 = x * x;
-    x * (0.99997726 + x2 * (-0.33262347 + x2 * (0.19354346 + x2 * (-0.11643287 + x2 * (0.05265332 - x2 * 0.01172120)))))
+    x * (0.99997726 + x2 * (-0.33262347 + x2 * (0.19354346 + x2 * (-0.11643287 + x2 * (0.05265332 - x2 * 0.0117212)))))
 }
 
 /// The central direction of cell `c` in local coordinates (the concentric map of the centre
