@@ -399,7 +399,7 @@ impl ShearedAo {
         aov[0] = (brute as f64 / nc as f64) as f32;
         let Some(order) = self.sh else { return };
         let k = order.coeffs();
-        let PassScratch { vbar, local, world, .. } = scratch;
+        let PassScratch { vbar, local, world, rot, .. } = scratch;
         local.clear();
         local.resize(k, 0.0);
         for (v, row) in vbar.iter().zip(table.chunks_exact(k)) {
@@ -412,11 +412,18 @@ impl ShearedAo {
         let z = recv.point.n.normalize();
         let x = (frame.x.as_dvec3() - z * z.dot(frame.x.as_dvec3())).normalize();
         let world_from_local = glam::DMat3::from_cols(x, z.cross(x), z);
-        match ShRotation::new(order, world_from_local) {
-            Ok(rot) => {
-                let _ = rot.apply(local, world);
+        // The rotation depends on the frame only: members of a cluster on one flat face (and
+        // the pixels of a plane) share the receiver's frame bit for bit, so the last one built
+        // is kept and reused when the matrix is the same (its construction was a quarter of
+        // the instructions of an order-5 render).
+        if !matches!(rot, Some((m, r)) if *m == world_from_local && r.order() == order) {
+            *rot = ShRotation::new(order, world_from_local).ok().map(|r| (world_from_local, r));
+        }
+        match rot {
+            Some((_, r)) => {
+                let _ = r.apply(local, world);
             }
-            Err(_) => world.iter_mut().for_each(|w| *w = 0.0),
+            None => world.iter_mut().for_each(|w| *w = 0.0),
         }
         TransferChannels::new(order, 1).write(aov, world, recv.albedo);
     }
@@ -532,6 +539,8 @@ struct PassScratch {
     vbar: Vec<f64>,
     local: Vec<f64>,
     world: Vec<f64>,
+    /// The last SH rotation built, with its matrix (world from local).
+    rot: Option<(glam::DMat3, ShRotation)>,
 }
 
 /// The larger side of the pixel's footprint at `p` on the plane of normal `n`: where the camera

@@ -2,10 +2,12 @@
 //! hemisphere cells (equal projected area), the per-cell occluder depth bounds, the sheared
 //! filter's spatial radius (Eq. 8) and harmonic mid depth (Eq. 9), the warp of every
 //! neighbour ray to an effective ray from the receiver, its weight and the per-cell
-//! normalisation (Algorithm 1 of Egan, Durand & Ramamoorthi 2011). All in f64: points of a
-//! neighbourhood are subtracted at any scene scale.
+//! normalisation (Algorithm 1 of Egan, Durand & Ramamoorthi 2011). Points of a neighbourhood
+//! are subtracted in f64 (at any scene scale); the rays' terms, relative to their point, are
+//! turned and filtered in f32, as arrays over a receiver's neighbour rays (loops the compiler
+//! vectorises, four rays per instruction with SSE2).
 
-use glam::{DVec2, DVec3};
+use glam::{DVec2, DVec3, Vec3};
 use penumbra_core::geometry::Frame;
 use penumbra_core::sh::{basis, quadrature::gauss_legendre, ShOrder};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
@@ -21,8 +23,8 @@ pub struct CachedRay {
 }
 
 /// A shading point of pass 1 with its occlusion rays, kept as the terms of its rays that every
-/// receiver it lends them to would otherwise recompute ([`CachePoint::new`]; no more memory than
-/// the rays themselves, 56 bytes each, when half of them escape).
+/// receiver it lends them to would otherwise recompute ([`CachePoint::new`]; in f32, relative to
+/// the point: 48 bytes per occluded ray, 12 per escaped one).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CachePoint {
     pub p: DVec3,
@@ -32,20 +34,23 @@ pub struct CachePoint {
     pub footprint: f64,
     /// The rays that hit something, with their receiver-independent terms.
     hits: Vec<HitTerms>,
-    /// The directions of the rays that escaped.
-    misses: Vec<DVec3>,
+    /// The directions of the rays that escaped (world).
+    misses: Vec<Vec3>,
 }
 
-/// What a receiver needs of an occluded cached ray, computed once per cache point: its hit
-/// point and direction (world), the hit's normal `m` and the receiver-independent factor of the
-/// warp's Jacobian ([`occluded_jacobian`]), `k = t² / (cos_q |m·d|)` (0 when `cos_q ≤ 0`: the
-/// weight is 0).
+/// What a receiver needs of an occluded cached ray, computed once per cache point, in f32 and
+/// relative to the point (a receiver adds the point's offset, subtracted in f64): the hit `r = t d`
+/// and the direction `d` (world orientation), the hit's normal `m`, `t`, `m·r`, and the
+/// receiver-independent factor of the warp's Jacobian ([`occluded_jacobian`]),
+/// `k = t² / (cos_q |m·d|)` (0 when `cos_q ≤ 0`: the weight is 0).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct HitTerms {
-    h: DVec3,
-    d: DVec3,
-    m: DVec3,
-    k: f64,
+    r: Vec3,
+    d: Vec3,
+    m: Vec3,
+    t: f32,
+    mr: f32,
+    k: f32,
 }
 
 impl CachePoint {
@@ -58,10 +63,18 @@ impl CachePoint {
             .map(|r| {
                 let cos_q = r.d.dot(n);
                 let k = if cos_q > 0.0 { r.t * r.t / (cos_q * r.n_hit.dot(r.d).abs()) } else { 0.0 };
-                HitTerms { h: p + r.t * r.d, d: r.d, m: r.n_hit, k }
+                HitTerms {
+                    r: (r.t * r.d).as_vec3(),
+                    d: r.d.as_vec3(),
+                    m: r.n_hit.as_vec3(),
+                    t: r.t as f32,
+                    mr: (r.t * r.n_hit.dot(r.d)) as f32,
+                    // Capped so that an edge-on hit stays finite in f32 (and is capped as in f64).
+                    k: k.min(f32::MAX as f64) as f32,
+                }
             })
             .collect();
-        let misses = rays.iter().filter(|r| !r.t.is_finite()).map(|r| r.d).collect();
+        let misses = rays.iter().filter(|r| !r.t.is_finite()).map(|r| r.d.as_vec3()).collect();
         CachePoint { p, n, footprint, hits, misses }
     }
 }
@@ -178,6 +191,54 @@ impl Grid {
 pub fn atan_unit(x: f64) -> f64 {
     let x2 = x * x;
     x * (0.99997726 + x2 * (-0.33262347 + x2 * (0.19354346 + x2 * (-0.11643287 + x2 * (0.05265332 - x2 * 0.01172120)))))
+}
+
+/// [`Grid`] in f32 and branch-free, for the filter's loops over neighbour rays (which the
+/// compiler vectorises): the cell of the local direction `(x, y, ·) / len` given `1 / len`.
+/// Both wedges of the concentric map are computed from `min(|x|, |y|) / max(|x|, |y|)` and the
+/// signs, so it chooses [`Grid::cell_of`]'s cell but within f32 rounding of a cell boundary.
+#[derive(Clone, Copy, Debug)]
+struct Grid32 {
+    n: u32,
+    half_n: f32,
+    last: f32,
+}
+
+impl Grid32 {
+    fn new(n: usize) -> Self {
+        Grid32 { n: n as u32, half_n: 0.5 * n as f32, last: n as f32 - 1.0 }
+    }
+
+    #[inline(always)]
+    fn cell(&self, x: f32, y: f32, inv_len: f32) -> u32 {
+        let (ax, ay) = (x.abs(), y.abs());
+        let big = ax >= ay;
+        // Selects rather than `f32::min`/`max`, whose NaN rules cost three more instructions.
+        let (lo, hi) = if big { (ay, ax) } else { (ax, ay) };
+        let hi = if hi > f32::MIN_POSITIVE { hi } else { f32::MIN_POSITIVE };
+        let t = atan_unit32(lo / hi) * (4.0 / std::f32::consts::PI);
+        let rho = (x * x + y * y).sqrt() * inv_len;
+        let ox = (rho * if big { 1.0 } else { t }).copysign(x);
+        let oy = (rho * if big { t } else { 1.0 }).copysign(y);
+        self.index(oy) * self.n + self.index(ox)
+    }
+
+    #[inline(always)]
+    fn index(&self, o: f32) -> u32 {
+        // Compared so that NaN gives 0: an in-range value.
+        let v = (o + 1.0) * self.half_n;
+        let v = if v > 0.0 { v } else { 0.0 };
+        let v = if v < self.last { v } else { self.last };
+        // SAFETY: `v` is finite and in [0, n − 1] with n ≤ 32: its integer part fits an i32.
+        (unsafe { v.to_int_unchecked::<i32>() }) as u32
+    }
+}
+
+/// [`atan_unit`] in f32 (the same polynomial).
+#[inline(always)]
+fn atan_unit32(x: f32) -> f32 {
+    let x2 = x * x;
+    x * (0.99997726 + x2 * (-0.33262347 + x2 * (0.19354346 + x2 * (-0.11643287 + x2 * (0.05265332 - x2 * 0.0117212)))))
 }
 
 /// The central direction of cell `c` in local coordinates (the concentric map of the centre
@@ -312,23 +373,58 @@ struct Bounds {
 #[derive(Clone, Copy, Debug)]
 struct HitVisit {
     cell: u32,
-    x2: f64,
-    j: f64,
+    x2: f32,
+    j: f32,
 }
 
-/// A neighbour ray that escaped, or whose hit lies beyond `maxdistance`: its direction in the
-/// receiver's frame and the index of its point in [`Scratch::offsets`].
-#[derive(Clone, Copy, Debug)]
-struct MissVisit {
-    d: DVec3,
-    point: u32,
+/// The occluded neighbour rays of a receiver as arrays (one per coordinate), local to the
+/// receiver: the inputs of [`hit_terms`] (`u`: the vector from the receiver to the hit, `mu =
+/// m·u`, `ud = u·d`, `k` of [`HitTerms`], negative for the receiver's own rays, which weigh 1;
+/// `point`: the index of the ray's point in [`Scratch::offsets`]) and its outputs.
+#[derive(Default)]
+struct HitSoa {
+    ux: Vec<f32>,
+    uy: Vec<f32>,
+    uz: Vec<f32>,
+    mu: Vec<f32>,
+    ud: Vec<f32>,
+    k: Vec<f32>,
+    point: Vec<u32>,
+    cell: Vec<u32>,
+    z: Vec<f32>,
+    vd: Vec<f32>,
+    x2: Vec<f32>,
+    j: Vec<f32>,
 }
 
-/// A neighbour point's offset from the receiver (local) and its squared length.
-#[derive(Clone, Copy, Debug)]
-struct Offset {
-    o: DVec3,
-    oo: f64,
+/// The unoccluded neighbour rays of a receiver (and those whose hit lies beyond `maxdistance`)
+/// as arrays: direction `d` and its point's offset `o` (local) with `|o|²` ([`miss_terms`]'s
+/// inputs); the cell of `d`, the cell of the warped direction and the squared tangent offset
+/// (negative: the ray lends nothing), its outputs.
+#[derive(Default)]
+struct MissSoa {
+    dx: Vec<f32>,
+    dy: Vec<f32>,
+    dz: Vec<f32>,
+    ox: Vec<f32>,
+    oy: Vec<f32>,
+    oz: Vec<f32>,
+    oo: Vec<f32>,
+    cd: Vec<u32>,
+    cv: Vec<u32>,
+    x2: Vec<f32>,
+}
+
+impl MissSoa {
+    fn push(&mut self, d: Vec3, o: Vec3) {
+        self.dx.push(d.x);
+        self.dy.push(d.y);
+        self.dz.push(d.z);
+        self.ox.push(o.x);
+        self.oy.push(o.y);
+        self.oz.push(o.z);
+        self.oo.push(o.length_squared());
+    }
 }
 
 /// Scratch space for [`filter_receiver`] (one per thread).
@@ -341,10 +437,10 @@ pub struct Scratch {
     centers: Vec<DVec3>,
     /// What loop 1 found about the occluded neighbour rays that lend something.
     hits: Vec<HitVisit>,
-    /// The unoccluded neighbour rays, warped in loop 2.
-    misses: Vec<MissVisit>,
-    /// Per neighbour point.
-    offsets: Vec<Offset>,
+    h: HitSoa,
+    m: MissSoa,
+    /// Per neighbour point: its offset from the receiver (local).
+    offsets: Vec<Vec3>,
 }
 
 /// The importance weight of an occluded neighbour ray warped to the receiver: the receiver's
@@ -365,15 +461,16 @@ pub fn occluded_jacobian(r: &CachedRay, n_q: DVec3, n_p: DVec3, v: DVec3, dist_p
     }
 }
 
-/// [`occluded_jacobian`] as [`filter_receiver`] computes it, from the ray's
+/// [`occluded_jacobian`] as [`filter_receiver`] computes it (f32), from the ray's
 /// receiver-independent factor `k = t² / (cos_q |m·d|)` ([`HitTerms`]) and, with `u` the
 /// vector from the receiver to the hit and `z² = |u|²`: `cos_p = u_z / z`, `|m·v| = |m·u| / z`,
-/// so the weight is `u_z |m·u| k / z⁴` (no square root, one division).
-#[inline]
-fn hit_jacobian(u_z: f64, m_u: f64, k: f64, z2: f64) -> f64 {
-    let j = u_z * m_u.abs() * k / (z2 * z2);
+/// so the weight is `(u_z / z²) (|m·u| / z²) k` (no square root; each factor about `1 / z`, so
+/// that `z⁴` does not overflow f32 at large scene scales).
+#[inline(always)]
+fn hit_jacobian(u_z: f32, m_u: f32, k: f32, z2: f32) -> f32 {
+    let j = (u_z / z2) * (m_u.abs() / z2) * k;
     if j.is_finite() {
-        j.clamp(0.0, JACOBIAN_CAP)
+        j.clamp(0.0, JACOBIAN_CAP as f32)
     } else {
         0.0
     }
@@ -388,66 +485,235 @@ pub fn same_surface(recv: &Receiver, q: &CachePoint) -> bool {
     q.n.dot(n) >= 0.9 && n.dot(off).abs() <= 0.25 * off.length() + recv.footprint
 }
 
-/// Pass 2's first loop, in the receiver's frame (z = its normal): each cell's occluder depth
-/// bounds (cells binned by the direction from the receiver to the hit), whether a ray of the
-/// cell escaped, the contact test, the filter's radius (Eq. 8) and the harmonic mid depth.
-/// Everything about an occluded ray but its kernel weight (which needs its cell's radius, known
-/// only after this loop) is computed here, once: its cell, tangent offset and Jacobian
-/// ([`HitVisit`]); escaped rays are kept with their local direction for the warp of loop 2.
-fn cell_depth_bounds<'a>(
+/// Gathers the rays of `neighbours` into the receiver's arrays ([`HitSoa`], [`MissSoa`]),
+/// local to the receiver: each point's offset is subtracted in f64 world coordinates and turned
+/// once (then kept in f32), each ray's terms are turned in f32. The arrays are sized once and
+/// filled point by point through slices of the point's length (no capacity or bounds test per
+/// ray: pushing seven values per ray cost more than the arithmetic).
+fn gather<'a>(
     recv: &Receiver,
-    neighbours: impl Iterator<Item = &'a CachePoint>,
+    neighbours: impl Iterator<Item = &'a CachePoint> + Clone,
     params: &FilterParams,
-    grid: &Grid,
-    scratch: &mut Scratch,
+    s: &mut Scratch,
 ) {
-    let (frame, inf) = (&recv.frame, f64::INFINITY);
-    let Scratch { bounds, hits, misses, offsets, .. } = scratch;
-    hits.clear();
-    misses.clear();
+    let f = &recv.frame;
+    let (fx, fy, fz) = (f.x.as_vec3(), f.y.as_vec3(), f.z.as_vec3());
+    let Scratch { h, m, offsets, .. } = s;
+    let (nh, nm) = neighbours.clone().fold((0, 0), |(a, b), q| (a + q.hits.len(), b + q.misses.len()));
+    for v in [&mut h.ux, &mut h.uy, &mut h.uz, &mut h.mu, &mut h.ud, &mut h.k] {
+        v.clear();
+        v.resize(nh, 0.0);
+    }
+    h.point.clear();
+    h.point.resize(nh, 0);
+    for v in [&mut m.dx, &mut m.dy, &mut m.dz, &mut m.ox, &mut m.oy, &mut m.oz, &mut m.oo] {
+        v.clear();
+        v.resize(nm, 0.0);
+    }
     offsets.clear();
-    for q in neighbours {
-        // Points of a neighbourhood are subtracted in f64 world coordinates, then turned.
-        let o = frame.to_local(q.p - recv.p);
-        let point = offsets.len() as u32;
-        offsets.push(Offset { o, oo: o.length_squared() });
+    let (mut ih, mut im) = (0, 0);
+    for (point, q) in neighbours.enumerate() {
+        let ow64 = q.p - recv.p;
+        let (ow, o) = (ow64.as_vec3(), f.to_local(ow64).as_vec3());
+        offsets.push(o);
         // (The receiver's own rays weigh exactly 1: their Jacobian is 1 up to rounding, and a
         // weight sum a rounding below `minweight` would flip the cell to brute force.)
-        let weigh = params.jacobian && o != DVec3::ZERO;
-        for r in &q.hits {
-            let uw = r.h - recv.p;
-            let u = frame.to_local(uw);
-            let z2 = u.length_squared();
-            let z = z2.sqrt();
-            if !(z <= params.max_distance) {
-                // An occluder beyond `maxdistance`: a miss.
-                misses.push(MissVisit { d: frame.to_local(r.d), point });
-                continue;
-            }
-            if !(u.z > 1e-9 * z) {
-                continue; // on or behind the receiver's tangent plane: it lends nothing
-            }
-            let cell = grid.cell_of(u / z);
-            let b = &mut bounds[cell];
-            b.z_min = b.z_min.min(z);
-            b.z_max = b.z_max.max(z);
-            let vd = uw.dot(r.d) / z;
-            if !(vd > GRAZING) {
-                continue;
-            }
-            let j = if weigh { hit_jacobian(u.z, r.m.dot(uw), r.k, z2) } else { 1.0 };
-            hits.push(HitVisit { cell: cell as u32, x2: (z2 * (1.0 / (vd * vd) - 1.0)).max(0.0), j });
+        let weigh = params.jacobian && ow64 != DVec3::ZERO;
+        let l = q.hits.len();
+        let (hits, r) = (&q.hits[..l], ih..ih + l);
+        let (ux, uy, uz) = (&mut h.ux[r.clone()], &mut h.uy[r.clone()], &mut h.uz[r.clone()]);
+        let (mu, ud, k, pt) = (&mut h.mu[r.clone()], &mut h.ud[r.clone()], &mut h.k[r.clone()], &mut h.point[r]);
+        for j in 0..l {
+            let t = &hits[j];
+            ux[j] = o.x + fx.dot(t.r);
+            uy[j] = o.y + fy.dot(t.r);
+            uz[j] = o.z + fz.dot(t.r);
+            mu[j] = t.m.dot(ow) + t.mr;
+            ud[j] = ow.dot(t.d) + t.t;
+            k[j] = if weigh { t.k } else { -1.0 };
+            pt[j] = point as u32;
         }
-        misses.extend(q.misses.iter().map(|d| MissVisit { d: frame.to_local(*d), point }));
+        ih += l;
+        let l = q.misses.len();
+        let (ds, r) = (&q.misses[..l], im..im + l);
+        let (dx, dy, dz) = (&mut m.dx[r.clone()], &mut m.dy[r.clone()], &mut m.dz[r.clone()]);
+        let (ox, oy, oz, oo) = (&mut m.ox[r.clone()], &mut m.oy[r.clone()], &mut m.oz[r.clone()], &mut m.oo[r]);
+        let o2 = o.length_squared();
+        for j in 0..l {
+            // World directions: [`miss_terms`] turns them, four at a time.
+            let d = ds[j];
+            dx[j] = d.x;
+            dy[j] = d.y;
+            dz[j] = d.z;
+            ox[j] = o.x;
+            oy[j] = o.y;
+            oz[j] = o.z;
+            oo[j] = o2;
+        }
+        im += l;
     }
-    // A cell's escaped rays matter only where it also has occluders (its radius): the
-    // directions of the misses are binned only when some cell has.
+}
+
+/// Loop 1's arithmetic over the occluded rays, branch-free over arrays so that the compiler
+/// vectorises it: each hit's distance `z`, cell, cosine `vd` with its ray, tangent offset `|x|²`
+/// and Jacobian weight (whatever the ray's fate, decided in [`cell_depth_bounds`]).
+fn hit_terms(h: &mut HitSoa, g: &Grid32) {
+    let n = h.ux.len();
+    for v in [&mut h.z, &mut h.vd, &mut h.x2, &mut h.j] {
+        v.clear();
+        v.resize(n, 0.0);
+    }
+    h.cell.clear();
+    h.cell.resize(n, 0);
+    let (ux, uy, uz, mu, ud, k) = (&h.ux[..n], &h.uy[..n], &h.uz[..n], &h.mu[..n], &h.ud[..n], &h.k[..n]);
+    let (cell, zo, vdo, x2o, jo) = (&mut h.cell[..n], &mut h.z[..n], &mut h.vd[..n], &mut h.x2[..n], &mut h.j[..n]);
+    for i in 0..n {
+        let (x, y, zz) = (ux[i], uy[i], uz[i]);
+        let z2 = x * x + y * y + zz * zz;
+        let z = z2.sqrt();
+        let inv = 1.0 / z;
+        cell[i] = g.cell(x, y, inv);
+        let vd = ud[i] * inv;
+        zo[i] = z;
+        vdo[i] = vd;
+        x2o[i] = (z2 * (1.0 / (vd * vd) - 1.0)).max(0.0);
+        jo[i] = hit_jacobian(zz, mu[i], k[i], z2);
+    }
+}
+
+/// Pass 2's first loop, in the receiver's frame (z = its normal): each cell's occluder depth
+/// bounds (cells binned by the direction from the receiver to the hit) and what loop 2 needs of
+/// every occluded ray that lends something ([`HitVisit`]); hits beyond `maxdistance` join the
+/// escaped rays.
+fn cell_depth_bounds(recv: &Receiver, params: &FilterParams, s: &mut Scratch) {
+    let Scratch { bounds, hits, h, m, offsets, .. } = s;
+    hits.clear();
+    let max_distance = params.max_distance as f32;
+    for i in 0..h.ux.len() {
+        let z = h.z[i];
+        if !(z <= max_distance) {
+            // An occluder beyond `maxdistance`: a miss.
+            // Its direction, back to world (the escaped rays' arrays hold world directions).
+            let o = offsets[h.point[i] as usize];
+            let d = (Vec3::new(h.ux[i], h.uy[i], h.uz[i]) - o).normalize_or_zero();
+            m.push((recv.frame.x * d.x as f64 + recv.frame.y * d.y as f64 + recv.frame.z * d.z as f64).as_vec3(), o);
+            continue;
+        }
+        if !(h.uz[i] > 1e-9 * z) {
+            continue; // on or behind the receiver's tangent plane: it lends nothing
+        }
+        let cell = h.cell[i];
+        let b = &mut bounds[cell as usize];
+        b.z_min = b.z_min.min(z as f64);
+        b.z_max = b.z_max.max(z as f64);
+        if !(h.vd[i] > GRAZING as f32) {
+            continue;
+        }
+        let j = if h.k[i] < 0.0 { 1.0 } else { h.j[i] };
+        hits.push(HitVisit { cell, x2: h.x2[i], j });
+    }
+}
+
+/// The escaped rays' arithmetic (branch-free over arrays, vectorised): each direction turned to
+/// the receiver's frame (in place), its cell and, with [`Warp::Sphere`], the warp to an
+/// effective direction from the receiver through the sphere of radius `gmid` (none when it is
+/// infinite), its cell and tangent offset.
+fn miss_terms(m: &mut MissSoa, frame: &Frame<DVec3>, g: &Grid32, gmid: f64) {
+    let n = m.dx.len();
+    let (fx, fy, fz) = (frame.x.as_vec3(), frame.y.as_vec3(), frame.z.as_vec3());
+    let (dx, dy, dz) = (&mut m.dx[..n], &mut m.dy[..n], &mut m.dz[..n]);
+    for i in 0..n {
+        let (x, y, z) = (dx[i], dy[i], dz[i]);
+        dx[i] = fx.x * x + fx.y * y + fx.z * z;
+        dy[i] = fy.x * x + fy.y * y + fy.z * z;
+        dz[i] = fz.x * x + fz.y * y + fz.z * z;
+    }
+    for v in [&mut m.cd, &mut m.cv] {
+        v.clear();
+        v.resize(n, 0);
+    }
+    m.x2.clear();
+    m.x2.resize(n, 0.0);
+    let (dx, dy, dz, ox, oy, oz, oo) =
+        (&m.dx[..n], &m.dy[..n], &m.dz[..n], &m.ox[..n], &m.oy[..n], &m.oz[..n], &m.oo[..n]);
+    let (cd, cv, x2o) = (&mut m.cd[..n], &mut m.cv[..n], &mut m.x2[..n]);
+    let grazing = GRAZING as f32;
+    if !gmid.is_finite() {
+        // No occluder: no warp, every cell's radius infinite (weight 1).
+        for i in 0..n {
+            cd[i] = g.cell(dx[i], dy[i], 1.0);
+            cv[i] = cd[i];
+            x2o[i] = if dz[i] > 1e-9 { 0.0 } else { -1.0 };
+        }
+        return;
+    }
+    let gmid2 = (gmid * gmid) as f32;
+    for i in 0..n {
+        let (x, y, z) = (dx[i], dy[i], dz[i]);
+        cd[i] = g.cell(x, y, 1.0);
+        let od = ox[i] * x + oy[i] * y + oz[i] * z;
+        let tau = -od + (od * od - oo[i] + gmid2).max(0.0).sqrt();
+        let (tx, ty, tz) = (ox[i] + tau * x, oy[i] + tau * y, oz[i] + tau * z);
+        let len2 = tx * tx + ty * ty + tz * tz;
+        let len = len2.sqrt();
+        let inv = 1.0 / len;
+        let vd = (tx * x + ty * y + tz * z) * inv;
+        cv[i] = g.cell(tx, ty, inv);
+        let ok = tz > 1e-9 * len && vd > grazing;
+        x2o[i] = if ok { (len2 * (1.0 / (vd * vd) - 1.0)).max(0.0) } else { -1.0 };
+    }
+}
+
+/// [`Warp::Cell`] (the paper's per-cell plane) for the escaped rays, scalar: the warped cell and
+/// tangent offset into `m.cv`, `m.x2` ([`miss_terms`] computed `m.cd`).
+fn warp_cell(m: &mut MissSoa, g: &Grid32, bounds: &[Bounds], centers: &[DVec3]) {
+    let grazing = GRAZING as f32;
+    for i in 0..m.dx.len() {
+        let (d, o) = (Vec3::new(m.dx[i], m.dy[i], m.dz[i]), Vec3::new(m.ox[i], m.oy[i], m.oz[i]));
+        let c0 = m.cd[i];
+        let mid = bounds[c0 as usize].mid;
+        m.cv[i] = c0;
+        m.x2[i] = -1.0;
+        if !mid.is_finite() {
+            // No occluder in the ray's cell: no warp (target at infinity, v = d), infinite
+            // radius: weight 1 in that cell.
+            m.x2[i] = if d.z > grazing { 0.0 } else { -1.0 };
+            continue;
+        }
+        let a = centers[c0 as usize].as_vec3();
+        let den = a.dot(d);
+        if !(den > grazing) {
+            continue;
+        }
+        let tau = (mid as f32 - a.dot(o)) / den;
+        if !(tau > 0.0) {
+            continue;
+        }
+        let target = o + tau * d;
+        let len2 = target.length_squared();
+        let len = len2.sqrt();
+        if !(target.z > 1e-9 * len) {
+            continue;
+        }
+        let v = target / len;
+        let vd = v.dot(d);
+        m.cv[i] = g.cell(target.x, target.y, 1.0 / len);
+        if vd > grazing {
+            m.x2[i] = (len2 * (1.0 / (vd * vd) - 1.0)).max(0.0);
+        }
+    }
+}
+
+/// Per cell: the escaped rays' flag (where the cell has occluders), the contact test, the
+/// filter's radius (Eq. 8) and the harmonic mid depth.
+fn finish_bounds(params: &FilterParams, footprint: f64, bounds: &mut [Bounds], cd: &[u32]) {
+    // A cell's escaped rays matter only where it also has occluders (its radius).
     if bounds.iter().any(|b| b.z_max > 0.0) {
-        for m in misses.iter() {
-            bounds[grid.cell_of(m.d)].miss = true;
+        for &c in cd {
+            bounds[c as usize].miss = true;
         }
     }
-    let contact = 2.0 * params.omega_v * recv.footprint;
+    let contact = 2.0 * params.omega_v * footprint;
     for b in bounds.iter_mut() {
         if b.z_max == 0.0 {
             continue; // no occluder: radius and mid depth stay infinite
@@ -460,72 +726,10 @@ fn cell_depth_bounds<'a>(
         } else if b.z_max > b.z_min {
             b.z_min * b.z_max / (params.omega_v * (b.z_max - b.z_min))
         } else {
-            inf
+            f64::INFINITY
         };
         b.radius2 = b.radius * b.radius;
     }
-}
-
-/// The receiver-wide terms of [`warp_unoccluded`].
-struct WarpCtx<'a> {
-    params: &'a FilterParams,
-    grid: Grid,
-    /// The receiver's harmonic mid depth over all cells ([`Warp::Sphere`]) and its square.
-    gmid: f64,
-    gmid2: f64,
-    bounds: &'a [Bounds],
-    centers: &'a [DVec3],
-}
-
-/// Where [`warp_unoccluded`] puts an unoccluded neighbour ray.
-enum Warped {
-    /// [`Warp::Cell`] in a cell without occluders: its own direction, unwarped, weight 1 in
-    /// this cell.
-    Unwarped(usize),
-    /// Its effective direction from the receiver `v` (local), the squared distance to its
-    /// target and the cell of `v`.
-    To(DVec3, f64, usize),
-}
-
-/// The effective direction from the receiver (local) of an unoccluded neighbour ray of local
-/// direction `d` from offset `o` ([`Warped`]; `None`: it lends nothing).
-#[inline]
-fn warp_unoccluded(d: DVec3, off: &Offset, cx: &WarpCtx) -> Option<Warped> {
-    let o = off.o;
-    let target = if cx.params.warp == Warp::Sphere {
-        if !cx.gmid.is_finite() {
-            d
-        } else {
-            let od = o.dot(d);
-            let tau = -od + (od * od - off.oo + cx.gmid2).max(0.0).sqrt();
-            o + tau * d
-        }
-    } else {
-        let c0 = cx.grid.cell_of(d);
-        let mid = cx.bounds[c0].mid;
-        if !mid.is_finite() {
-            // No occluder in the ray's cell: no warp (target at infinity, v = d), infinite
-            // radius: weight 1 in that cell.
-            return (d.z > GRAZING).then_some(Warped::Unwarped(c0));
-        }
-        let a = cx.centers[c0];
-        let den = a.dot(d);
-        if !(den > GRAZING) {
-            return None;
-        }
-        let tau = (mid - a.dot(o)) / den;
-        if !(tau > 0.0) {
-            return None;
-        }
-        o + tau * d
-    };
-    let len2 = target.length_squared();
-    let len = len2.sqrt();
-    if !(target.z > 1e-9 * len) {
-        return None;
-    }
-    let v = target / len;
-    Some(Warped::To(v, len2, cx.grid.cell_of(v)))
 }
 
 /// Warped rays closer to grazing than this (cosine with the sample ray) are rejected.
@@ -533,9 +737,9 @@ const GRAZING: f64 = 1e-3;
 
 /// Per-cell filtered visibility at `recv` from the rays of `neighbours` (the receiver's own
 /// point included; [`same_surface`] is applied here). `out` gets `cells²` values. Computed in
-/// the receiver's frame: each neighbour's offset and each occluded ray's hit point are
-/// subtracted in f64 world coordinates and turned once, each escaped ray's direction turned
-/// once.
+/// the receiver's frame: each neighbour's offset is subtracted in f64 world coordinates and
+/// turned once; the rays' terms are turned and filtered in f32, as arrays
+/// ([`gather`], [`hit_terms`], [`miss_terms`]: loops the compiler vectorises).
 pub fn filter_receiver<'a>(
     recv: &Receiver,
     neighbours: impl Iterator<Item = &'a CachePoint> + Clone,
@@ -544,7 +748,7 @@ pub fn filter_receiver<'a>(
     out: &mut Vec<CellValue>,
 ) {
     let nc = params.cells * params.cells;
-    let grid = Grid::new(params.cells);
+    let grid = Grid32::new(params.cells);
     let inf = f64::INFINITY;
     scratch.bounds.clear();
     scratch
@@ -553,57 +757,54 @@ pub fn filter_receiver<'a>(
     if scratch.centers.len() != nc {
         scratch.centers = (0..nc).map(|c| cell_center(c, params.cells)).collect();
     }
-    cell_depth_bounds(recv, neighbours.filter(|q| same_surface(recv, q)), params, &grid, scratch);
+    gather(recv, neighbours.filter(|q| same_surface(recv, q)), params, scratch);
+    hit_terms(&mut scratch.h, &grid);
+    cell_depth_bounds(recv, params, scratch);
     // The receiver's mid depth over all cells, for `Warp::Sphere`.
     let (gmin, gmax) = scratch
         .bounds
         .iter()
         .filter(|b| b.z_max > 0.0)
         .fold((inf, 0.0f64), |(a, b), c| (a.min(c.z_min), b.max(c.z_max)));
-    let gmid = if gmax > 0.0 { 2.0 / (1.0 / gmin + 1.0 / gmax) } else { inf };
-    // Loop 2: weight every ray in its cell (occluded rays) or warp it to an effective ray from
-    // p and weight it (unoccluded ones), accumulate per cell.
-    scratch.w.clear();
-    scratch.w.resize(nc, 0.0);
-    scratch.wv.clear();
-    scratch.wv.resize(nc, 0.0);
-    let Scratch { bounds, w: sw, wv: swv, centers, hits, misses, offsets } = scratch;
+    let gmid = if gmax > 0.0 && params.warp == Warp::Sphere { 2.0 / (1.0 / gmin + 1.0 / gmax) } else { inf };
+    miss_terms(&mut scratch.m, &recv.frame, &grid, gmid);
+    let Scratch { bounds, w: sw, wv: swv, centers, hits, m, .. } = scratch;
+    finish_bounds(params, recv.footprint, bounds, &m.cd);
+    if params.warp == Warp::Cell {
+        warp_cell(m, &grid, bounds, centers);
+    }
+    // Loop 2: weight every ray in its cell (occluded rays) or in the cell of its effective ray
+    // from p (unoccluded ones), accumulate per cell.
+    sw.clear();
+    sw.resize(nc, 0.0);
+    swv.clear();
+    swv.resize(nc, 0.0);
     // The kernel's weight of a squared tangent offset in cell `b` (1 at an infinite radius).
-    let weight = |b: &Bounds, x2: f64| if b.radius.is_finite() { kernel(x2 / b.radius2) } else { 1.0 };
+    let weight = |b: &Bounds, x2: f32| if b.radius.is_finite() { kernel(x2 as f64 / b.radius2) } else { 1.0 };
     for h in hits.iter() {
         let c = h.cell as usize;
         let b = &bounds[c];
         if !b.brute {
-            sw[c] += weight(b, h.x2) * h.j;
+            sw[c] += weight(b, h.x2) * h.j as f64;
         }
     }
-    let cx = WarpCtx { params, grid, gmid, gmid2: gmid * gmid, bounds, centers };
-    for m in misses.iter() {
-        match warp_unoccluded(m.d, &offsets[m.point as usize], &cx) {
-            Some(Warped::Unwarped(c)) => {
-                sw[c] += 1.0;
-                swv[c] += 1.0;
-            }
-            Some(Warped::To(v, len2, c)) if !bounds[c].brute => {
-                let vd = v.dot(m.d);
-                if !(vd > GRAZING) {
-                    continue;
-                }
-                let w = weight(&bounds[c], (len2 * (1.0 / (vd * vd) - 1.0)).max(0.0));
-                sw[c] += w;
-                swv[c] += w;
-            }
-            _ => {}
+    for (&c, &x2) in m.cv.iter().zip(&m.x2) {
+        let b = &bounds[c as usize];
+        if !(x2 >= 0.0) || b.brute {
+            continue;
         }
+        let w = weight(b, x2);
+        sw[c as usize] += w;
+        swv[c as usize] += w;
     }
     out.clear();
     out.extend((0..nc).map(|c| {
         // A relative slack, so that weights summing to `minweight` up to rounding pass alike
         // at every scene scale.
-        if scratch.bounds[c].brute || !(scratch.w[c] >= params.min_weight * (1.0 - 1e-9)) {
+        if bounds[c].brute || !(sw[c] >= params.min_weight * (1.0 - 1e-9)) {
             CellValue::Brute
         } else {
-            CellValue::Filtered((scratch.wv[c] / scratch.w[c]).clamp(0.0, 1.0))
+            CellValue::Filtered((swv[c] / sw[c]).clamp(0.0, 1.0))
         }
     }));
 }
