@@ -6,10 +6,12 @@ scenes under an environment (issues 37 item 2 and 38 item 2), generated from `pe
     python3 tools/meshes_equal_error.py --run OUT REF       # the sweeps (quiet machine!)
     python3 tools/meshes_equal_error.py OUT > docs/integrators/meshes-equal-error.md
 
-Scenes (scenes/meshes/, 256², 2 threads): killeroos-sky (66.5k triangles, uniform white sky:
+Scenes (256², 2 threads): scenes/meshes/killeroos-sky (66.5k triangles, uniform white sky:
 `silhouette --param mode=ao` and `sheared-ao` against `ambientocclusion --param nsamples=1`,
-pbrt-v3's `ambientocclusion` value), staircase-sky (12 box steps and a wall, the same three)
-and killeroos-studio (the studio map: `silhouette`'s default `shade` against `directlighting`).
+pbrt-v3's `ambientocclusion` value), scenes/meshes/staircase-sky (12 box steps and a wall, the
+same three), scenes/meshes/killeroos-studio (the studio map: `silhouette`'s default `shade`
+against `directlighting`) and, for `sheared-ao` against `ambientocclusion`, the suite's
+scenes/suite/ao/blinds and spheres-on-plane (their references: ../shared/references/ao/).
 References: the real pbrt-v3 (../shared/tools/pbrt-v3/pbrt) at 4096 spp (`ambientocclusion`
 nsamples 1, cossample) and 1024 spp (studio, `directlighting`), written as PFM and converted to
 EXR by `penumbra convert` (REF/NAME.exr, 256², for the sweeps; and box-downsampled 4×4 to 64²
@@ -30,32 +32,46 @@ from sweeplib import loglog  # noqa: E402
 
 EXE = os.environ.get("PENUMBRA", "target/release/penumbra")
 PBRT = os.environ.get("PBRT", "../shared/tools/pbrt-v3/pbrt")
-# scene, reference spp, baseline first: [(label, integrator, params, time limit, budgets)]
-# (budgets None: doubling from 1 spp until the time limit)
-AO = ("ambientocclusion", "ambientocclusion", ["nsamples=1"], 60, None)
+# scene, reference spp (None: a suite scene, whose pbrt-v3 reference ../shared/references/ao/
+# NAME.ambientocclusion.exr already exists), baseline first: [(label, integrator, params, time
+# limit, budgets)] (budgets None: doubling from 1 spp until the time limit)
+AO = ("ambientocclusion", "ambientocclusion", ["nsamples=1"], 40, None)
+SHEARED = ("sheared-ao", "sheared-ao", [], 40, None)
 SCENES = [
     ("killeroos-sky", 4096, [
         AO,
-        ("silhouette", "silhouette", ["mode=ao"], 150, [1, 2, 4, 8]),
-        ("sheared-ao", "sheared-ao", [], 60, None),
+        ("silhouette", "silhouette", ["mode=ao"], 120, [1, 2, 4, 8]),
+        SHEARED,
     ]),
     ("staircase-sky", 4096, [
         AO,
-        ("silhouette", "silhouette", ["mode=ao"], 60, [1, 2, 4, 8, 16]),
-        ("sheared-ao", "sheared-ao", [], 60, None),
+        ("silhouette", "silhouette", ["mode=ao"], 40, [1, 2, 4, 8, 16]),
+        SHEARED,
     ]),
     ("killeroos-studio", 1024, [
-        ("directlighting", "directlighting", [], 60, None),
-        ("silhouette", "silhouette", [], 150, [1, 2, 4]),
+        ("directlighting", "directlighting", [], 40, None),
+        ("silhouette", "silhouette", [], 120, [1, 2, 4]),
     ]),
+    ("blinds", None, [AO, SHEARED]),
+    ("spheres-on-plane", None, [AO, SHEARED]),
 ]
+
+
+def scene_path(name, spp):
+    return f"scenes/meshes/{name}.pbrt" if spp else f"scenes/suite/ao/{name}.pbrt"
+
+
+def reference_path(ref, name, spp):
+    return f"{ref}/{name}.exr" if spp else f"../shared/references/ao/{name}.ambientocclusion.exr"
 
 
 def references(ref):
     """Render pbrt-v3's ground truth for every scene into REF/NAME.exr (and the 64² copies)."""
     os.makedirs(ref, exist_ok=True)
     for name, spp, _ in SCENES:
-        path = f"scenes/meshes/{name}.pbrt"
+        if spp is None:
+            continue
+        path = scene_path(name, spp)
         text = open(path).read()
         with tempfile.TemporaryDirectory() as tmp:
             pfm = os.path.join(tmp, name + ".pfm")
@@ -104,10 +120,10 @@ def downsample_pfm(src, dst, k):
 
 
 def run(out, ref):
-    for name, _, runs in SCENES:
+    for name, spp, runs in SCENES:
         for label, integrator, params, limit, budgets in runs:
-            cmd = [EXE, "sweep", f"scenes/meshes/{name}.pbrt", "--reference",
-                   f"{ref}/{name}.exr", "-i", integrator, "--time-limit", str(limit),
+            cmd = [EXE, "sweep", scene_path(name, spp), "--reference",
+                   reference_path(ref, name, spp), "-i", integrator, "--time-limit", str(limit),
                    "--threads", "2", "--no-flip", "-q", "-o", f"{out}/{name}/{label}"]
             if budgets:
                 cmd += ["--budgets", ",".join(map(str, budgets))]
