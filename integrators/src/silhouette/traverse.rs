@@ -508,6 +508,59 @@ mod tests {
         ]
     }
 
+    /// A vertex's wedge, where the classification is certain, is the one `atan2`'s azimuth
+    /// keys give, also for directions within 1e-12 rad of a meridian (there it must say
+    /// unsure); behind the tangent plane it is `BEHIND`; and the diamond-angle bins guess well
+    /// enough that nearly every direction is classified.
+    #[test]
+    fn vertex_wedges_are_the_keys_of_atan2() {
+        let mut r = rng(9);
+        for n in [4, 7, 48, 128, 1000] {
+            let m = Meridians::new(n);
+            let mut ends = Ends::default();
+            ends.prepare(&m);
+            for axis in [PoleFrame::new(2, 1.0), PoleFrame::new(0, -1.0)] {
+                let cl = Classifier {
+                    p: DVec3::ZERO,
+                    n: axis.pole,
+                    e1: axis.e1,
+                    e2: axis.e2,
+                    wedges: true,
+                    scale: ends.bins.len() as f64 / 4.0,
+                    bins: &ends.bins,
+                    sides: &ends.sides,
+                };
+                let (mut tried, mut unsure) = (0, 0);
+                let mut check = |phi: f64, z: f64, near_side: bool| {
+                    let d = axis.e1 * phi.cos() + axis.e2 * phi.sin() + axis.pole * z;
+                    let w = cl.classify(d);
+                    if z <= 0.0 {
+                        assert_eq!(w, BEHIND);
+                        return;
+                    }
+                    tried += 1;
+                    let key = m.key(azimuth(axis.local(d)).unwrap()).rem_euclid(n as i64) as u32;
+                    if w == UNSURE {
+                        unsure += !near_side as usize;
+                    } else {
+                        assert!(!near_side, "n {n}: φ {phi} within 1e-12 of a meridian classified {w}");
+                        assert_eq!(w, key, "n {n}: φ {phi}");
+                    }
+                };
+                for _ in 0..20_000 {
+                    check(r() * TAU, r() * 2.0 - 0.5, false);
+                }
+                for j in 0..n {
+                    let side = (j as f64 + 0.5) * m.dphi;
+                    for off in [-1e-12, 0.0, 1e-12] {
+                        check(side + off, 0.3, true);
+                    }
+                }
+                assert!(unsure * 1000 < tried, "n {n}: {unsure} of {tried} unsure");
+            }
+        }
+    }
+
     /// Away from edges, relative W plus the brute-force W at the pole equals the brute-force
     /// count of all ray–triangle hits, for points and normals all over the scene.
     #[test]
