@@ -642,6 +642,7 @@ impl DualEdges {
 
     /// Appends edge `id` if it is a contour of `p` not culled; `w`: its weight when the f64
     /// filter already decided it (else the exact predicate does).
+    #[inline(always)]
     fn emit(&self, id: u32, p: DVec3, cull: &Cull, w: Option<i32>, out: &mut Vec<Contour>) {
         let e = self.edges[id as usize];
         let (a, b) = (self.verts[e.a as usize], self.verts[e.b as usize]);
