@@ -332,24 +332,34 @@ impl NodeQuery {
 
     /// The lanes of `leaf` (a bit each) the f32 plane test cannot reject: not both planes
     /// certainly on one side of `p` beyond the edge's pad.
-    fn leaf_edges(&self, leaf: &Leaf8) -> u32 {
+    ///
+    /// Also the lanes certainly on opposite sides (each plane beyond the edge's pad, with
+    /// opposite signs: the f64 filter's certain contour of weight ±2) and, of those, the
+    /// ones with `g₁·(p, 1) > 0` (weight +2): `(survivors, opposite, positive)`.
+    fn leaf_edges(&self, leaf: &Leaf8) -> (u32, u32, u32) {
         let q = [self.p[0] - leaf.c[0], self.p[1] - leaf.c[1], self.p[2] - leaf.c[2]];
-        let mut mask = 0;
+        let (mut keep, mut opposite, mut positive) = (0, 0, 0);
         for (h, (g, pad)) in leaf.g.iter().zip(&leaf.pad).enumerate() {
-            mask |= self.leaf_half(g, *pad, q) << (4 * h);
+            let (k, o, s) = self.leaf_half(g, *pad, q);
+            keep |= k << (4 * h);
+            opposite |= o << (4 * h);
+            positive |= s << (4 * h);
         }
-        mask
+        (keep, opposite, positive)
     }
 
     /// [`Self::leaf_edges`] of four lanes, in `Vec4` (SIMD) arithmetic.
     #[inline(always)]
-    fn leaf_half(&self, g: &[Vec4; PLANE_COMPONENTS], pad: Vec4, q: [f32; 3]) -> u32 {
+    fn leaf_half(&self, g: &[Vec4; PLANE_COMPONENTS], pad: Vec4, q: [f32; 3]) -> (u32, u32, u32) {
         let (q0, q1, q2) = (Vec4::splat(q[0]), Vec4::splat(q[1]), Vec4::splat(q[2]));
         let v1 = g[3] + g[0] * q0 + g[1] * q1 + g[2] * q2;
         let v2 = g[7] + g[4] * q0 + g[5] * q1 + g[6] * q2;
         let t = pad + Vec4::splat(self.leaf_slack);
-        let reject = (v1.cmpgt(t) & v2.cmpgt(t)) | (v1.cmplt(-t) & v2.cmplt(-t));
-        reject.bitmask() ^ 0xf
+        let (above1, below1) = (v1.cmpgt(t), v1.cmplt(-t));
+        let (above2, below2) = (v2.cmpgt(t), v2.cmplt(-t));
+        let reject = (above1 & above2) | (below1 & below2);
+        let opposite = (above1 & below2) | (below1 & above2);
+        (reject.bitmask() ^ 0xf, opposite.bitmask(), above1.bitmask())
     }
 }
 
@@ -698,10 +708,19 @@ impl DualEdges {
                 }
                 examined += count as usize;
                 let leaf = &self.leaves[first as usize];
-                let mut lanes = query.leaf_edges(leaf) & ((1u32 << count) - 1);
+                let (lanes, opposite, positive) = query.leaf_edges(leaf);
+                let mut lanes = lanes & ((1u32 << count) - 1);
                 while lanes != 0 {
-                    let i = leaf.first as usize + lanes.trailing_zeros() as usize;
+                    let j = lanes.trailing_zeros();
+                    let i = leaf.first as usize + j as usize;
                     lanes &= lanes - 1;
+                    if (opposite >> j) & 1 != 0 {
+                        // What the f64 test below decides for it (the f32 test's slack covers
+                        // both roundings): a contour, of weight ±2 where the pads hold.
+                        let w = if (positive >> j) & 1 != 0 { 2 } else { -2 };
+                        self.emit(self.order[i], p, &cull, near.then_some(w), out);
+                        continue;
+                    }
                     let [g1, g2] = &self.dual[i];
                     let (v1, v2) = (dot4(g1, p), dot4(g2, p));
                     let pad = self.pad[i];
