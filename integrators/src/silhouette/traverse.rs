@@ -241,6 +241,37 @@ fn end_azimuths(la: DVec3, lb: DVec3, m: &Meridians) -> Option<(f64, f64)> {
 /// of the keys (~1e-15), so the keys of both ends are certainly the wedge's.
 const WEDGE_MARGIN: f64 = 1e-9;
 
+/// Records the crossings of the arc from local direction `la` to `lb` with the meridians of
+/// `keys` (mod `n`) as `(v, dw)` in their buckets; returns how many.
+fn record(
+    buckets: &mut [Vec<(f64, i32)>],
+    m: &Meridians,
+    keys: std::ops::Range<i64>,
+    la: DVec3,
+    lb: DVec3,
+    dw: i32,
+) -> usize {
+    let mut crossings = 0;
+    for k in keys {
+        let i = k.rem_euclid(m.n as i64) as usize;
+        let (ci, si) = (m.cos[i], m.sin[i]);
+        // Meridian plane normal (−sin φ, cos φ, 0).
+        let (fa, fb) = (-si * la.x + ci * la.y, -si * lb.x + ci * lb.y);
+        if fa == fb {
+            continue;
+        }
+        let t = (fa / (fa - fb)).clamp(0.0, 1.0);
+        let q = la + (lb - la) * t;
+        let len = q.length();
+        if !(len > 0.0) {
+            continue;
+        }
+        buckets[i].push(((q.z / len).clamp(-1.0, 1.0), dw));
+        crossings += 1;
+    }
+    crossings
+}
+
 impl Traversal {
     /// Traverses the contours of `p` (normalised coordinates, as [`super::dual::DualEdges`] gives
     /// them) in the visible half-space of `n` (unit), about `frame`'s pole (`n·pole > 0`).
@@ -273,6 +304,26 @@ impl Traversal {
             let wb = cl.wedge(slot, stamp, c.vb, c.b);
             if wa == wb && wa != UNSURE {
                 continue;
+            }
+            // Both ends in front and certainly inside two wedges: the meridians crossed are
+            // those between the wedges, the shorter way round, which the sign of the ends'
+            // azimuthal cross product tells wherever it is clear of 0 (the azimuths differ by
+            // more than ~1e-9 rad from 0 and π: atan2's decisions, and the certified
+            // polynomial's, are the same there).
+            if wa < BEHIND && wb < BEHIND {
+                let dw = c.delta_w(p, frame.pole);
+                if dw == 0 {
+                    continue;
+                }
+                let (la, lb) = (frame.local(c.a - p), frame.local(c.b - p));
+                let s = la.x * lb.y - la.y * lb.x;
+                if s.abs() > 1e-9 * (la.x.abs() + la.y.abs()) * (lb.x.abs() + lb.y.abs()) {
+                    let (k0, k1) = if s > 0.0 { (wa, wb) } else { (wb, wa) };
+                    let k1 = if k1 < k0 { k1 + m.n as u32 } else { k1 };
+                    arcs += 1;
+                    crossings += record(&mut self.buckets, m, k0 as i64..k1 as i64, la, lb, dw);
+                    continue;
+                }
             }
             let (mut da, mut db) = (c.a - p, c.b - p);
             let (ha, hb) = (n.dot(da), n.dot(db));
@@ -315,23 +366,7 @@ impl Traversal {
                 k1 += m.n as i64;
             }
             arcs += 1;
-            for k in k0..k1 {
-                let i = k.rem_euclid(m.n as i64) as usize;
-                let (ci, si) = (m.cos[i], m.sin[i]);
-                // Meridian plane normal (−sin φ, cos φ, 0).
-                let (fa, fb) = (-si * la.x + ci * la.y, -si * lb.x + ci * lb.y);
-                if fa == fb {
-                    continue;
-                }
-                let t = (fa / (fa - fb)).clamp(0.0, 1.0);
-                let q = la + (lb - la) * t;
-                let len = q.length();
-                if !(len > 0.0) {
-                    continue;
-                }
-                self.buckets[i].push(((q.z / len).clamp(-1.0, 1.0), dw));
-                crossings += 1;
-            }
+            crossings += record(&mut self.buckets, m, k0..k1, la, lb, dw);
         }
         let n_local = frame.local(n);
         let mut best = (i32::MAX, -1.0f64, 0u32, 0.0f64);
