@@ -31,7 +31,7 @@
 //! to the scene and scaled scenes give the same contours.
 
 use super::orient::orient3d;
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec4};
 use penumbra_core::mesh::TriangleMesh;
 
 /// Edges per leaf. On killeroo-simple (mode=ao, 16², callgrind) with the 4-wide nodes:
@@ -56,6 +56,10 @@ const DOT_ROUNDING: f64 = 8.0 * f64::EPSILON;
 pub struct Contour {
     /// The edge's index in [`DualEdges`] (stable: the order of meshes, then of their edges).
     pub edge: u32,
+    /// The indices of `a` and `b` among the hierarchy's welded vertices (a contour chain's
+    /// edges share them: the traversal transforms each vertex once per point).
+    pub va: u32,
+    pub vb: u32,
     pub a: DVec3,
     pub b: DVec3,
     /// `Σ orient3d(a, b, c_t, p)` over the incident triangles (never 0).
@@ -106,7 +110,8 @@ struct BuildNode {
     /// extents, rounded up: `[c − r, c + r]` contains the node's edges.
     c: DVec3,
     r: DVec3,
-    /// Leaf: `count > 0`, items `first..first+count` of `order`; inner: children `first`, `first+1`.
+    /// Leaf: `count > 0`, its index in `leaves` (items `leaves[first].first..+count` of
+    /// `order`); inner: children `first`, `first+1`.
     first: u32,
     count: u32,
 }
@@ -126,7 +131,7 @@ struct Node4 {
     hi: [[f32; 4]; 4],
     c: [[f32; 4]; 3],
     r: [[f32; 4]; 3],
-    /// Leaf slot: its first edge in `order`; inner slot: the index of its `Node4`.
+    /// Leaf slot: its index in `DualEdges::leaves`; inner slot: the index of its `Node4`.
     first: [u32; 4],
     /// Leaf slot: its edge count; inner slot: 0.
     count: [u32; 4],
@@ -164,6 +169,49 @@ impl Node4 {
         }
         self.first[j] = first;
         self.count[j] = b.count;
+    }
+}
+
+/// Plane components per edge in a [`Leaf8`]: both triangles' normals and offsets.
+const PLANE_COMPONENTS: usize = 8;
+
+/// A leaf's edges for the f32 pre-filter, structure of arrays (lane `j`: the leaf's `j`-th
+/// edge): both signed planes' normals `g_t` rounded to nearest and their offsets about the
+/// leaf's centre `c`, `g_t3 + g_t·c` (from f64), and the edge's rounding pad rounded up.
+/// Unused lanes have infinite offsets (always rejected). The f32 test rejects an edge only
+/// where the f64 test would ([`NodeQuery::leaf_slack`]), so the survivors are a superset of
+/// the f64 filter's and each still takes it: the contour set (and its order) is unchanged.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct Leaf8 {
+    /// `[half][component][lane]` (lane `4·half + j`): `g₁x g₁y g₁z o₁ g₂x g₂y g₂z o₂`, in
+    /// halves of four lanes (one SIMD register each).
+    g: [[Vec4; PLANE_COMPONENTS]; LEAF / 4],
+    pad: [Vec4; LEAF / 4],
+    c: [f32; 3],
+    /// The leaf's first edge in `order`.
+    first: u32,
+}
+
+impl Leaf8 {
+    fn new(c: DVec3, first: u32, items: &[(u32, [[f64; 4]; 2], f64)]) -> Leaf8 {
+        let mut g = [[Vec4::ZERO; PLANE_COMPONENTS]; LEAF / 4];
+        for h in &mut g {
+            h[3] = Vec4::INFINITY;
+            h[7] = Vec4::INFINITY;
+        }
+        let mut pad = [Vec4::ZERO; LEAF / 4];
+        for (lane, (_, d, pd)) in items.iter().enumerate() {
+            let (h, j) = (lane / 4, lane % 4);
+            for (t, plane) in d.iter().enumerate() {
+                for k in 0..3 {
+                    g[h][4 * t + k][j] = plane[k] as f32;
+                }
+                g[h][4 * t + 3][j] = (plane[3] + plane[0] * c.x + plane[1] * c.y + plane[2] * c.z) as f32;
+            }
+            pad[h][j] = up(*pd);
+        }
+        Leaf8 { g, pad, c: [c.x as f32, c.y as f32, c.z as f32], first }
     }
 }
 
@@ -217,6 +265,8 @@ struct NodeQuery {
     slack: f32,
     /// Rounding margin of the tangent-plane test; infinite: no tangent-plane cull (`tol < 0`).
     margin: f32,
+    /// Rounding slack of the leaves' f32 plane test ([`Leaf8`]).
+    leaf_slack: f32,
 }
 
 impl NodeQuery {
@@ -235,8 +285,22 @@ impl NodeQuery {
         // 6-term sum, at most 10u of twice that plus the q error 2.01u·S.
         let reach = (plo - p).abs().max((phi - p).abs()) * 1.001;
         let margin = if tol >= 0.0 { 32.0 * U32 * (n.abs().dot(reach) + s) + 1e-30 } else { f64::INFINITY };
+        // The leaf test computes o + Σ_k g_k·q_k in f32 with g_k (|g_k| ≤ 1) and o (|o| ≤ dmax)
+        // rounded to nearest and q̃_k as above: at most u|o| + Σ_k (u|q_k| + 2.01u(|p_k| + |c_k|))
+        // + 4.1u(|o| + Σ_k |q_k|) ≤ 5.1u dmax + 7.3u S, within the dual test's slack; the f64
+        // value it stands for, g·p + g₃ (|g₃| ≤ 1 for normalised geometry), is within
+        // DOT_ROUNDING (1 + |p|₁) of the exact one. Rejecting beyond pad + this slack rejects
+        // only what the f64 test rejects.
+        let leaf_slack = slack + DOT_ROUNDING * (1.0 + p.abs().element_sum()) * 2.0;
         let f = |v: DVec3| v.to_array().map(|x| x as f32);
-        NodeQuery { p: f(p), n: f(n), abs_n: f(n.abs()), slack: slack as f32, margin: margin as f32 }
+        NodeQuery {
+            p: f(p),
+            n: f(n),
+            abs_n: f(n.abs()),
+            slack: slack as f32,
+            margin: margin as f32,
+            leaf_slack: up(leaf_slack),
+        }
     }
 
     /// The slots of `node` (a bit each) where the hyperplane `x·(p, 1) = 0` can touch the
@@ -265,6 +329,38 @@ impl NodeQuery {
         }
         mask & ((1u32 << node.len) - 1)
     }
+
+    /// The lanes of `leaf` (a bit each) the f32 plane test cannot reject: not both planes
+    /// certainly on one side of `p` beyond the edge's pad.
+    ///
+    /// Also the lanes certainly on opposite sides (each plane beyond the edge's pad, with
+    /// opposite signs: the f64 filter's certain contour of weight ±2) and, of those, the
+    /// ones with `g₁·(p, 1) > 0` (weight +2): `(survivors, opposite, positive)`.
+    fn leaf_edges(&self, leaf: &Leaf8) -> (u32, u32, u32) {
+        let q = [self.p[0] - leaf.c[0], self.p[1] - leaf.c[1], self.p[2] - leaf.c[2]];
+        let (mut keep, mut opposite, mut positive) = (0, 0, 0);
+        for (h, (g, pad)) in leaf.g.iter().zip(&leaf.pad).enumerate() {
+            let (k, o, s) = self.leaf_half(g, *pad, q);
+            keep |= k << (4 * h);
+            opposite |= o << (4 * h);
+            positive |= s << (4 * h);
+        }
+        (keep, opposite, positive)
+    }
+
+    /// [`Self::leaf_edges`] of four lanes, in `Vec4` (SIMD) arithmetic.
+    #[inline(always)]
+    fn leaf_half(&self, g: &[Vec4; PLANE_COMPONENTS], pad: Vec4, q: [f32; 3]) -> (u32, u32, u32) {
+        let (q0, q1, q2) = (Vec4::splat(q[0]), Vec4::splat(q[1]), Vec4::splat(q[2]));
+        let v1 = g[3] + g[0] * q0 + g[1] * q1 + g[2] * q2;
+        let v2 = g[7] + g[4] * q0 + g[5] * q1 + g[6] * q2;
+        let t = pad + Vec4::splat(self.leaf_slack);
+        let (above1, below1) = (v1.cmpgt(t), v1.cmplt(-t));
+        let (above2, below2) = (v2.cmpgt(t), v2.cmplt(-t));
+        let reject = (above1 & above2) | (below1 & below2);
+        let opposite = (above1 & below2) | (below1 & above2);
+        (reject.bitmask() ^ 0xf, opposite.bitmask(), above1.bitmask())
+    }
 }
 
 /// The dual-edge hierarchy of a scene (built once, when the `silhouette` integrator asks).
@@ -279,7 +375,12 @@ pub struct DualEdges {
     opposite: Vec<u32>,
     /// Edges tested at every point: boundary, non-manifold, degenerate incident triangle.
     always: Vec<u32>,
+    /// Per `always` edge: a boundary edge's signed plane and its rounding pad (its weight is
+    /// the sign of `g·(p, 1)` wherever that exceeds the pad); the pad is infinite for the
+    /// others (decided exactly).
+    always_plane: Vec<([f64; 4], f64)>,
     nodes: Vec<Node4>,
+    leaves: Vec<Leaf8>,
     /// The primal box of all hierarchy edges (the query's rounding margins).
     root_box: (DVec3, DVec3),
     /// Edges of the hierarchy in leaf order, with their dual endpoints and rounding pad.
@@ -409,6 +510,7 @@ impl DualEdges {
             }
         }
         self.always.sort_unstable();
+        self.always_plane = self.always.iter().map(|&id| self.boundary_plane(id)).collect();
         self.nodes.clear();
         if items.is_empty() {
             return;
@@ -462,7 +564,8 @@ impl DualEdges {
             }
             let n = end - begin;
             if n <= LEAF {
-                nodes[node] = BuildNode { lo, hi, c, r, first: self.order.len() as u32, count: n as u32 };
+                self.leaves.push(Leaf8::new(c, self.order.len() as u32, &items[begin..end]));
+                nodes[node] = BuildNode { lo, hi, c, r, first: self.leaves.len() as u32 - 1, count: n as u32 };
                 for (id, d, pad) in &items[begin..end] {
                     self.order.push(*id);
                     self.dual.push(*d);
@@ -505,6 +608,19 @@ impl DualEdges {
         self.nodes = collapse(&nodes);
     }
 
+    /// The signed plane of a boundary edge's one triangle and its pad ([`signed_plane`]);
+    /// an infinite pad (never certain) for other edges and degenerate triangles.
+    fn boundary_plane(&self, id: u32) -> ([f64; 4], f64) {
+        let e = self.edges[id as usize];
+        let never = ([0.0; 4], f64::INFINITY);
+        if e.count != 1 {
+            return never;
+        }
+        let (a, b) = (self.verts[e.a as usize], self.verts[e.b as usize]);
+        let c = self.verts[self.opposite[e.start as usize] as usize];
+        signed_plane(a, b, c).unwrap_or(never)
+    }
+
     /// A world point in the hierarchy's normalised coordinates.
     pub fn normalise(&self, p: Vec3) -> DVec3 {
         (p.as_dvec3() - self.center) * self.inv_scale
@@ -536,6 +652,7 @@ impl DualEdges {
 
     /// Appends edge `id` if it is a contour of `p` not culled; `w`: its weight when the f64
     /// filter already decided it (else the exact predicate does).
+    #[inline(always)]
     fn emit(&self, id: u32, p: DVec3, cull: &Cull, w: Option<i32>, out: &mut Vec<Contour>) {
         let e = self.edges[id as usize];
         let (a, b) = (self.verts[e.a as usize], self.verts[e.b as usize]);
@@ -544,7 +661,7 @@ impl DualEdges {
         }
         let w = w.unwrap_or_else(|| self.weight(id, p));
         if w != 0 {
-            out.push(Contour { edge: id, a, b, w });
+            out.push(Contour { edge: id, va: e.a, vb: e.b, a, b, w });
         }
     }
 
@@ -560,8 +677,12 @@ impl DualEdges {
         let cull = Cull { p, n, tol };
         // The rounding pads hold for |p| ≤ 4 (signed_plane).
         let near = p.abs().max_element() <= 4.0;
-        for &id in &self.always {
-            self.emit(id, p, &cull, None, out);
+        for (&id, (g, pad)) in self.always.iter().zip(&self.always_plane) {
+            // A boundary edge's weight is its one triangle's side, ±1 (never 0 off its
+            // plane): the f64 filter decides it where it is certain.
+            let v = dot4(g, p);
+            let certain = (near && v.abs() > *pad).then_some(if v > 0.0 { 1 } else { -1 });
+            self.emit(id, p, &cull, certain, out);
         }
         if self.nodes.is_empty() {
             return QueryCost { edges: examined, nodes: 0 };
@@ -586,8 +707,20 @@ impl DualEdges {
                     continue;
                 }
                 examined += count as usize;
-                for i in first..first + count {
-                    let i = i as usize;
+                let leaf = &self.leaves[first as usize];
+                let (lanes, opposite, positive) = query.leaf_edges(leaf);
+                let mut lanes = lanes & ((1u32 << count) - 1);
+                while lanes != 0 {
+                    let j = lanes.trailing_zeros();
+                    let i = leaf.first as usize + j as usize;
+                    lanes &= lanes - 1;
+                    if (opposite >> j) & 1 != 0 {
+                        // What the f64 test below decides for it (the f32 test's slack covers
+                        // both roundings): a contour, of weight ±2 where the pads hold.
+                        let w = if (positive >> j) & 1 != 0 { 2 } else { -2 };
+                        self.emit(self.order[i], p, &cull, near.then_some(w), out);
+                        continue;
+                    }
                     let [g1, g2] = &self.dual[i];
                     let (v1, v2) = (dot4(g1, p), dot4(g2, p));
                     let pad = self.pad[i];

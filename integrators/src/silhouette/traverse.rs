@@ -63,6 +63,152 @@ pub struct Traversal {
     end_w: Vec<i32>,
     steps: Vec<i32>,
     pub intervals: Vec<Interval>,
+    /// Per-vertex results of the current point ([`Ends`]).
+    ends: Ends,
+}
+
+/// [`Ends::wedge`] of a vertex behind (or on) the tangent plane.
+const BEHIND: u32 = u32::MAX - 1;
+/// [`Ends::wedge`] of a vertex in front but not certainly inside one wedge.
+const UNSURE: u32 = u32::MAX;
+
+/// What the traversal needs of each contour vertex before an arc's general path: whether it
+/// is behind the tangent plane, else the wedge between meridians it is certainly inside
+/// ([`Classifier::classify`]). Contours are chains, so most vertices end two contour edges:
+/// computed once per point and vertex, kept by vertex index under a generation stamp.
+#[derive(Clone, Debug, Default)]
+struct Ends {
+    /// `(stamp, wedge)` by vertex index.
+    slot: Vec<(u32, u32)>,
+    stamp: u32,
+    /// The wedges' sides (meridians `i − 1` and `i`): `(cos, sin)` of both, by wedge `i`.
+    sides: Vec<[f64; 4]>,
+    /// [`diamond`] angle bins: `(threshold, wedge below it, wedge from above it)`, at most one
+    /// meridian per bin.
+    bins: Vec<(f64, u32, u32)>,
+    n: usize,
+}
+
+/// A monotonic stand-in for the azimuth of `(x, y)` in `[0, 4]` ("diamond angle": quadrant
+/// plus `|y|/(|x|+|y|)` or its complement), one division instead of `atan2`'s polynomial.
+fn diamond(x: f64, y: f64) -> f64 {
+    let (ax, ay) = (x.abs(), y.abs());
+    let t = ay / (ax + ay);
+    if y >= 0.0 {
+        if x >= 0.0 {
+            t
+        } else {
+            2.0 - t
+        }
+    } else if x < 0.0 {
+        2.0 + t
+    } else {
+        4.0 - t
+    }
+}
+
+impl Ends {
+    /// Bins per meridian: the diamond angle's slope in the azimuth is at least 1/2, so with
+    /// 4n bins over [0, 4] (width 1/n < π/n) no bin holds two meridians.
+    const BINS: usize = 4;
+
+    fn prepare(&mut self, m: &Meridians) {
+        if self.n != m.n || self.sides.len() != m.n {
+            self.n = m.n;
+            self.sides = (0..m.n)
+                .map(|i| {
+                    let h = (i + m.n - 1) % m.n;
+                    [m.cos[h], m.sin[h], m.cos[i], m.sin[i]]
+                })
+                .collect();
+            let d: Vec<f64> = (0..m.n).map(|j| diamond(m.cos[j], m.sin[j])).collect();
+            let bins = Self::BINS * m.n;
+            self.bins = (0..bins)
+                .map(|b| {
+                    let (lo, hi) = (4.0 * b as f64 / bins as f64, 4.0 * (b + 1) as f64 / bins as f64);
+                    // Wedge i lies between meridians i − 1 and i: the meridians below.
+                    let below = d.iter().filter(|&&dj| dj < lo).count();
+                    let thr = d.iter().copied().find(|&dj| dj >= lo && dj < hi).unwrap_or(f64::INFINITY);
+                    (thr, (below % m.n) as u32, ((below + 1) % m.n) as u32)
+                })
+                .collect();
+        }
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.slot.iter_mut().for_each(|s| s.0 = 0);
+            self.stamp = 1;
+        }
+    }
+}
+
+impl Classifier<'_> {
+    /// [`BEHIND`] when `n·d ≤ 0`; else the wedge `i` (between meridians `i − 1` and `i`) the
+    /// local direction of `d` lies strictly inside, farther than [`WEDGE_MARGIN`] radians from
+    /// both sides, or [`UNSURE`]. Two ends certainly inside one wedge bound an arc that crosses
+    /// no meridian (their keys from `atan2` are equal, or `n` and 0 in the wedge through
+    /// azimuth 0, an empty range either way). Decided by the signs of the two meridian planes'
+    /// normals `(−sin φ, cos φ, 0)`; the wedge guessed from the [`diamond`] angle's bin (a
+    /// wrong guess near a side fails the test: the arc then takes the general path).
+    #[inline(always)]
+    fn classify(&self, d: DVec3) -> u32 {
+        let h = self.n.dot(d);
+        if h <= 0.0 {
+            return BEHIND;
+        }
+        if !(h > 0.0) || !self.wedges {
+            return UNSURE;
+        }
+        let (x, y) = (d.dot(self.e1), d.dot(self.e2));
+        let a = diamond(x, y);
+        // Saturating (NaN: 0), and a ≤ 4: at most the last bin.
+        let b = ((a * self.scale) as i32 as usize).min(self.bins.len() - 1);
+        let (thr, lo, hi) = self.bins[b];
+        let i = if a > thr { hi } else { lo };
+        let [c0, s0, c1, s1] = self.sides[i as usize];
+        let tol = WEDGE_MARGIN * (x.abs() + y.abs());
+        if -s0 * x + c0 * y > tol && -s1 * x + c1 * y < -tol {
+            i
+        } else {
+            UNSURE
+        }
+    }
+}
+
+/// [`Classifier::classify`]'s constants for one point.
+struct Classifier<'a> {
+    p: DVec3,
+    n: DVec3,
+    e1: DVec3,
+    e2: DVec3,
+    wedges: bool,
+    /// Bins per unit of the diamond angle.
+    scale: f64,
+    bins: &'a [(f64, u32, u32)],
+    sides: &'a [[f64; 4]],
+}
+
+impl Classifier<'_> {
+    /// The wedge of vertex `v` at `x` (normalised), [`BEHIND`] or [`UNSURE`], computed once
+    /// per point (`slot`: the vertex's entry of [`Ends::slot`]).
+    #[inline(always)]
+    fn wedge(&self, slot: &mut Vec<(u32, u32)>, stamp: u32, v: u32, x: DVec3) -> u32 {
+        let i = v as usize;
+        if i >= slot.len() {
+            grow(slot, i + 1);
+        }
+        let s = &mut slot[i];
+        if s.0 == stamp {
+            return s.1;
+        }
+        let w = self.classify(x - self.p);
+        *s = (stamp, w);
+        w
+    }
+}
+
+#[cold]
+fn grow(slot: &mut Vec<(u32, u32)>, len: usize) {
+    slot.resize(len, (0, 0));
 }
 
 /// The azimuths of an arc's two ends (local directions), for the decisions the traversal
@@ -90,27 +236,41 @@ fn end_azimuths(la: DVec3, lb: DVec3, m: &Meridians) -> Option<(f64, f64)> {
     }
 }
 
-/// Whether local directions `la` and `lb` lie strictly inside one wedge between consecutive
-/// meridians, each farther than [`WEDGE_MARGIN`] radians from its sides: an arc between
-/// them crosses no meridian (its ends' keys from `atan2` are equal, or `n` and 0 in the wedge
-/// through azimuth 0, an empty range either way). Decided by the signs of the two
-/// meridian planes' normals `(−sin φ, cos φ, 0)`; the wedge from [`azimuth_approx`] (a wrong
-/// guess near a side fails the test: the caller then takes the general path).
-fn within_one_wedge(la: DVec3, lb: DVec3, m: &Meridians) -> bool {
-    let i = m.key(azimuth_approx(la)).rem_euclid(m.n as i64) as usize;
-    let h = (i + m.n - 1) % m.n;
-    let (c0, s0, c1, s1) = (m.cos[h], m.sin[h], m.cos[i], m.sin[i]);
-    let inside = |d: DVec3| {
-        let tol = WEDGE_MARGIN * (d.x.abs() + d.y.abs());
-        -s0 * d.x + c0 * d.y > tol && -s1 * d.x + c1 * d.y < -tol
-    };
-    inside(la) && inside(lb)
-}
-
-/// [`within_one_wedge`]'s distance from the wedge's sides (radians, times the direction's
+/// [`Classifier::classify`]'s distance from the wedge's sides (radians, times the direction's
 /// length in the plane): far above the rounding of `atan2`, of the meridians' `cos`/`sin` and
 /// of the keys (~1e-15), so the keys of both ends are certainly the wedge's.
 const WEDGE_MARGIN: f64 = 1e-9;
+
+/// Records the crossings of the arc from local direction `la` to `lb` with the meridians of
+/// `keys` (mod `n`) as `(v, dw)` in their buckets; returns how many.
+fn record(
+    buckets: &mut [Vec<(f64, i32)>],
+    m: &Meridians,
+    keys: std::ops::Range<i64>,
+    la: DVec3,
+    lb: DVec3,
+    dw: i32,
+) -> usize {
+    let mut crossings = 0;
+    for k in keys {
+        let i = k.rem_euclid(m.n as i64) as usize;
+        let (ci, si) = (m.cos[i], m.sin[i]);
+        // Meridian plane normal (−sin φ, cos φ, 0).
+        let (fa, fb) = (-si * la.x + ci * la.y, -si * lb.x + ci * lb.y);
+        if fa == fb {
+            continue;
+        }
+        let t = (fa / (fa - fb)).clamp(0.0, 1.0);
+        let q = la + (lb - la) * t;
+        let len = q.length();
+        if !(len > 0.0) {
+            continue;
+        }
+        buckets[i].push(((q.z / len).clamp(-1.0, 1.0), dw));
+        crossings += 1;
+    }
+    crossings
+}
 
 impl Traversal {
     /// Traverses the contours of `p` (normalised coordinates, as [`super::dual::DualEdges`] gives
@@ -125,15 +285,49 @@ impl Traversal {
         self.end_w.clear();
         let (mut crossings, mut arcs) = (0, 0);
         let wedges = m.n >= 4;
+        self.ends.prepare(m);
+        let cl = Classifier {
+            p,
+            n,
+            e1: frame.e1,
+            e2: frame.e2,
+            wedges,
+            scale: self.ends.bins.len() as f64 / 4.0,
+            bins: &self.ends.bins,
+            sides: &self.ends.sides,
+        };
+        let (slot, stamp) = (&mut self.ends.slot, self.ends.stamp);
         for c in contours {
+            // Both ends behind, or (at 128 meridians, 7 in 8 of a fine mesh's arcs) short, in
+            // front and between two meridians: nothing to record.
+            let wa = cl.wedge(slot, stamp, c.va, c.a);
+            let wb = cl.wedge(slot, stamp, c.vb, c.b);
+            if wa == wb && wa != UNSURE {
+                continue;
+            }
+            // Both ends in front and certainly inside two wedges: the meridians crossed are
+            // those between the wedges, the shorter way round, which the sign of the ends'
+            // azimuthal cross product tells wherever it is clear of 0 (the azimuths differ by
+            // more than ~1e-9 rad from 0 and π: atan2's decisions, and the certified
+            // polynomial's, are the same there).
+            if wa < BEHIND && wb < BEHIND {
+                let dw = c.delta_w(p, frame.pole);
+                if dw == 0 {
+                    continue;
+                }
+                let (la, lb) = (frame.local(c.a - p), frame.local(c.b - p));
+                let s = la.x * lb.y - la.y * lb.x;
+                if s.abs() > 1e-9 * (la.x.abs() + la.y.abs()) * (lb.x.abs() + lb.y.abs()) {
+                    let (k0, k1) = if s > 0.0 { (wa, wb) } else { (wb, wa) };
+                    let k1 = if k1 < k0 { k1 + m.n as u32 } else { k1 };
+                    arcs += 1;
+                    crossings += record(&mut self.buckets, m, k0 as i64..k1 as i64, la, lb, dw);
+                    continue;
+                }
+            }
             let (mut da, mut db) = (c.a - p, c.b - p);
             let (ha, hb) = (n.dot(da), n.dot(db));
             if ha <= 0.0 && hb <= 0.0 {
-                continue;
-            }
-            // Most arcs (at 128 meridians, 7 in 8 of a fine mesh's) are short, in front, and
-            // between two meridians: nothing to record.
-            if wedges && ha > 0.0 && hb > 0.0 && within_one_wedge(frame.local(da), frame.local(db), m) {
                 continue;
             }
             let dw = c.delta_w(p, frame.pole);
@@ -172,23 +366,7 @@ impl Traversal {
                 k1 += m.n as i64;
             }
             arcs += 1;
-            for k in k0..k1 {
-                let i = k.rem_euclid(m.n as i64) as usize;
-                let (ci, si) = (m.cos[i], m.sin[i]);
-                // Meridian plane normal (−sin φ, cos φ, 0).
-                let (fa, fb) = (-si * la.x + ci * la.y, -si * lb.x + ci * lb.y);
-                if fa == fb {
-                    continue;
-                }
-                let t = (fa / (fa - fb)).clamp(0.0, 1.0);
-                let q = la + (lb - la) * t;
-                let len = q.length();
-                if !(len > 0.0) {
-                    continue;
-                }
-                self.buckets[i].push(((q.z / len).clamp(-1.0, 1.0), dw));
-                crossings += 1;
-            }
+            crossings += record(&mut self.buckets, m, k0..k1, la, lb, dw);
         }
         let n_local = frame.local(n);
         let mut best = (i32::MAX, -1.0f64, 0u32, 0.0f64);
@@ -363,6 +541,59 @@ mod tests {
                 ..Default::default()
             },
         ]
+    }
+
+    /// A vertex's wedge, where the classification is certain, is the one `atan2`'s azimuth
+    /// keys give, also for directions within 1e-12 rad of a meridian (there it must say
+    /// unsure); behind the tangent plane it is `BEHIND`; and the diamond-angle bins guess well
+    /// enough that nearly every direction is classified.
+    #[test]
+    fn vertex_wedges_are_the_keys_of_atan2() {
+        let mut r = rng(9);
+        for n in [4, 7, 48, 128, 1000] {
+            let m = Meridians::new(n);
+            let mut ends = Ends::default();
+            ends.prepare(&m);
+            for axis in [PoleFrame::new(2, 1.0), PoleFrame::new(0, -1.0)] {
+                let cl = Classifier {
+                    p: DVec3::ZERO,
+                    n: axis.pole,
+                    e1: axis.e1,
+                    e2: axis.e2,
+                    wedges: true,
+                    scale: ends.bins.len() as f64 / 4.0,
+                    bins: &ends.bins,
+                    sides: &ends.sides,
+                };
+                let (mut tried, mut unsure) = (0, 0);
+                let mut check = |phi: f64, z: f64, near_side: bool| {
+                    let d = axis.e1 * phi.cos() + axis.e2 * phi.sin() + axis.pole * z;
+                    let w = cl.classify(d);
+                    if z <= 0.0 {
+                        assert_eq!(w, BEHIND);
+                        return;
+                    }
+                    tried += 1;
+                    let key = m.key(azimuth(axis.local(d)).unwrap()).rem_euclid(n as i64) as u32;
+                    if w == UNSURE {
+                        unsure += !near_side as usize;
+                    } else {
+                        assert!(!near_side, "n {n}: φ {phi} within 1e-12 of a meridian classified {w}");
+                        assert_eq!(w, key, "n {n}: φ {phi}");
+                    }
+                };
+                for _ in 0..20_000 {
+                    check(r() * TAU, r() * 2.0 - 0.5, false);
+                }
+                for j in 0..n {
+                    let side = (j as f64 + 0.5) * m.dphi;
+                    for off in [-1e-12, 0.0, 1e-12] {
+                        check(side + off, 0.3, true);
+                    }
+                }
+                assert!(unsure * 1000 < tried, "n {n}: {unsure} of {tried} unsure");
+            }
+        }
     }
 
     /// Away from edges, relative W plus the brute-force W at the pole equals the brute-force
