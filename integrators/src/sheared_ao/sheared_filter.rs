@@ -338,6 +338,15 @@ pub fn kernel(t2: f64) -> f64 {
     }
 }
 
+/// [`kernel`] as a select instead of a branch (the same value for every `t2`).
+#[inline(always)]
+fn kernel_sel(t2: f64) -> f64 {
+    const T2: f64 = 1.5 * 1.5;
+    let a = if t2 < T2 { 1.0 - t2 * (1.0 / T2) } else { 0.0 };
+    let a2 = a * a;
+    a2 * a2
+}
+
 /// What pass 2 decided for one cell.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum CellValue {
@@ -433,6 +442,8 @@ pub struct Scratch {
     bounds: Vec<Bounds>,
     w: Vec<f64>,
     wv: Vec<f64>,
+    /// Per cell: `radius²` (∞ at an infinite radius).
+    r2: Vec<f64>,
     /// The cells' central directions (local).
     centers: Vec<DVec3>,
     /// What loop 1 found about the occluded neighbour rays that lend something.
@@ -441,6 +452,9 @@ pub struct Scratch {
     m: MissSoa,
     /// Per neighbour point: its offset from the receiver (local).
     offsets: Vec<Vec3>,
+    /// Per cell: the occluder depth bounds as [`cell_depth_bounds`] scatters them.
+    z_lo: Vec<f32>,
+    z_hi: Vec<f32>,
 }
 
 /// The importance weight of an occluded neighbour ray warped to the receiver: the receiver's
@@ -490,29 +504,21 @@ pub fn same_surface(recv: &Receiver, q: &CachePoint) -> bool {
 /// once (then kept in f32), each ray's terms are turned in f32. The arrays are sized once and
 /// filled point by point through slices of the point's length (no capacity or bounds test per
 /// ray: pushing seven values per ray cost more than the arithmetic).
-fn gather<'a>(
-    recv: &Receiver,
-    neighbours: impl Iterator<Item = &'a CachePoint> + Clone,
-    params: &FilterParams,
-    s: &mut Scratch,
-) {
+fn gather(recv: &Receiver, neighbours: &[&CachePoint], params: &FilterParams, s: &mut Scratch) {
     let f = &recv.frame;
     let (fx, fy, fz) = (f.x.as_vec3(), f.y.as_vec3(), f.z.as_vec3());
     let Scratch { h, m, offsets, .. } = s;
-    let (nh, nm) = neighbours.clone().fold((0, 0), |(a, b), q| (a + q.hits.len(), b + q.misses.len()));
+    let (nh, nm) = neighbours.iter().fold((0, 0), |(a, b), q| (a + q.hits.len(), b + q.misses.len()));
     for v in [&mut h.ux, &mut h.uy, &mut h.uz, &mut h.mu, &mut h.ud, &mut h.k] {
-        v.clear();
         v.resize(nh, 0.0);
     }
-    h.point.clear();
     h.point.resize(nh, 0);
     for v in [&mut m.dx, &mut m.dy, &mut m.dz, &mut m.ox, &mut m.oy, &mut m.oz, &mut m.oo] {
-        v.clear();
         v.resize(nm, 0.0);
     }
     offsets.clear();
     let (mut ih, mut im) = (0, 0);
-    for (point, q) in neighbours.enumerate() {
+    for (point, q) in neighbours.iter().enumerate() {
         let ow64 = q.p - recv.p;
         let (ow, o) = (ow64.as_vec3(), f.to_local(ow64).as_vec3());
         offsets.push(o);
@@ -560,10 +566,8 @@ fn gather<'a>(
 fn hit_terms(h: &mut HitSoa, g: &Grid32) {
     let n = h.ux.len();
     for v in [&mut h.z, &mut h.vd, &mut h.x2, &mut h.j] {
-        v.clear();
         v.resize(n, 0.0);
     }
-    h.cell.clear();
     h.cell.resize(n, 0);
     let (ux, uy, uz, mu, ud, k) = (&h.ux[..n], &h.uy[..n], &h.uz[..n], &h.mu[..n], &h.ud[..n], &h.k[..n]);
     let (cell, zo, vdo, x2o, jo) = (&mut h.cell[..n], &mut h.z[..n], &mut h.vd[..n], &mut h.x2[..n], &mut h.j[..n]);
@@ -586,31 +590,48 @@ fn hit_terms(h: &mut HitSoa, g: &Grid32) {
 /// every occluded ray that lends something ([`HitVisit`]); hits beyond `maxdistance` join the
 /// escaped rays.
 fn cell_depth_bounds(recv: &Receiver, params: &FilterParams, s: &mut Scratch) {
-    let Scratch { bounds, hits, h, m, offsets, .. } = s;
-    hits.clear();
+    let Scratch { bounds, hits, h, m, offsets, z_lo, z_hi, .. } = s;
+    let n = h.ux.len();
+    // The bounds scattered in f32 (each `z` is an f32: its min and max are those of the f64s),
+    // the lending rays written into a vector sized once (no capacity test per ray).
+    z_lo.clear();
+    z_lo.resize(bounds.len(), f32::INFINITY);
+    z_hi.clear();
+    z_hi.resize(bounds.len(), 0.0);
+    hits.resize(n, HitVisit { cell: 0, x2: 0.0, j: 0.0 });
+    let mut lent = 0;
     let max_distance = params.max_distance as f32;
-    for i in 0..h.ux.len() {
-        let z = h.z[i];
+    let (zs, uz, cells, vd, k, j, x2) =
+        (&h.z[..n], &h.uz[..n], &h.cell[..n], &h.vd[..n], &h.k[..n], &h.j[..n], &h.x2[..n]);
+    for i in 0..n {
+        let z = zs[i];
         if !(z <= max_distance) {
             // An occluder beyond `maxdistance`: a miss.
             // Its direction, back to world (the escaped rays' arrays hold world directions).
             let o = offsets[h.point[i] as usize];
-            let d = (Vec3::new(h.ux[i], h.uy[i], h.uz[i]) - o).normalize_or_zero();
+            let d = (Vec3::new(h.ux[i], h.uy[i], uz[i]) - o).normalize_or_zero();
             m.push((recv.frame.x * d.x as f64 + recv.frame.y * d.y as f64 + recv.frame.z * d.z as f64).as_vec3(), o);
             continue;
         }
-        if !(h.uz[i] > 1e-9 * z) {
+        if !(uz[i] > 1e-9 * z) {
             continue; // on or behind the receiver's tangent plane: it lends nothing
         }
-        let cell = h.cell[i];
-        let b = &mut bounds[cell as usize];
-        b.z_min = b.z_min.min(z as f64);
-        b.z_max = b.z_max.max(z as f64);
-        if !(h.vd[i] > GRAZING as f32) {
+        let cell = cells[i];
+        let c = cell as usize;
+        // (`z` is not NaN here: selects are `min` and `max`.)
+        z_lo[c] = if z < z_lo[c] { z } else { z_lo[c] };
+        z_hi[c] = if z > z_hi[c] { z } else { z_hi[c] };
+        if !(vd[i] > GRAZING as f32) {
             continue;
         }
-        let j = if h.k[i] < 0.0 { 1.0 } else { h.j[i] };
-        hits.push(HitVisit { cell, x2: h.x2[i], j });
+        let j = if k[i] < 0.0 { 1.0 } else { j[i] };
+        hits[lent] = HitVisit { cell, x2: x2[i], j };
+        lent += 1;
+    }
+    hits.truncate(lent);
+    for (b, (&lo, &hi)) in bounds.iter_mut().zip(z_lo.iter().zip(z_hi.iter())) {
+        b.z_min = lo as f64;
+        b.z_max = hi as f64;
     }
 }
 
@@ -629,10 +650,8 @@ fn miss_terms(m: &mut MissSoa, frame: &Frame<DVec3>, g: &Grid32, gmid: f64) {
         dz[i] = fz.x * x + fz.y * y + fz.z * z;
     }
     for v in [&mut m.cd, &mut m.cv] {
-        v.clear();
         v.resize(n, 0);
     }
-    m.x2.clear();
     m.x2.resize(n, 0.0);
     let (dx, dy, dz, ox, oy, oz, oo) =
         (&m.dx[..n], &m.dy[..n], &m.dz[..n], &m.ox[..n], &m.oy[..n], &m.oz[..n], &m.oo[..n]);
@@ -757,7 +776,9 @@ pub fn filter_receiver<'a>(
     if scratch.centers.len() != nc {
         scratch.centers = (0..nc).map(|c| cell_center(c, params.cells)).collect();
     }
-    gather(recv, neighbours.filter(|q| same_surface(recv, q)), params, scratch);
+    // The guard once per point (the gather sizes its arrays in a first pass over the points).
+    let accepted: Vec<&CachePoint> = neighbours.filter(|q| same_surface(recv, q)).collect();
+    gather(recv, &accepted, params, scratch);
     hit_terms(&mut scratch.h, &grid);
     cell_depth_bounds(recv, params, scratch);
     // The receiver's mid depth over all cells, for `Warp::Sphere`.
@@ -768,7 +789,7 @@ pub fn filter_receiver<'a>(
         .fold((inf, 0.0f64), |(a, b), c| (a.min(c.z_min), b.max(c.z_max)));
     let gmid = if gmax > 0.0 && params.warp == Warp::Sphere { 2.0 / (1.0 / gmin + 1.0 / gmax) } else { inf };
     miss_terms(&mut scratch.m, &recv.frame, &grid, gmid);
-    let Scratch { bounds, w: sw, wv: swv, centers, hits, m, .. } = scratch;
+    let Scratch { bounds, w: sw, wv: swv, r2: sr2, centers, hits, m, .. } = scratch;
     finish_bounds(params, recv.footprint, bounds, &m.cd);
     if params.warp == Warp::Cell {
         warp_cell(m, &grid, bounds, centers);
@@ -779,23 +800,21 @@ pub fn filter_receiver<'a>(
     sw.resize(nc, 0.0);
     swv.clear();
     swv.resize(nc, 0.0);
-    // The kernel's weight of a squared tangent offset in cell `b` (1 at an infinite radius).
-    let weight = |b: &Bounds, x2: f32| if b.radius.is_finite() { kernel(x2 as f64 / b.radius2) } else { 1.0 };
+    // Per cell, the kernel's scale: `radius²`, infinite at an infinite radius, where a finite
+    // `x2 / radius²` is 0 and the weight `kernel(0)` is 1. Brute-forced cells are weighed too
+    // (their sums are not read): the loops have no branch on the cell.
+    sr2.clear();
+    sr2.extend(bounds.iter().map(|b| b.radius2));
     for h in hits.iter() {
         let c = h.cell as usize;
-        let b = &bounds[c];
-        if !b.brute {
-            sw[c] += weight(b, h.x2) * h.j as f64;
-        }
+        sw[c] += kernel_sel(h.x2 as f64 / sr2[c]) * h.j as f64;
     }
     for (&c, &x2) in m.cv.iter().zip(&m.x2) {
-        let b = &bounds[c as usize];
-        if !(x2 >= 0.0) || b.brute {
-            continue;
-        }
-        let w = weight(b, x2);
-        sw[c as usize] += w;
-        swv[c as usize] += w;
+        // A negative offset: the ray lends nothing (weight 0; `s + 0.0` is `s` for `s ≥ 0`).
+        let c = c as usize;
+        let w = if x2 >= 0.0 { kernel_sel(x2 as f64 / sr2[c]) } else { 0.0 };
+        sw[c] += w;
+        swv[c] += w;
     }
     out.clear();
     out.extend((0..nc).map(|c| {

@@ -230,3 +230,20 @@ fn precomputed_jacobian_matches_occluded_jacobian() {
     }
     assert!(checked > 50, "only {checked} uncapped non-zero weights");
 }
+
+/// The weight loops' branch-free kernel is [`kernel`] bit for bit: below, at and beyond the
+/// support's end `t² = 2.25` (the images must not change), and for the infinite radius's `0`.
+#[test]
+fn select_kernel_is_the_kernel_bit_for_bit() {
+    let mut t2s: Vec<f64> = (0..=4000).map(|i| i as f64 * 1e-3).collect();
+    t2s.extend([
+        2.25,
+        f64::from_bits(2.25f64.to_bits() - 1),
+        f64::from_bits(2.25f64.to_bits() + 1),
+        1e30,
+        f64::INFINITY,
+    ]);
+    for t2 in t2s {
+        assert_eq!(kernel_sel(t2).to_bits(), kernel(t2).to_bits(), "t2 = {t2}");
+    }
+}
