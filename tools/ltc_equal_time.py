@@ -19,7 +19,7 @@ import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from sweeplib import loglog, pfm_mean  # noqa: E402
+from sweeplib import pfm_mean, time_to  # noqa: E402
 
 SCENES = ["quad-cube", "cylinder-icosphere-ellipsoid", "table-convex-parts", "torus-nonconvex",
           "two-lights-metal"]
@@ -85,13 +85,9 @@ def table(out):
             me = mean_error(out, s, i)
             mes = "" if me is None else f"{100 * me:+.2f} %"
             for r in [r for r in rows if r["integrator"] == i]:
-                t, extrap = loglog(dx, dy, r["rmse"])
-                if t is None:
-                    ts, rs = ("below its curve" if extrap else "< first render"), ""
-                else:
-                    ts = ("~" if extrap else "") + f"{t:.3g}"
-                    rs = ("~" if extrap else "") + f"{r['total_s'] / t:.2f}"
-                    summary.setdefault((i, r["spp"] >= 16), []).append(r["total_s"] / t)
+                ts, rs, ratio = time_to(dx, dy, r, "< first render")
+                if ratio is not None:
+                    summary.setdefault((i, r["spp"] >= 16), []).append(ratio)
                 print(f"| {s if first else ''} | `{i}` | {r['spp']} | {r['rmse']:.3g} | "
                       f"{r['total_s']:.3g} | {ts} | {rs} | {mes} |")
                 first = False

@@ -28,7 +28,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from sweeplib import loglog  # noqa: E402
+from sweeplib import downsample_pfm, time_to  # noqa: E402
 
 EXE = os.environ.get("PENUMBRA", "target/release/penumbra")
 PBRT = os.environ.get("PBRT", "../shared/tools/pbrt-v3/pbrt")
@@ -96,29 +96,6 @@ def integrator_of(name):
     return next(runs[0][1] for n, _, runs in SCENES if n == name)
 
 
-def downsample_pfm(src, dst, k):
-    """Box-downsample a colour PFM k×k (exact for the box pixel filter; divides noise by ~k)."""
-    import array
-    with open(src, "rb") as f:
-        assert f.readline().strip() == b"PF"
-        w, h = map(int, f.readline().split())
-        scale = float(f.readline())
-        a = array.array("f")
-        a.frombytes(f.read())
-    if scale > 0:
-        a.byteswap()
-    out = array.array("f", [0.0] * ((w // k) * (h // k) * 3))
-    for y in range(h - h % k):
-        for x in range(w - w % k):
-            o = ((y // k) * (w // k) + x // k) * 3
-            i = (y * w + x) * 3
-            for c in range(3):
-                out[o + c] += a[i + c] / (k * k)
-    with open(dst, "wb") as f:
-        f.write(b"PF\n%d %d\n-1.0\n" % (w // k, h // k))
-        out.tofile(f)
-
-
 def run(out, ref):
     for name, spp, runs in SCENES:
         for label, integrator, params, limit, budgets in runs:
@@ -160,12 +137,7 @@ def table(out):
         for label, _, params, _, _ in runs[1:]:
             p = "".join(f" `{x}`" for x in params)
             for r in rows(out, name, label):
-                t, extrap = loglog(ox, oy, r["rmse"])
-                if t is None:
-                    ts, rs = ("below its curve" if extrap else "< its first render"), ""
-                else:
-                    ts = ("~" if extrap else "") + f"{t:.3g}"
-                    rs = ("~" if extrap else "") + f"{r['total_s'] / t:.2f}"
+                ts, rs, _ = time_to(ox, oy, r, "< its first render")
                 print(f"| {name if first else ''} | `{label}`{p} | {r['spp']} | {r['rmse']:.3g} | "
                       f"{r['total_s']:.3g} | `{base}` | {ts} | {rs} |")
                 first = False
