@@ -148,7 +148,8 @@ impl Classifier<'_> {
     /// no meridian (their keys from `atan2` are equal, or `n` and 0 in the wedge through
     /// azimuth 0, an empty range either way). Decided by the signs of the two meridian planes'
     /// normals `(−sin φ, cos φ, 0)`; the wedge guessed from the [`diamond`] angle's bin (a
-    /// wrong guess near a side fails the test: the arc then takes the general path).
+    /// wrong guess near a side fails the test: the arc then takes the general path). In a bin
+    /// without a meridian, away from its borders, the bin alone decides.
     #[inline(always)]
     fn classify(&self, d: DVec3) -> u32 {
         let h = self.n.dot(d);
@@ -160,9 +161,18 @@ impl Classifier<'_> {
         }
         let (x, y) = (d.dot(self.e1), d.dot(self.e2));
         let a = diamond(x, y);
+        let f = a * self.scale;
         // Saturating (NaN: 0), and a ≤ 4: at most the last bin.
-        let b = ((a * self.scale) as i32 as usize).min(self.bins.len() - 1);
+        let b = (f as i32 as usize).min(self.bins.len() - 1);
         let (thr, lo, hi) = self.bins[b];
+        // A bin without a meridian (3 in 4): a direction farther than the margin from its
+        // borders is farther than WEDGE_MARGIN radians from every meridian (the diamond
+        // angle's slope in the azimuth is at most 1), so its wedge is certain without the
+        // sides' plane tests. `f − b` is exact; NaN fails both comparisons.
+        let r = f - b as f64;
+        if thr == f64::INFINITY && r > self.bin_margin && r < 1.0 - self.bin_margin {
+            return lo;
+        }
         let i = if a > thr { hi } else { lo };
         let [c0, s0, c1, s1] = self.sides[i as usize];
         let tol = WEDGE_MARGIN * (x.abs() + y.abs());
@@ -183,6 +193,9 @@ struct Classifier<'a> {
     wedges: bool,
     /// Bins per unit of the diamond angle.
     scale: f64,
+    /// [`WEDGE_MARGIN`] in bins, plus 1e-12 for the rounding of the diamond angles (~1e-15): a
+    /// wedge certain from its bin alone is as far from the sides as the plane tests ask.
+    bin_margin: f64,
     bins: &'a [(f64, u32, u32)],
     sides: &'a [[f64; 4]],
 }
@@ -293,6 +306,7 @@ impl Traversal {
             e2: frame.e2,
             wedges,
             scale: self.ends.bins.len() as f64 / 4.0,
+            bin_margin: (WEDGE_MARGIN + 1e-12) * self.ends.bins.len() as f64 / 4.0,
             bins: &self.ends.bins,
             sides: &self.ends.sides,
         };
@@ -562,6 +576,7 @@ mod tests {
                     e2: axis.e2,
                     wedges: true,
                     scale: ends.bins.len() as f64 / 4.0,
+                    bin_margin: (WEDGE_MARGIN + 1e-12) * ends.bins.len() as f64 / 4.0,
                     bins: &ends.bins,
                     sides: &ends.sides,
                 };
