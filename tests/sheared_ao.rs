@@ -281,24 +281,6 @@ fn sh_relit_under_the_studio_map_matches_directlighting_mean() {
     assert!(rel.abs() < 0.02, "relit mean {:+.2} % from directlighting's", 100.0 * rel);
 }
 
-/// Box-downsamples an RGB image k×k (exact for the box pixel filter: a 256² render so reduced
-/// estimates the same pixels as a 64² one).
-fn downsample(img: &penumbra_core::image::Image, k: usize) -> penumbra_core::image::Image {
-    let (w, h) = (img.width as usize, img.height as usize);
-    let mut out = img.clone();
-    out.width = (w / k) as u32;
-    out.height = (h / k) as u32;
-    out.data = vec![0.0; (w / k) * (h / k) * 3];
-    for y in 0..h - h % k {
-        for x in 0..w - w % k {
-            for c in 0..3 {
-                out.data[((y / k) * (w / k) + x / k) * 3 + c] += img.data[(y * w + x) * 3 + c] / (k * k) as f32;
-            }
-        }
-    }
-    out
-}
-
 /// Issue 38's check on mesh-heavy scenes of the held-out kind (`scenes/meshes/`: a staircase of
 /// box steps by a wall; the 66.5k-triangle killeroos), at the scenes' 256², against pbrt-v3's
 /// 4096-spp `ambientocclusion` (64² copies, so our render is box-downsampled 4×4). The issue asks
@@ -317,7 +299,7 @@ fn mesh_scenes_match_pbrt_v3_mean_at_their_resolution() {
         );
         assert_eq!(ours.image.width, 256, "{name}: the scene's resolution");
         let reference = reference(&format!("meshes/{name}.ao.exr"));
-        let small = downsample(&ours.image, 4);
+        let small = ours.image.box_downsample(4).expect("256² by 4");
         let rel = mean(&small) / mean(&reference) - 1.0;
         eprintln!(
             "{name}: sheared-ao mean {:+.3}% vs pbrt-v3, RMSE (64²) {:.4}",
