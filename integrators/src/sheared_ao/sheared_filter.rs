@@ -325,22 +325,10 @@ fn concentric_hemisphere(u: DVec2) -> DVec3 {
 /// The filter kernel of `t² = |x|² / r²` (the paper leaves it open): `(1 − t²/T²)⁴`, zero from
 /// `t = T = 1.5`. It follows the Gaussian exp(−2t²) (σ = r/2, truncated at 1.5) this filter
 /// used before to within 0.044 at every t, reaches 0 continuously, and needs neither a square
-/// root nor an exponential.
-#[inline]
-pub fn kernel(t2: f64) -> f64 {
-    const T2: f64 = 1.5 * 1.5;
-    if t2 < T2 {
-        let a = 1.0 - t2 * (1.0 / T2);
-        let a2 = a * a;
-        a2 * a2
-    } else {
-        0.0
-    }
-}
-
-/// [`kernel`] as a select instead of a branch (the same value for every `t2`).
+/// root nor an exponential. Written as a select, not a branch, for the filter's weight loops
+/// (the same bits as the branch form: test `select_kernel_is_the_kernel_bit_for_bit`).
 #[inline(always)]
-fn kernel_sel(t2: f64) -> f64 {
+pub fn kernel(t2: f64) -> f64 {
     const T2: f64 = 1.5 * 1.5;
     let a = if t2 < T2 { 1.0 - t2 * (1.0 / T2) } else { 0.0 };
     let a2 = a * a;
@@ -807,12 +795,12 @@ pub fn filter_receiver<'a>(
     sr2.extend(bounds.iter().map(|b| b.radius2));
     for h in hits.iter() {
         let c = h.cell as usize;
-        sw[c] += kernel_sel(h.x2 as f64 / sr2[c]) * h.j as f64;
+        sw[c] += kernel(h.x2 as f64 / sr2[c]) * h.j as f64;
     }
     for (&c, &x2) in m.cv.iter().zip(&m.x2) {
         // A negative offset: the ray lends nothing (weight 0; `s + 0.0` is `s` for `s ≥ 0`).
         let c = c as usize;
-        let w = if x2 >= 0.0 { kernel_sel(x2 as f64 / sr2[c]) } else { 0.0 };
+        let w = if x2 >= 0.0 { kernel(x2 as f64 / sr2[c]) } else { 0.0 };
         sw[c] += w;
         swv[c] += w;
     }
