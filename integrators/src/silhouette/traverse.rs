@@ -200,7 +200,22 @@ struct Classifier<'a> {
     sides: &'a [[f64; 4]],
 }
 
-impl Classifier<'_> {
+impl<'a> Classifier<'a> {
+    /// The constants for a point at `p` with normal `n`, its meridians about `e1`, `e2`, from
+    /// [`Ends`]' bins and sides.
+    fn new(
+        bins: &'a [(f64, u32, u32)],
+        sides: &'a [[f64; 4]],
+        p: DVec3,
+        n: DVec3,
+        e1: DVec3,
+        e2: DVec3,
+        wedges: bool,
+    ) -> Self {
+        let scale = bins.len() as f64 / 4.0;
+        Classifier { p, n, e1, e2, wedges, scale, bin_margin: (WEDGE_MARGIN + 1e-12) * scale, bins, sides }
+    }
+
     /// The wedge of vertex `v` at `x` (normalised), [`BEHIND`] or [`UNSURE`], computed once
     /// per point (`slot`: the vertex's entry of [`Ends::slot`]).
     #[inline(always)]
@@ -299,17 +314,7 @@ impl Traversal {
         let (mut crossings, mut arcs) = (0, 0);
         let wedges = m.n >= 4;
         self.ends.prepare(m);
-        let cl = Classifier {
-            p,
-            n,
-            e1: frame.e1,
-            e2: frame.e2,
-            wedges,
-            scale: self.ends.bins.len() as f64 / 4.0,
-            bin_margin: (WEDGE_MARGIN + 1e-12) * self.ends.bins.len() as f64 / 4.0,
-            bins: &self.ends.bins,
-            sides: &self.ends.sides,
-        };
+        let cl = Classifier::new(&self.ends.bins, &self.ends.sides, p, n, frame.e1, frame.e2, wedges);
         let (slot, stamp) = (&mut self.ends.slot, self.ends.stamp);
         for c in contours {
             // Both ends behind, or (at 128 meridians, 7 in 8 of a fine mesh's arcs) short, in
@@ -569,17 +574,7 @@ mod tests {
             let mut ends = Ends::default();
             ends.prepare(&m);
             for axis in [PoleFrame::new(2, 1.0), PoleFrame::new(0, -1.0)] {
-                let cl = Classifier {
-                    p: DVec3::ZERO,
-                    n: axis.pole,
-                    e1: axis.e1,
-                    e2: axis.e2,
-                    wedges: true,
-                    scale: ends.bins.len() as f64 / 4.0,
-                    bin_margin: (WEDGE_MARGIN + 1e-12) * ends.bins.len() as f64 / 4.0,
-                    bins: &ends.bins,
-                    sides: &ends.sides,
-                };
+                let cl = Classifier::new(&ends.bins, &ends.sides, DVec3::ZERO, axis.pole, axis.e1, axis.e2, true);
                 let (mut tried, mut unsure) = (0, 0);
                 let mut check = |phi: f64, z: f64, near_side: bool| {
                     let d = axis.e1 * phi.cos() + axis.e2 * phi.sin() + axis.pole * z;
