@@ -83,10 +83,25 @@ struct Ends {
     stamp: u32,
     /// The wedges' sides (meridians `i − 1` and `i`): `(cos, sin)` of both, by wedge `i`.
     sides: Vec<[f64; 4]>,
-    /// [`diamond`] angle bins: `(threshold, wedge below it, wedge from above it)`, at most one
-    /// meridian per bin.
-    bins: Vec<(f64, u32, u32)>,
+    /// [`diamond`] angle bins, at most one meridian per bin, and a copy of the last bin (for
+    /// the diamond angle 4 exactly).
+    bins: Vec<Bin>,
     n: usize,
+}
+
+/// One [`diamond`] angle bin `[b, b + 1)` (in bins: the diamond angle times
+/// [`Classifier::scale`]).
+#[derive(Clone, Copy, Debug)]
+struct Bin {
+    /// A direction whose diamond angle in bins lies strictly between these is certainly
+    /// inside wedge `below` (the bin has no meridian: its borders moved in by
+    /// [`Classifier::bin_margin`]); an empty range in a bin with a meridian.
+    fast: (f64, f64),
+    /// The meridian's diamond angle, or infinity.
+    thr: f64,
+    /// The wedge below `thr`, and the one from above it.
+    below: u32,
+    above: u32,
 }
 
 /// A monotonic stand-in for the azimuth of `(x, y)` in `[0, 4]` ("diamond angle": quadrant
@@ -115,23 +130,38 @@ impl Ends {
     fn prepare(&mut self, m: &Meridians) {
         if self.n != m.n || self.sides.len() != m.n {
             self.n = m.n;
+            // Fewer than 4 meridians: no wedge is ever certain (no fast range, sides that
+            // fail every plane test), so every vertex in front is UNSURE.
+            let wedges = m.n >= 4;
             self.sides = (0..m.n)
                 .map(|i| {
                     let h = (i + m.n - 1) % m.n;
-                    [m.cos[h], m.sin[h], m.cos[i], m.sin[i]]
+                    if wedges {
+                        [m.cos[h], m.sin[h], m.cos[i], m.sin[i]]
+                    } else {
+                        [0.0; 4]
+                    }
                 })
                 .collect();
             let d: Vec<f64> = (0..m.n).map(|j| diamond(m.cos[j], m.sin[j])).collect();
             let bins = Self::BINS * m.n;
+            let margin = Classifier::bin_margin(bins);
             self.bins = (0..bins)
                 .map(|b| {
                     let (lo, hi) = (4.0 * b as f64 / bins as f64, 4.0 * (b + 1) as f64 / bins as f64);
                     // Wedge i lies between meridians i − 1 and i: the meridians below.
                     let below = d.iter().filter(|&&dj| dj < lo).count();
                     let thr = d.iter().copied().find(|&dj| dj >= lo && dj < hi).unwrap_or(f64::INFINITY);
-                    (thr, (below % m.n) as u32, ((below + 1) % m.n) as u32)
+                    let fast = if thr == f64::INFINITY && wedges {
+                        (b as f64 + margin, (b + 1) as f64 - margin)
+                    } else {
+                        (f64::INFINITY, f64::NEG_INFINITY)
+                    };
+                    Bin { fast, thr, below: (below % m.n) as u32, above: ((below + 1) % m.n) as u32 }
                 })
                 .collect();
+            let last = self.bins[bins - 1];
+            self.bins.push(last);
         }
         self.stamp = self.stamp.wrapping_add(1);
         if self.stamp == 0 {
@@ -153,27 +183,22 @@ impl Classifier<'_> {
     #[inline(always)]
     fn classify(&self, d: DVec3) -> u32 {
         let h = self.n.dot(d);
-        if h <= 0.0 {
-            return BEHIND;
-        }
-        if !(h > 0.0) || !self.wedges {
-            return UNSURE;
+        if !(h > 0.0) {
+            return if h <= 0.0 { BEHIND } else { UNSURE };
         }
         let (x, y) = (d.dot(self.e1), d.dot(self.e2));
         let a = diamond(x, y);
         let f = a * self.scale;
-        // Saturating (NaN: 0), and a ≤ 4: at most the last bin.
-        let b = (f as i32 as usize).min(self.bins.len() - 1);
-        let (thr, lo, hi) = self.bins[b];
+        // Saturating (NaN: 0), and a ≤ 4: at most the copy of the last bin.
+        let Some(bin) = self.bins.get(f as i32 as usize) else { return UNSURE };
         // A bin without a meridian (3 in 4): a direction farther than the margin from its
         // borders is farther than WEDGE_MARGIN radians from every meridian (the diamond
         // angle's slope in the azimuth is at most 1), so its wedge is certain without the
-        // sides' plane tests. `f − b` is exact; NaN fails both comparisons.
-        let r = f - b as f64;
-        if thr == f64::INFINITY && r > self.bin_margin && r < 1.0 - self.bin_margin {
-            return lo;
+        // sides' plane tests. NaN fails both comparisons.
+        if f > bin.fast.0 && f < bin.fast.1 {
+            return bin.below;
         }
-        let i = if a > thr { hi } else { lo };
+        let i = if a > bin.thr { bin.above } else { bin.below };
         let [c0, s0, c1, s1] = self.sides[i as usize];
         let tol = WEDGE_MARGIN * (x.abs() + y.abs());
         if -s0 * x + c0 * y > tol && -s1 * x + c1 * y < -tol {
@@ -190,41 +215,32 @@ struct Classifier<'a> {
     n: DVec3,
     e1: DVec3,
     e2: DVec3,
-    wedges: bool,
     /// Bins per unit of the diamond angle.
     scale: f64,
-    /// [`WEDGE_MARGIN`] in bins, plus 1e-12 for the rounding of the diamond angles (~1e-15): a
-    /// wedge certain from its bin alone is as far from the sides as the plane tests ask.
-    bin_margin: f64,
-    bins: &'a [(f64, u32, u32)],
+    bins: &'a [Bin],
     sides: &'a [[f64; 4]],
 }
 
 impl<'a> Classifier<'a> {
     /// The constants for a point at `p` with normal `n`, its meridians about `e1`, `e2`, from
     /// [`Ends`]' bins and sides.
-    fn new(
-        bins: &'a [(f64, u32, u32)],
-        sides: &'a [[f64; 4]],
-        p: DVec3,
-        n: DVec3,
-        e1: DVec3,
-        e2: DVec3,
-        wedges: bool,
-    ) -> Self {
-        let scale = bins.len() as f64 / 4.0;
-        Classifier { p, n, e1, e2, wedges, scale, bin_margin: (WEDGE_MARGIN + 1e-12) * scale, bins, sides }
+    fn new(bins: &'a [Bin], sides: &'a [[f64; 4]], p: DVec3, n: DVec3, e1: DVec3, e2: DVec3) -> Self {
+        Classifier { p, n, e1, e2, scale: (bins.len() - 1) as f64 / 4.0, bins, sides }
+    }
+
+    /// [`WEDGE_MARGIN`] in bins (of `bins` over the diamond angle's [0, 4]), plus 1e-12 for
+    /// the rounding of the diamond angles (~1e-15) and of the bins' fast ranges `b + margin`,
+    /// `b + 1 − margin` (< 1e-13 bins up to 2²⁰ bins): a wedge certain from its bin alone is
+    /// as far from the sides as the plane tests ask.
+    fn bin_margin(bins: usize) -> f64 {
+        (WEDGE_MARGIN + 1e-12) * (bins as f64 / 4.0)
     }
 
     /// The wedge of vertex `v` at `x` (normalised), [`BEHIND`] or [`UNSURE`], computed once
     /// per point (`slot`: the vertex's entry of [`Ends::slot`]).
     #[inline(always)]
     fn wedge(&self, slot: &mut Vec<(u32, u32)>, stamp: u32, v: u32, x: DVec3) -> u32 {
-        let i = v as usize;
-        if i >= slot.len() {
-            grow(slot, i + 1);
-        }
-        let s = &mut slot[i];
+        let Some(s) = slot.get_mut(v as usize) else { return self.wedge_grown(slot, stamp, v, x) };
         if s.0 == stamp {
             return s.1;
         }
@@ -232,11 +248,16 @@ impl<'a> Classifier<'a> {
         *s = (stamp, w);
         w
     }
-}
 
-#[cold]
-fn grow(slot: &mut Vec<(u32, u32)>, len: usize) {
-    slot.resize(len, (0, 0));
+    /// [`Self::wedge`] of a vertex beyond the slots: grows them first.
+    #[cold]
+    #[inline(never)]
+    fn wedge_grown(&self, slot: &mut Vec<(u32, u32)>, stamp: u32, v: u32, x: DVec3) -> u32 {
+        slot.resize(v as usize + 1, (0, 0));
+        let w = self.classify(x - self.p);
+        slot[v as usize] = (stamp, w);
+        w
+    }
 }
 
 /// The azimuths of an arc's two ends (local directions), for the decisions the traversal
@@ -312,9 +333,8 @@ impl Traversal {
         self.horizon.clear();
         self.end_w.clear();
         let (mut crossings, mut arcs) = (0, 0);
-        let wedges = m.n >= 4;
         self.ends.prepare(m);
-        let cl = Classifier::new(&self.ends.bins, &self.ends.sides, p, n, frame.e1, frame.e2, wedges);
+        let cl = Classifier::new(&self.ends.bins, &self.ends.sides, p, n, frame.e1, frame.e2);
         let (slot, stamp) = (&mut self.ends.slot, self.ends.stamp);
         for c in contours {
             // Both ends behind, or (at 128 meridians, 7 in 8 of a fine mesh's arcs) short, in
@@ -574,7 +594,7 @@ mod tests {
             let mut ends = Ends::default();
             ends.prepare(&m);
             for axis in [PoleFrame::new(2, 1.0), PoleFrame::new(0, -1.0)] {
-                let cl = Classifier::new(&ends.bins, &ends.sides, DVec3::ZERO, axis.pole, axis.e1, axis.e2, true);
+                let cl = Classifier::new(&ends.bins, &ends.sides, DVec3::ZERO, axis.pole, axis.e1, axis.e2);
                 let (mut tried, mut unsure) = (0, 0);
                 let mut check = |phi: f64, z: f64, near_side: bool| {
                     let d = axis.e1 * phi.cos() + axis.e2 * phi.sin() + axis.pole * z;
