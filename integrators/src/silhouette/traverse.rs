@@ -83,8 +83,8 @@ struct Ends {
     stamp: u32,
     /// The wedges' sides (meridians `i − 1` and `i`): `(cos, sin)` of both, by wedge `i`.
     sides: Vec<[f64; 4]>,
-    /// [`diamond`] angle bins, at most one meridian per bin, and a copy of the last bin (for
-    /// the diamond angle 4 exactly).
+    /// [`diamond`] angle bins, at most one meridian per bin, after a copy of the first and
+    /// before a copy of the last (see [`Classifier::classify`]'s index).
     bins: Vec<Bin>,
     n: usize,
 }
@@ -160,7 +160,8 @@ impl Ends {
                     Bin { fast, thr, below: (below % m.n) as u32, above: ((below + 1) % m.n) as u32 }
                 })
                 .collect();
-            let last = self.bins[bins - 1];
+            let (first, last) = (self.bins[0], self.bins[bins - 1]);
+            self.bins.insert(0, first);
             self.bins.push(last);
         }
         self.stamp = self.stamp.wrapping_add(1);
@@ -189,8 +190,14 @@ impl Classifier<'_> {
         let (x, y) = (d.dot(self.e1), d.dot(self.e2));
         let a = diamond(x, y);
         let f = a * self.scale;
-        // Saturating (NaN: 0), and a ≤ 4: at most the copy of the last bin.
-        let Some(bin) = self.bins.get(f as i32 as usize) else { return UNSURE };
+        // The bin, without a saturating cast: 0 ≤ f ≤ 4·bins ≤ 2³¹, so f + (2⁵² − ½) (exact
+        // constant) rounds to 2⁵² + round(f − ½) from f = ½ on (ulp 1), whose low 32 bits
+        // are that integer, and to 2⁵² − ½ or 2⁵² below (low bits −1 or 0, both bin 0).
+        // Shifted by one past the copy of bin 0. A tie (f an integer) may give the bin below
+        // f's, whose fast range and the plane tests then refuse it: any guess is correct.
+        // NaN: bin 0's copy; 4·bins: the copy of the last bin.
+        let b = (f + (4503599627370496.0 - 0.5)).to_bits() as u32;
+        let Some(bin) = self.bins.get(b.wrapping_add(1) as usize) else { return UNSURE };
         // A bin without a meridian (3 in 4): a direction farther than the margin from its
         // borders is farther than WEDGE_MARGIN radians from every meridian (the diamond
         // angle's slope in the azimuth is at most 1), so its wedge is certain without the
@@ -225,7 +232,7 @@ impl<'a> Classifier<'a> {
     /// The constants for a point at `p` with normal `n`, its meridians about `e1`, `e2`, from
     /// [`Ends`]' bins and sides.
     fn new(bins: &'a [Bin], sides: &'a [[f64; 4]], p: DVec3, n: DVec3, e1: DVec3, e2: DVec3) -> Self {
-        Classifier { p, n, e1, e2, scale: (bins.len() - 1) as f64 / 4.0, bins, sides }
+        Classifier { p, n, e1, e2, scale: (bins.len() - 2) as f64 / 4.0, bins, sides }
     }
 
     /// [`WEDGE_MARGIN`] in bins (of `bins` over the diamond angle's [0, 4]), plus 1e-12 for
@@ -301,8 +308,11 @@ fn record(
     dw: i32,
 ) -> usize {
     let mut crossings = 0;
-    for k in keys {
-        let i = k.rem_euclid(m.n as i64) as usize;
+    // Meridian `k mod n`, stepped with a wrap rather than a division per key.
+    let mut next = keys.start.rem_euclid(m.n as i64) as usize;
+    for _ in keys {
+        let i = next;
+        next = if i + 1 == m.n { 0 } else { i + 1 };
         let (ci, si) = (m.cos[i], m.sin[i]);
         // Meridian plane normal (−sin φ, cos φ, 0).
         let (fa, fb) = (-si * la.x + ci * la.y, -si * lb.x + ci * lb.y);
@@ -319,6 +329,27 @@ fn record(
         crossings += 1;
     }
     crossings
+}
+
+/// Sorts a meridian's crossings by decreasing `v`, then increasing ΔW: a total order on the
+/// elements (two that compare equal are identical), so every sort gives the same slice. By
+/// insertion for the few crossings a meridian usually has (~6 at 128 meridians on the
+/// killeroo), the library's sort beyond.
+fn sort_bucket(b: &mut [(f64, i32)]) {
+    let order = |x: &(f64, i32), y: &(f64, i32)| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1));
+    if b.len() > 16 {
+        b.sort_unstable_by(order);
+        return;
+    }
+    for i in 1..b.len() {
+        let x = b[i];
+        let mut j = i;
+        while j > 0 && order(&x, &b[j - 1]) == std::cmp::Ordering::Less {
+            b[j] = b[j - 1];
+            j -= 1;
+        }
+        b[j] = x;
+    }
 }
 
 impl Traversal {
@@ -410,7 +441,7 @@ impl Traversal {
         let n_local = frame.local(n);
         let mut best = (i32::MAX, -1.0f64, 0u32, 0.0f64);
         for (i, bucket) in self.buckets.iter_mut().enumerate() {
-            bucket.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+            sort_bucket(bucket);
             let vh = m.horizon(i, n_local);
             let (mut w, mut top) = (0i32, 1.0f64);
             let mut j = 0;
