@@ -246,22 +246,24 @@ impl<'a> Classifier<'a> {
     /// The wedge of vertex `v` at `x` (normalised), [`BEHIND`] or [`UNSURE`], computed once
     /// per point (`slot`: the vertex's entry of [`Ends::slot`]).
     #[inline(always)]
-    fn wedge(&self, slot: &mut Vec<(u32, u32)>, stamp: u32, v: u32, x: DVec3) -> u32 {
+    fn wedge(&self, slot: &mut Vec<(u32, u32)>, stamp: u32, v: u32, x: &DVec3) -> u32 {
         let Some(s) = slot.get_mut(v as usize) else { return self.wedge_grown(slot, stamp, v, x) };
         if s.0 == stamp {
             return s.1;
         }
-        let w = self.classify(x - self.p);
+        let w = self.classify(*x - self.p);
         *s = (stamp, w);
         w
     }
 
-    /// [`Self::wedge`] of a vertex beyond the slots: grows them first.
+    /// [`Self::wedge`] of a vertex beyond the slots: grows them first. (`x` by reference
+    /// here and in `wedge`: a `DVec3` by value to a function not inlined is a copy on the
+    /// stack, which the compiler made before every lookup.)
     #[cold]
     #[inline(never)]
-    fn wedge_grown(&self, slot: &mut Vec<(u32, u32)>, stamp: u32, v: u32, x: DVec3) -> u32 {
+    fn wedge_grown(&self, slot: &mut Vec<(u32, u32)>, stamp: u32, v: u32, x: &DVec3) -> u32 {
         slot.resize(v as usize + 1, (0, 0));
-        let w = self.classify(x - self.p);
+        let w = self.classify(*x - self.p);
         slot[v as usize] = (stamp, w);
         w
     }
@@ -370,8 +372,8 @@ impl Traversal {
         for c in contours {
             // Both ends behind, or (at 128 meridians, 7 in 8 of a fine mesh's arcs) short, in
             // front and between two meridians: nothing to record.
-            let wa = cl.wedge(slot, stamp, c.va, c.a);
-            let wb = cl.wedge(slot, stamp, c.vb, c.b);
+            let wa = cl.wedge(slot, stamp, c.va, &c.a);
+            let wb = cl.wedge(slot, stamp, c.vb, &c.b);
             if wa == wb && wa != UNSURE {
                 continue;
             }
