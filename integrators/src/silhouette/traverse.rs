@@ -301,6 +301,7 @@ const WEDGE_MARGIN: f64 = 1e-9;
 
 /// Records the crossings of the arc from local direction `la` to `lb` with the meridians of
 /// `keys` (mod `n`) as `(v, dw)` in their buckets; returns how many.
+#[inline(always)]
 fn record(
     buckets: &mut [Vec<(f64, i32)>],
     m: &Meridians,
