@@ -81,25 +81,23 @@ struct Ends {
     /// `(stamp, wedge)` by vertex index.
     slot: Vec<(u32, u32)>,
     stamp: u32,
-    /// The wedges' sides (meridians `i − 1` and `i`): `(cos, sin)` of both, by wedge `i`.
-    sides: Vec<[f64; 4]>,
     /// [`diamond`] angle bins, at most one meridian per bin, after a copy of the first and
     /// before a copy of the last (see [`Classifier::classify`]'s index).
     bins: Vec<Bin>,
     n: usize,
 }
 
-/// One [`diamond`] angle bin `[b, b + 1)` (in bins: the diamond angle times
-/// [`Classifier::scale`]).
+/// One [`diamond`] angle bin `[b, b + 1)`, in bins (the diamond angle times
+/// [`Classifier::scale`]), and the wedges a direction whose diamond angle `f` (in bins) falls
+/// in it can be certainly inside.
 #[derive(Clone, Copy, Debug)]
 struct Bin {
-    /// A direction whose diamond angle in bins lies strictly between these is certainly
-    /// inside wedge `below` (the bin has no meridian: its borders moved in by
-    /// [`Classifier::bin_margin`]); an empty range in a bin with a meridian.
-    fast: (f64, f64),
-    /// The meridian's diamond angle, or infinity.
-    thr: f64,
-    /// The wedge below `thr`, and the one from above it.
+    /// `f` strictly inside this range is certainly inside wedge `below`: the range between
+    /// the meridian before the bin and the bin's meridian (or, without one, the meridian
+    /// after the bin), each moved in by [`Classifier::bin_margin`].
+    below_range: (f64, f64),
+    /// Likewise for wedge `above`, from the bin's meridian to the next; empty without one.
+    above_range: (f64, f64),
     below: u32,
     above: u32,
 }
@@ -128,36 +126,33 @@ impl Ends {
     const BINS: usize = 4;
 
     fn prepare(&mut self, m: &Meridians) {
-        if self.n != m.n || self.sides.len() != m.n {
+        if self.n != m.n || self.bins.len() != Self::BINS * m.n + 2 {
             self.n = m.n;
-            // Fewer than 4 meridians: no wedge is ever certain (no fast range, sides that
-            // fail every plane test), so every vertex in front is UNSURE.
-            let wedges = m.n >= 4;
-            self.sides = (0..m.n)
-                .map(|i| {
-                    let h = (i + m.n - 1) % m.n;
-                    if wedges {
-                        [m.cos[h], m.sin[h], m.cos[i], m.sin[i]]
-                    } else {
-                        [0.0; 4]
-                    }
-                })
-                .collect();
-            let d: Vec<f64> = (0..m.n).map(|j| diamond(m.cos[j], m.sin[j])).collect();
             let bins = Self::BINS * m.n;
+            let scale = bins as f64 / 4.0;
             let margin = Classifier::bin_margin(bins);
+            // The meridians' diamond angles in bins (increasing with the index), and the
+            // ones before the first and after the last, one turn (4·scale) away.
+            let at = |j: isize| {
+                let k = j.rem_euclid(m.n as isize) as usize;
+                diamond(m.cos[k], m.sin[k]) * scale + 4.0 * scale * j.div_euclid(m.n as isize) as f64
+            };
+            let empty = (f64::INFINITY, f64::NEG_INFINITY);
             self.bins = (0..bins)
                 .map(|b| {
-                    let (lo, hi) = (4.0 * b as f64 / bins as f64, 4.0 * (b + 1) as f64 / bins as f64);
-                    // Wedge i lies between meridians i − 1 and i: the meridians below.
-                    let below = d.iter().filter(|&&dj| dj < lo).count();
-                    let thr = d.iter().copied().find(|&dj| dj >= lo && dj < hi).unwrap_or(f64::INFINITY);
-                    let fast = if thr == f64::INFINITY && wedges {
-                        (b as f64 + margin, (b + 1) as f64 - margin)
+                    // Wedge i lies between meridians i − 1 and i: c meridians below the bin.
+                    let c = (0..m.n as isize).filter(|&j| at(j) < b as f64).count() as isize;
+                    let inside = c < m.n as isize && at(c) < (b + 1) as f64;
+                    let wedge = |i: isize| i.rem_euclid(m.n as isize) as u32;
+                    let (below_range, above_range) = if m.n < 4 {
+                        // Fewer than 4 meridians: no wedge is ever certain.
+                        (empty, empty)
+                    } else if inside {
+                        ((at(c - 1) + margin, at(c) - margin), (at(c) + margin, at(c + 1) - margin))
                     } else {
-                        (f64::INFINITY, f64::NEG_INFINITY)
+                        ((at(c - 1) + margin, at(c) - margin), empty)
                     };
-                    Bin { fast, thr, below: (below % m.n) as u32, above: ((below + 1) % m.n) as u32 }
+                    Bin { below_range, above_range, below: wedge(c), above: wedge(c + 1) }
                 })
                 .collect();
             let (first, last) = (self.bins[0], self.bins[bins - 1]);
@@ -177,10 +172,10 @@ impl Classifier<'_> {
     /// local direction of `d` lies strictly inside, farther than [`WEDGE_MARGIN`] radians from
     /// both sides, or [`UNSURE`]. Two ends certainly inside one wedge bound an arc that crosses
     /// no meridian (their keys from `atan2` are equal, or `n` and 0 in the wedge through
-    /// azimuth 0, an empty range either way). Decided by the signs of the two meridian planes'
-    /// normals `(−sin φ, cos φ, 0)`; the wedge guessed from the [`diamond`] angle's bin (a
-    /// wrong guess near a side fails the test: the arc then takes the general path). In a bin
-    /// without a meridian, away from its borders, the bin alone decides.
+    /// azimuth 0, an empty range either way). Decided by the [`diamond`] angle: its bin's
+    /// ranges are the meridians' diamond angles moved in by the margin, and the diamond
+    /// angle's slope in the azimuth is at most 1, so a direction inside one is farther than
+    /// WEDGE_MARGIN radians from every meridian, between the two that bound the wedge.
     #[inline(always)]
     fn classify(&self, d: DVec3) -> u32 {
         let h = self.n.dot(d);
@@ -188,28 +183,19 @@ impl Classifier<'_> {
             return if h <= 0.0 { BEHIND } else { UNSURE };
         }
         let (x, y) = (d.dot(self.e1), d.dot(self.e2));
-        let a = diamond(x, y);
-        let f = a * self.scale;
+        let f = diamond(x, y) * self.scale;
         // The bin, without a saturating cast: 0 ≤ f ≤ 4·bins ≤ 2³¹, so f + (2⁵² − ½) (exact
         // constant) rounds to 2⁵² + round(f − ½) from f = ½ on (ulp 1), whose low 32 bits
         // are that integer, and to 2⁵² − ½ or 2⁵² below (low bits −1 or 0, both bin 0).
         // Shifted by one past the copy of bin 0. A tie (f an integer) may give the bin below
-        // f's, whose fast range and the plane tests then refuse it: any guess is correct.
-        // NaN: bin 0's copy; 4·bins: the copy of the last bin.
+        // f's: the ranges certify `f` itself, whichever bin they come from.
+        // NaN: bin 0's copy, and fails every comparison; 4·bins: the copy of the last bin.
         let b = (f + (4503599627370496.0 - 0.5)).to_bits() as u32;
         let Some(bin) = self.bins.get(b.wrapping_add(1) as usize) else { return UNSURE };
-        // A bin without a meridian (3 in 4): a direction farther than the margin from its
-        // borders is farther than WEDGE_MARGIN radians from every meridian (the diamond
-        // angle's slope in the azimuth is at most 1), so its wedge is certain without the
-        // sides' plane tests. NaN fails both comparisons.
-        if f > bin.fast.0 && f < bin.fast.1 {
-            return bin.below;
-        }
-        let i = if a > bin.thr { bin.above } else { bin.below };
-        let [c0, s0, c1, s1] = self.sides[i as usize];
-        let tol = WEDGE_MARGIN * (x.abs() + y.abs());
-        if -s0 * x + c0 * y > tol && -s1 * x + c1 * y < -tol {
-            i
+        if f > bin.below_range.0 && f < bin.below_range.1 {
+            bin.below
+        } else if f > bin.above_range.0 && f < bin.above_range.1 {
+            bin.above
         } else {
             UNSURE
         }
@@ -225,20 +211,19 @@ struct Classifier<'a> {
     /// Bins per unit of the diamond angle.
     scale: f64,
     bins: &'a [Bin],
-    sides: &'a [[f64; 4]],
 }
 
 impl<'a> Classifier<'a> {
     /// The constants for a point at `p` with normal `n`, its meridians about `e1`, `e2`, from
-    /// [`Ends`]' bins and sides.
-    fn new(bins: &'a [Bin], sides: &'a [[f64; 4]], p: DVec3, n: DVec3, e1: DVec3, e2: DVec3) -> Self {
-        Classifier { p, n, e1, e2, scale: (bins.len() - 2) as f64 / 4.0, bins, sides }
+    /// [`Ends`]' bins.
+    fn new(bins: &'a [Bin], p: DVec3, n: DVec3, e1: DVec3, e2: DVec3) -> Self {
+        Classifier { p, n, e1, e2, scale: (bins.len() - 2) as f64 / 4.0, bins }
     }
 
     /// [`WEDGE_MARGIN`] in bins (of `bins` over the diamond angle's [0, 4]), plus 1e-12 for
-    /// the rounding of the diamond angles (~1e-15) and of the bins' fast ranges `b + margin`,
-    /// `b + 1 − margin` (< 1e-13 bins up to 2²⁰ bins): a wedge certain from its bin alone is
-    /// as far from the sides as the plane tests ask.
+    /// the rounding of the diamond angles (~1e-15, the meridians' from their rounded cos and
+    /// sin) and of the ranges' ends `at ± margin` (< 1e-13 bins up to 2²⁰ bins): a wedge
+    /// certain from the ranges is farther than WEDGE_MARGIN radians from its sides.
     fn bin_margin(bins: usize) -> f64 {
         (WEDGE_MARGIN + 1e-12) * (bins as f64 / 4.0)
     }
@@ -294,9 +279,9 @@ fn end_azimuths(la: DVec3, lb: DVec3, m: &Meridians) -> Option<(f64, f64)> {
     }
 }
 
-/// [`Classifier::classify`]'s distance from the wedge's sides (radians, times the direction's
-/// length in the plane): far above the rounding of `atan2`, of the meridians' `cos`/`sin` and
-/// of the keys (~1e-15), so the keys of both ends are certainly the wedge's.
+/// [`Classifier::classify`]'s distance from the wedge's sides (radians): far above the
+/// rounding of `atan2`, of the meridians' `cos`/`sin` and of the keys (~1e-15), so the keys of
+/// both ends are certainly the wedge's.
 const WEDGE_MARGIN: f64 = 1e-9;
 
 /// Records the crossings of the arc from local direction `la` to `lb` with the meridians of
@@ -368,7 +353,7 @@ impl Traversal {
         self.end_w.clear();
         let (mut crossings, mut arcs) = (0, 0);
         self.ends.prepare(m);
-        let cl = Classifier::new(&self.ends.bins, &self.ends.sides, p, n, frame.e1, frame.e2);
+        let cl = Classifier::new(&self.ends.bins, p, n, frame.e1, frame.e2);
         let (slot, stamp) = (&mut self.ends.slot, self.ends.stamp);
         for c in contours {
             // Both ends behind, or (at 128 meridians, 7 in 8 of a fine mesh's arcs) short, in
@@ -628,7 +613,7 @@ mod tests {
             let mut ends = Ends::default();
             ends.prepare(&m);
             for axis in [PoleFrame::new(2, 1.0), PoleFrame::new(0, -1.0)] {
-                let cl = Classifier::new(&ends.bins, &ends.sides, DVec3::ZERO, axis.pole, axis.e1, axis.e2);
+                let cl = Classifier::new(&ends.bins, DVec3::ZERO, axis.pole, axis.e1, axis.e2);
                 let (mut tried, mut unsure) = (0, 0);
                 let mut check = |phi: f64, z: f64, near_side: bool| {
                     let d = axis.e1 * phi.cos() + axis.e2 * phi.sin() + axis.pole * z;
