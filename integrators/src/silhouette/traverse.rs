@@ -94,7 +94,7 @@ struct Ends {
 struct Bin {
     /// `f` strictly inside this range is certainly inside wedge `below`: the range between
     /// the meridian before the bin and the bin's meridian (or, without one, the meridian
-    /// after the bin), each moved in by [`Classifier::bin_margin`].
+    /// after the bin), each moved in by [`bin_margin`].
     below_range: (f64, f64),
     /// Likewise for wedge `above`, from the bin's meridian to the next; empty without one.
     above_range: (f64, f64),
@@ -130,7 +130,7 @@ impl Ends {
             self.n = m.n;
             let bins = Self::BINS * m.n;
             let scale = bins as f64 / 4.0;
-            let margin = Classifier::bin_margin(bins);
+            let margin = bin_margin(bins);
             // The meridians' diamond angles in bins (increasing with the index), and the
             // ones before the first and after the last, one turn (4·scale) away.
             let at = |j: isize| {
@@ -167,7 +167,41 @@ impl Ends {
     }
 }
 
-impl Classifier<'_> {
+/// The local `(x, y)` of a direction: its components along the pole frame's `e1`, `e2`.
+trait Plane: Copy {
+    fn xy(&self, d: DVec3) -> (f64, f64);
+}
+
+/// Any frame: two dot products.
+#[derive(Clone, Copy)]
+struct Dots {
+    e1: DVec3,
+    e2: DVec3,
+}
+
+impl Plane for Dots {
+    #[inline(always)]
+    fn xy(&self, d: DVec3) -> (f64, f64) {
+        (d.dot(self.e1), d.dot(self.e2))
+    }
+}
+
+/// A frame whose `e1`, `e2` are the world axes `(A + 1) % 3`, `(A + 2) % 3` (the pole on
+/// axis `A`, as [`super::param::Axes::WORLD`]'s frames are): their components, which equal the
+/// dot products up to the sign of a zero (a zero's sign changes the diamond angle only on
+/// the axes, where no meridian lies and either wedge it gives is certain).
+#[derive(Clone, Copy)]
+struct WorldAxes<const A: usize>;
+
+impl<const A: usize> Plane for WorldAxes<A> {
+    #[inline(always)]
+    fn xy(&self, d: DVec3) -> (f64, f64) {
+        let d = d.to_array();
+        (d[(A + 1) % 3], d[(A + 2) % 3])
+    }
+}
+
+impl<P: Plane> Classifier<'_, P> {
     /// [`BEHIND`] when `n·d ≤ 0`; else the wedge `i` (between meridians `i − 1` and `i`) the
     /// local direction of `d` lies strictly inside, farther than [`WEDGE_MARGIN`] radians from
     /// both sides, or [`UNSURE`]. Two ends certainly inside one wedge bound an arc that crosses
@@ -182,7 +216,7 @@ impl Classifier<'_> {
         if !(h > 0.0) {
             return if h <= 0.0 { BEHIND } else { UNSURE };
         }
-        let (x, y) = (d.dot(self.e1), d.dot(self.e2));
+        let (x, y) = self.plane.xy(d);
         let f = diamond(x, y) * self.scale;
         // The bin, without a saturating cast: 0 ≤ f ≤ 4·bins ≤ 2³¹, so f + (2⁵² − ½) (exact
         // constant) rounds to 2⁵² + round(f − ½) from f = ½ on (ulp 1), whose low 32 bits
@@ -203,29 +237,28 @@ impl Classifier<'_> {
 }
 
 /// [`Classifier::classify`]'s constants for one point.
-struct Classifier<'a> {
+struct Classifier<'a, P> {
     p: DVec3,
     n: DVec3,
-    e1: DVec3,
-    e2: DVec3,
+    plane: P,
     /// Bins per unit of the diamond angle.
     scale: f64,
     bins: &'a [Bin],
 }
 
-impl<'a> Classifier<'a> {
-    /// The constants for a point at `p` with normal `n`, its meridians about `e1`, `e2`, from
-    /// [`Ends`]' bins.
-    fn new(bins: &'a [Bin], p: DVec3, n: DVec3, e1: DVec3, e2: DVec3) -> Self {
-        Classifier { p, n, e1, e2, scale: (bins.len() - 2) as f64 / 4.0, bins }
-    }
+/// [`WEDGE_MARGIN`] in bins (of `bins` over the diamond angle's [0, 4]), plus 1e-12 for the
+/// rounding of the diamond angles (~1e-15, the meridians' from their rounded cos and sin) and
+/// of the ranges' ends `at ± margin` (< 1e-13 bins up to 2²⁰ bins): a wedge certain from the
+/// ranges is farther than WEDGE_MARGIN radians from its sides.
+fn bin_margin(bins: usize) -> f64 {
+    (WEDGE_MARGIN + 1e-12) * (bins as f64 / 4.0)
+}
 
-    /// [`WEDGE_MARGIN`] in bins (of `bins` over the diamond angle's [0, 4]), plus 1e-12 for
-    /// the rounding of the diamond angles (~1e-15, the meridians' from their rounded cos and
-    /// sin) and of the ranges' ends `at ± margin` (< 1e-13 bins up to 2²⁰ bins): a wedge
-    /// certain from the ranges is farther than WEDGE_MARGIN radians from its sides.
-    fn bin_margin(bins: usize) -> f64 {
-        (WEDGE_MARGIN + 1e-12) * (bins as f64 / 4.0)
+impl<'a, P: Plane> Classifier<'a, P> {
+    /// The constants for a point at `p` with normal `n`, its meridians about the frame of
+    /// `plane`, from [`Ends`]' bins.
+    fn new(bins: &'a [Bin], p: DVec3, n: DVec3, plane: P) -> Self {
+        Classifier { p, n, plane, scale: (bins.len() - 2) as f64 / 4.0, bins }
     }
 
     /// The wedge of vertex `v` at `x` (normalised), [`BEHIND`] or [`UNSURE`], computed once
@@ -344,6 +377,26 @@ impl Traversal {
     /// Traverses the contours of `p` (normalised coordinates, as [`super::dual::DualEdges`] gives
     /// them) in the visible half-space of `n` (unit), about `frame`'s pole (`n·pole > 0`).
     pub fn run(&mut self, contours: &[Contour], p: DVec3, n: DVec3, frame: &PoleFrame, m: &Meridians) -> Visibility {
+        // The vertices' local (x, y) without dot products where the frame is the world's.
+        let world = |a: usize| frame.e1 == DVec3::AXES[(a + 1) % 3] && frame.e2 == DVec3::AXES[(a + 2) % 3];
+        match frame.axis {
+            0 if world(0) => self.run_in(contours, p, n, frame, m, WorldAxes::<0>),
+            1 if world(1) => self.run_in(contours, p, n, frame, m, WorldAxes::<1>),
+            2 if world(2) => self.run_in(contours, p, n, frame, m, WorldAxes::<2>),
+            _ => self.run_in(contours, p, n, frame, m, Dots { e1: frame.e1, e2: frame.e2 }),
+        }
+    }
+
+    /// [`Self::run`] with the vertices' local `(x, y)` from `plane`.
+    fn run_in<P: Plane>(
+        &mut self,
+        contours: &[Contour],
+        p: DVec3,
+        n: DVec3,
+        frame: &PoleFrame,
+        m: &Meridians,
+        plane: P,
+    ) -> Visibility {
         if self.buckets.len() != m.n {
             self.buckets = vec![Vec::new(); m.n];
         }
@@ -353,7 +406,7 @@ impl Traversal {
         self.end_w.clear();
         let (mut crossings, mut arcs) = (0, 0);
         self.ends.prepare(m);
-        let cl = Classifier::new(&self.ends.bins, p, n, frame.e1, frame.e2);
+        let cl = Classifier::new(&self.ends.bins, p, n, plane);
         let (slot, stamp) = (&mut self.ends.slot, self.ends.stamp);
         for c in contours {
             // Both ends behind, or (at 128 meridians, 7 in 8 of a fine mesh's arcs) short, in
@@ -485,7 +538,7 @@ impl Traversal {
 #[cfg(test)]
 mod tests {
     use super::super::dual::DualEdges;
-    use super::super::param::moment;
+    use super::super::param::{moment, Axes};
     use super::*;
     use glam::Vec3;
     use penumbra_core::mesh::TriangleMesh;
@@ -604,45 +657,56 @@ mod tests {
     /// A vertex's wedge, where the classification is certain, is the one `atan2`'s azimuth
     /// keys give, also for directions within 1e-12 rad of a meridian (there it must say
     /// unsure); behind the tangent plane it is `BEHIND`; and the diamond-angle bins guess well
-    /// enough that nearly every direction is classified.
+    /// enough that nearly every direction is classified. For world frames (their components)
+    /// and any frame (dot products, also a rotated one).
     #[test]
     fn vertex_wedges_are_the_keys_of_atan2() {
         let mut r = rng(9);
+        let rotated = Axes::of_map(DVec3::new(0.3, 0.9, -0.2), DVec3::new(0.5, -0.4, 0.77)).unwrap().frame(1, -1.0);
         for n in [4, 7, 48, 128, 1000] {
             let m = Meridians::new(n);
             let mut ends = Ends::default();
             ends.prepare(&m);
-            for axis in [PoleFrame::new(2, 1.0), PoleFrame::new(0, -1.0)] {
-                let cl = Classifier::new(&ends.bins, DVec3::ZERO, axis.pole, axis.e1, axis.e2);
-                let (mut tried, mut unsure) = (0, 0);
-                let mut check = |phi: f64, z: f64, near_side: bool| {
-                    let d = axis.e1 * phi.cos() + axis.e2 * phi.sin() + axis.pole * z;
-                    let w = cl.classify(d);
-                    if z <= 0.0 {
-                        assert_eq!(w, BEHIND);
-                        return;
-                    }
-                    tried += 1;
-                    let key = m.key(azimuth(axis.local(d)).unwrap()).rem_euclid(n as i64) as u32;
-                    if w == UNSURE {
-                        unsure += !near_side as usize;
-                    } else {
-                        assert!(!near_side, "n {n}: φ {phi} within 1e-12 of a meridian classified {w}");
-                        assert_eq!(w, key, "n {n}: φ {phi}");
-                    }
-                };
-                for _ in 0..20_000 {
-                    check(r() * TAU, r() * 2.0 - 0.5, false);
-                }
-                for j in 0..n {
-                    let side = (j as f64 + 0.5) * m.dphi;
-                    for off in [-1e-12, 0.0, 1e-12] {
-                        check(side + off, 0.3, true);
-                    }
-                }
-                assert!(unsure * 1000 < tried, "n {n}: {unsure} of {tried} unsure");
+            let (f2, f0) = (PoleFrame::new(2, 1.0), PoleFrame::new(0, -1.0));
+            let dots = |f: &PoleFrame| Dots { e1: f.e1, e2: f.e2 };
+            wedges_match_atan2(&mut r, &m, &ends, &f2, WorldAxes::<2>);
+            wedges_match_atan2(&mut r, &m, &ends, &f0, WorldAxes::<0>);
+            for f in [f2, f0, rotated] {
+                wedges_match_atan2(&mut r, &m, &ends, &f, dots(&f));
             }
         }
+    }
+
+    fn wedges_match_atan2<P: Plane>(r: &mut impl FnMut() -> f64, m: &Meridians, ends: &Ends, axis: &PoleFrame, plane: P) {
+        let n = m.n;
+        let cl = Classifier::new(&ends.bins, DVec3::ZERO, axis.pole, plane);
+        let (mut tried, mut unsure) = (0, 0);
+        let mut check = |phi: f64, z: f64, near_side: bool| {
+            let d = axis.e1 * phi.cos() + axis.e2 * phi.sin() + axis.pole * z;
+            let w = cl.classify(d);
+            if z <= 0.0 {
+                assert_eq!(w, BEHIND);
+                return;
+            }
+            tried += 1;
+            let key = m.key(azimuth(axis.local(d)).unwrap()).rem_euclid(n as i64) as u32;
+            if w == UNSURE {
+                unsure += !near_side as usize;
+            } else {
+                assert!(!near_side, "n {n}: φ {phi} within 1e-12 of a meridian classified {w}");
+                assert_eq!(w, key, "n {n}: φ {phi}");
+            }
+        };
+        for _ in 0..20_000 {
+            check(r() * TAU, r() * 2.0 - 0.5, false);
+        }
+        for j in 0..n {
+            let side = (j as f64 + 0.5) * m.dphi;
+            for off in [-1e-12, 0.0, 1e-12] {
+                check(side + off, 0.3, true);
+            }
+        }
+        assert!(unsure * 1000 < tried, "n {n}: {unsure} of {tried} unsure");
     }
 
     /// Away from edges, relative W plus the brute-force W at the pole equals the brute-force
