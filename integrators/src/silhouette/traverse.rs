@@ -677,7 +677,13 @@ mod tests {
         }
     }
 
-    fn wedges_match_atan2<P: Plane>(r: &mut impl FnMut() -> f64, m: &Meridians, ends: &Ends, axis: &PoleFrame, plane: P) {
+    fn wedges_match_atan2<P: Plane>(
+        r: &mut impl FnMut() -> f64,
+        m: &Meridians,
+        ends: &Ends,
+        axis: &PoleFrame,
+        plane: P,
+    ) {
         let n = m.n;
         let cl = Classifier::new(&ends.bins, DVec3::ZERO, axis.pole, plane);
         let (mut tried, mut unsure) = (0, 0);
