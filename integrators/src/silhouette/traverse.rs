@@ -133,28 +133,29 @@ impl Ends {
             let margin = bin_margin(bins);
             // The meridians' diamond angles in bins (increasing with the index), and the
             // ones before the first and after the last, one turn (4·scale) away.
-            let at = |j: isize| {
-                let k = j.rem_euclid(m.n as isize) as usize;
-                diamond(m.cos[k], m.sin[k]) * scale + 4.0 * scale * j.div_euclid(m.n as isize) as f64
-            };
+            let pos: Vec<f64> = (0..m.n).map(|j| diamond(m.cos[j], m.sin[j]) * scale).collect();
+            let nn = m.n as isize;
+            let at = |j: isize| pos[j.rem_euclid(nn) as usize] + 4.0 * scale * j.div_euclid(nn) as f64;
             let empty = (f64::INFINITY, f64::NEG_INFINITY);
-            self.bins = (0..bins)
-                .map(|b| {
-                    // Wedge i lies between meridians i − 1 and i: c meridians below the bin.
-                    let c = (0..m.n as isize).filter(|&j| at(j) < b as f64).count() as isize;
-                    let inside = c < m.n as isize && at(c) < (b + 1) as f64;
-                    let wedge = |i: isize| i.rem_euclid(m.n as isize) as u32;
-                    let (below_range, above_range) = if m.n < 4 {
-                        // Fewer than 4 meridians: no wedge is ever certain.
-                        (empty, empty)
-                    } else if inside {
-                        ((at(c - 1) + margin, at(c) - margin), (at(c) + margin, at(c + 1) - margin))
-                    } else {
-                        ((at(c - 1) + margin, at(c) - margin), empty)
-                    };
-                    Bin { below_range, above_range, below: wedge(c), above: wedge(c + 1) }
-                })
-                .collect();
+            self.bins.clear();
+            // Wedge i lies between meridians i − 1 and i: c meridians below the bin.
+            let mut c = 0;
+            for b in 0..bins {
+                while c < nn && at(c) < b as f64 {
+                    c += 1;
+                }
+                let inside = c < nn && at(c) < (b + 1) as f64;
+                let (below_range, above_range) = if m.n < 4 {
+                    // Fewer than 4 meridians: no wedge is ever certain.
+                    (empty, empty)
+                } else if inside {
+                    ((at(c - 1) + margin, at(c) - margin), (at(c) + margin, at(c + 1) - margin))
+                } else {
+                    ((at(c - 1) + margin, at(c) - margin), empty)
+                };
+                let wedge = |i: isize| i.rem_euclid(nn) as u32;
+                self.bins.push(Bin { below_range, above_range, below: wedge(c), above: wedge(c + 1) });
+            }
             let (first, last) = (self.bins[0], self.bins[bins - 1]);
             self.bins.insert(0, first);
             self.bins.push(last);
