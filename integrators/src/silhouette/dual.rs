@@ -19,9 +19,10 @@
 //! surviving edge is decided by the exact predicate of [`super::orient`], so
 //! [`DualEdges::contours`] returns exactly [`DualEdges::contours_brute_force`]'s set
 //! (property-tested). A node's offsets are taken from the centre of its primal box, and the
-//! tree splits space first and normals only where the node is small against its mesh
-//! ([`NORMAL_WEIGHT`]): on two 66k-triangle killeroos that examined 2.8 edges per contour
-//! instead of 8.1 (3.9 now with 8-edge leaves, which test fewer boxes: [`LEAF`]). Nodes also
+//! tree is split where the expected work of a query below is least ([`sah`]: each part's
+//! leaves times a measure of its dual box; the median split it replaced, which split space
+//! first and normals only where the node is small against its mesh, [`NORMAL_WEIGHT`], is
+//! kept as the fallback). Nodes also
 //! keep the primal box of their edges: a node wholly behind the shading point's tangent plane
 //! is skipped, and so is every edge with both ends behind it. The binary tree is stored 4-wide
 //! ([`Node4`]: four grandchildren tested side by side in f32, with slacks for its rounding).
@@ -34,10 +35,13 @@ use super::orient::orient3d;
 use glam::{DVec3, Vec3, Vec4};
 use penumbra_core::mesh::TriangleMesh;
 
-/// Edges per leaf. On killeroo-simple (mode=ao, 16², callgrind) with the 4-wide nodes:
-/// 4 tests 15.3k boxes and 16.5k edges per point (contour search 2.43 M Ir), 8 tests 9.2k and
-/// 23.1k (2.08 M), 16 tests 6.3k and 31.3k (2.33 M).
-const LEAF: usize = 8;
+/// Edges per leaf (a multiple of 4 below 32: the lane masks are `u32`). On killeroo-simple
+/// (mode=ao, 16², callgrind) with the 4-wide nodes and the median split: 4 tests 15.3k boxes
+/// and 16.5k edges per point (contour search 2.43 M Ir), 8 tests 9.2k and 23.1k (2.08 M), 16
+/// tests 6.3k and 31.3k (2.33 M). With the cost split ([`sah`]) and the f32 leaf filter,
+/// contour search per point: 8 1.192 M, 12 1.139 M, 16 1.125 M, 20 1.122 M, 24 1.139 M.
+const LEAF: usize = 16;
+const _: () = assert!(LEAF.is_multiple_of(4) && LEAF < 32);
 /// The split's weight of the normals' extents, times the extent of the mesh the node's edges
 /// come from (a length: a node's dual test spans about `Δn·|p − c|` plus its offsets, and
 /// shading points see contours at distances of about the mesh's size). Measured on
@@ -252,7 +256,6 @@ fn split(items: &mut [Item], c: DVec3, mext: f64, depth: usize) -> usize {
     mid
 }
 
-
 /// A contour edge of a shading point, in normalised scene coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Contour {
@@ -376,7 +379,7 @@ impl Node4 {
     }
 }
 
-/// Plane components per edge in a [`Leaf8`]: both triangles' normals and offsets.
+/// Plane components per edge in a [`LeafPlanes`]: both triangles' normals and offsets.
 const PLANE_COMPONENTS: usize = 8;
 
 /// A leaf's edges for the f32 pre-filter, structure of arrays (lane `j`: the leaf's `j`-th
@@ -387,7 +390,7 @@ const PLANE_COMPONENTS: usize = 8;
 /// the f64 filter's and each still takes it: the contour set (and its order) is unchanged.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-struct Leaf8 {
+struct LeafPlanes {
     /// `[half][component][lane]` (lane `4·half + j`): `g₁x g₁y g₁z o₁ g₂x g₂y g₂z o₂`, in
     /// halves of four lanes (one SIMD register each).
     g: [[Vec4; PLANE_COMPONENTS]; LEAF / 4],
@@ -397,8 +400,8 @@ struct Leaf8 {
     first: u32,
 }
 
-impl Leaf8 {
-    fn new(c: DVec3, first: u32, items: &[Item]) -> Leaf8 {
+impl LeafPlanes {
+    fn new(c: DVec3, first: u32, items: &[Item]) -> LeafPlanes {
         let mut g = [[Vec4::ZERO; PLANE_COMPONENTS]; LEAF / 4];
         for h in &mut g {
             h[3] = Vec4::INFINITY;
@@ -415,7 +418,7 @@ impl Leaf8 {
             }
             pad[h][j] = up(*pd);
         }
-        Leaf8 { g, pad, c: [c.x as f32, c.y as f32, c.z as f32], first }
+        LeafPlanes { g, pad, c: [c.x as f32, c.y as f32, c.z as f32], first }
     }
 }
 
@@ -480,7 +483,7 @@ struct NodeQuery {
     slack: f32,
     /// Rounding margin of the tangent-plane test; infinite: no tangent-plane cull (`tol < 0`).
     margin: f32,
-    /// Rounding slack of the leaves' f32 plane test ([`Leaf8`]).
+    /// Rounding slack of the leaves' f32 plane test ([`LeafPlanes`]).
     leaf_slack: f32,
 }
 
@@ -551,7 +554,7 @@ impl NodeQuery {
     /// Also the lanes certainly on opposite sides (each plane beyond the edge's pad, with
     /// opposite signs: the f64 filter's certain contour of weight ±2) and, of those, the
     /// ones with `g₁·(p, 1) > 0` (weight +2): `(survivors, opposite, positive)`.
-    fn leaf_edges(&self, leaf: &Leaf8) -> (u32, u32, u32) {
+    fn leaf_edges(&self, leaf: &LeafPlanes) -> (u32, u32, u32) {
         let q = [self.p[0] - leaf.c[0], self.p[1] - leaf.c[1], self.p[2] - leaf.c[2]];
         let (mut keep, mut opposite, mut positive) = (0, 0, 0);
         for (h, (g, pad)) in leaf.g.iter().zip(&leaf.pad).enumerate() {
@@ -595,7 +598,7 @@ pub struct DualEdges {
     /// others (decided exactly).
     always_plane: Vec<([f64; 4], f64)>,
     nodes: Vec<Node4>,
-    leaves: Vec<Leaf8>,
+    leaves: Vec<LeafPlanes>,
     /// The primal box of all hierarchy edges (the query's rounding margins).
     root_box: (DVec3, DVec3),
     /// Edges of the hierarchy in leaf order, with their dual endpoints and rounding pad.
@@ -779,8 +782,9 @@ impl DualEdges {
             }
             let n = end - begin;
             if n <= LEAF {
-                self.leaves.push(Leaf8::new(c, self.order.len() as u32, &items[begin..end]));
-                nodes[node] = BuildNode { lo, hi, c, r, first: self.leaves.len() as u32 - 1, count: n as u32, size: n as u32 };
+                self.leaves.push(LeafPlanes::new(c, self.order.len() as u32, &items[begin..end]));
+                nodes[node] =
+                    BuildNode { lo, hi, c, r, first: self.leaves.len() as u32 - 1, count: n as u32, size: n as u32 };
                 for Item { id, d, pad, .. } in &items[begin..end] {
                     self.order.push(*id);
                     self.dual.push(*d);
