@@ -52,9 +52,11 @@ const _: () = assert!(LEAF.is_multiple_of(4) && LEAF < 32);
 const NORMAL_WEIGHT: f64 = 0.1;
 /// The split cost's weight of the normals' extents (the distance `|p − c|` per axis at which
 /// a node's normals' range widens its dual test, [`Bounds::measure`]), times the mesh's
-/// extent. On killeroo-simple (16², 1 spp, callgrind, contour search per point): 0.2 gives
-/// 1.204 M Ir, 0.4 1.193 M, 0.8 1.200 M.
-const SPLIT_NORMAL_WEIGHT: f64 = 0.4;
+/// extent. Contour search per point (`mode=ao`, 16², 1 spp, callgrind), 8-edge leaves on
+/// killeroo-simple: 0.2 gives 1.204 M Ir, 0.4 1.193 M, 0.8 1.200 M; 16-edge leaves on
+/// killeroo-simple / scenes/meshes/killeroos-sky: 0.25 1.130 / 1.081 M, 0.4 1.125 / 1.075 M,
+/// 0.6 1.123 / 1.074 M, 1.0 1.142 / 1.091 M.
+const SPLIT_NORMAL_WEIGHT: f64 = 0.6;
 /// The split cost's weight of the primal extents (a child's centre moves its offsets).
 const PRIMAL_WEIGHT: f64 = 0.25;
 /// Rounding bound, relative to the sum of the magnitudes of its terms, of a dot product of up

@@ -171,7 +171,7 @@ fn hierarchy_prunes_most_edges() {
     eprintln!("{} edges, {} examined, {} contours", dual.edge_count(), examined, out.len());
     // Examined counts every edge of a visited leaf (one f32 test per leaf): of 30,100, 1,712
     // with 8-edge leaves and the median split (1,388 with 4, which tested more boxes), 1,666
-    // with 8-edge leaves and the cost split, 2,143 with 16-edge leaves and the cost split (the
+    // with 8-edge leaves and the cost split, 2,130 with 16-edge leaves and the cost split (the
     // bounds below: 1/12 of the edges, 3.5 per contour, keep ~15 % of headroom over that).
     assert!(examined * 12 < dual.edge_count(), "{examined} of {} edges examined", dual.edge_count());
     // Close to the contours themselves: 1,388 examined for 638 contours (2.2 per contour) with
