@@ -19,9 +19,10 @@
 //! surviving edge is decided by the exact predicate of [`super::orient`], so
 //! [`DualEdges::contours`] returns exactly [`DualEdges::contours_brute_force`]'s set
 //! (property-tested). A node's offsets are taken from the centre of its primal box, and the
-//! tree splits space first and normals only where the node is small against its mesh
-//! ([`NORMAL_WEIGHT`]): on two 66k-triangle killeroos that examined 2.8 edges per contour
-//! instead of 8.1 (3.9 now with 8-edge leaves, which test fewer boxes: [`LEAF`]). Nodes also
+//! tree is split where the expected work of a query below is least ([`sah`]: each part's
+//! leaves times a measure of its dual box; the median split it replaced, which split space
+//! first and normals only where the node is small against its mesh, [`NORMAL_WEIGHT`], is
+//! kept as the fallback). Nodes also
 //! keep the primal box of their edges: a node wholly behind the shading point's tangent plane
 //! is skipped, and so is every edge with both ends behind it. The binary tree is stored 4-wide
 //! ([`Node4`]: four grandchildren tested side by side in f32, with slacks for its rounding).
@@ -34,10 +35,13 @@ use super::orient::orient3d;
 use glam::{DVec3, Vec3, Vec4};
 use penumbra_core::mesh::TriangleMesh;
 
-/// Edges per leaf. On killeroo-simple (mode=ao, 16², callgrind) with the 4-wide nodes:
-/// 4 tests 15.3k boxes and 16.5k edges per point (contour search 2.43 M Ir), 8 tests 9.2k and
-/// 23.1k (2.08 M), 16 tests 6.3k and 31.3k (2.33 M).
-const LEAF: usize = 8;
+/// Edges per leaf (a multiple of 4 below 32: the lane masks are `u32`). On killeroo-simple
+/// (mode=ao, 16², callgrind) with the 4-wide nodes and the median split: 4 tests 15.3k boxes
+/// and 16.5k edges per point (contour search 2.43 M Ir), 8 tests 9.2k and 23.1k (2.08 M), 16
+/// tests 6.3k and 31.3k (2.33 M). With the cost split ([`sah`]) and the f32 leaf filter,
+/// contour search per point: 8 1.192 M, 12 1.139 M, 16 1.125 M, 20 1.122 M, 24 1.139 M.
+const LEAF: usize = 16;
+const _: () = assert!(LEAF.is_multiple_of(4) && LEAF < 32);
 /// The split's weight of the normals' extents, times the extent of the mesh the node's edges
 /// come from (a length: a node's dual test spans about `Δn·|p − c|` plus its offsets, and
 /// shading points see contours at distances of about the mesh's size). Measured on
@@ -46,10 +50,216 @@ const LEAF: usize = 8;
 /// dual split) and 9.8k / 7.7k (was 37.1k / 29.4k); 0.2–0.3 are within 5 % on the first
 /// and 13–25 % worse on the second, 0 (a purely primal split) 40 % worse on the first.
 const NORMAL_WEIGHT: f64 = 0.1;
+/// The split cost's weight of the normals' extents (the distance `|p − c|` per axis at which
+/// a node's normals' range widens its dual test, [`Bounds::measure`]), times the mesh's
+/// extent. Contour search per point (`mode=ao`, 16², 1 spp, callgrind), 8-edge leaves on
+/// killeroo-simple: 0.2 gives 1.204 M Ir, 0.4 1.193 M, 0.8 1.200 M; 16-edge leaves on
+/// killeroo-simple / scenes/meshes/killeroos-sky: 0.25 1.130 / 1.081 M, 0.4 1.125 / 1.075 M,
+/// 0.6 1.123 / 1.074 M, 1.0 1.142 / 1.091 M.
+const SPLIT_NORMAL_WEIGHT: f64 = 0.6;
+/// The split cost's weight of the primal extents (a child's centre moves its offsets).
+/// Contour search per point on killeroo-simple / killeroos-sky (16-edge leaves, normals'
+/// weight 0.6, as [`SPLIT_NORMAL_WEIGHT`]): 0.1 1.139 / 1.087 M Ir, 0.25 1.123 / 1.074 M,
+/// 0.5 1.126 / 1.077 M.
+const PRIMAL_WEIGHT: f64 = 0.25;
 /// Rounding bound, relative to the sum of the magnitudes of its terms, of a dot product of up
 /// to 4 terms (γ₄ ≈ 4ε, doubled): every slack of the hierarchy's filters is this times the
 /// magnitudes involved, so none is an absolute length and the filters are scale-free.
 const DOT_ROUNDING: f64 = 8.0 * f64::EPSILON;
+
+/// An edge of the hierarchy while it is built: its dual segment and rounding pad, and the
+/// bounds the split measures (0–2: the primal x, y, z of its ends; 3–5: the normals'
+/// components of both signed planes, the split's axes; 6: both planes' offsets about the
+/// centre of the node being split, [`set_offsets`]).
+#[derive(Clone, Copy, Debug)]
+struct Item {
+    id: u32,
+    d: [[f64; 4]; 2],
+    pad: f64,
+    lo: [f64; 7],
+    hi: [f64; 7],
+}
+
+impl Item {
+    fn new(id: u32, d: [[f64; 4]; 2], pad: f64, a: DVec3, b: DVec3) -> Item {
+        let (mut lo, mut hi) = ([0.0; 7], [0.0; 7]);
+        for k in 0..3 {
+            (lo[k], hi[k]) = (a[k].min(b[k]), a[k].max(b[k]));
+            (lo[k + 3], hi[k + 3]) = (d[0][k].min(d[1][k]), d[0][k].max(d[1][k]));
+        }
+        Item { id, d, pad, lo, hi }
+    }
+
+    /// Twice the centre of its bounds on `axis` (the split's sort key).
+    fn key(&self, axis: usize) -> f64 {
+        self.lo[axis] + self.hi[axis]
+    }
+}
+
+/// `min` and `max` without the NaN cases (the build's bounds are finite).
+fn fmin(a: f64, b: f64) -> f64 {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+fn fmax(a: f64, b: f64) -> f64 {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
+/// The union of items' bounds, and their count.
+#[derive(Clone, Copy, Debug)]
+struct Bounds {
+    lo: [f64; 7],
+    hi: [f64; 7],
+    n: usize,
+}
+
+impl Bounds {
+    const EMPTY: Bounds = Bounds { lo: [f64::INFINITY; 7], hi: [f64::NEG_INFINITY; 7], n: 0 };
+
+    fn add(&mut self, it: &Item) {
+        for k in 0..7 {
+            self.lo[k] = fmin(self.lo[k], it.lo[k]);
+            self.hi[k] = fmax(self.hi[k], it.hi[k]);
+        }
+        self.n += 1;
+    }
+
+    fn merge(&mut self, o: &Bounds) {
+        for k in 0..7 {
+            self.lo[k] = fmin(self.lo[k], o.lo[k]);
+            self.hi[k] = fmax(self.hi[k], o.hi[k]);
+        }
+        self.n += o.n;
+    }
+
+    /// How often a query tests a node of these edges, up to a factor common to all nodes:
+    /// the range of `n·(p − c) + o` over the node's dual box, which the hyperplane of a point
+    /// `p` crosses, is its offsets' range plus `Σ_k Δn_k |p_k − c_k|`; the offsets' range is
+    /// measured about the centre of the node being split (a child's own centre moves it by
+    /// about `PRIMAL_WEIGHT` × its primal extents) and `|p − c|` is taken as `wn`.
+    fn measure(&self, wn: f64) -> f64 {
+        let e = |k: usize| self.hi[k] - self.lo[k];
+        e(6) + PRIMAL_WEIGHT * (e(0) + e(1) + e(2)) + wn * (e(3) + e(4) + e(5))
+    }
+
+    /// The expected work below a node of these edges: its leaves ([`LEAF`] edges each; a
+    /// leaf's test costs the same for 1 or 8) times [`Self::measure`].
+    fn cost(&self, wn: f64) -> f64 {
+        self.n.div_ceil(LEAF) as f64 * self.measure(wn)
+    }
+}
+
+/// Bins per axis of the split's cost. On killeroo-simple (16², 1 spp, callgrind) 32 bins
+/// took 0.6 % off the contour search and added 0.36 G Ir to the build.
+const BINS: usize = 16;
+/// Below this depth of the binary tree the split is the median one (a 4-wide node descends
+/// at least one binary level and pushes at most 3 more nodes than it pops, so the traversal's
+/// stack of 256 holds binary depths up to 85: 48 plus a median split of < 2^37 edges).
+const MAX_SAH_DEPTH: usize = 48;
+
+/// Items a split's cost is estimated from: a node of more takes every `n / SAMPLE`-th.
+const SAMPLE: usize = 1024;
+
+/// The bin of a key at `(key − kmin)·scale`, clamped to the bins.
+fn bin(key: f64, kmin: f64, scale: f64) -> usize {
+    let x = (key - kmin) * scale;
+    if !(x > 0.0) {
+        0
+    } else if x < (BINS - 1) as f64 {
+        x as i32 as usize
+    } else {
+        BINS - 1
+    }
+}
+
+/// Sets the items' offset bounds (axis 6): both planes' `g₃ + n·c`.
+fn set_offsets(items: &mut [Item], c: DVec3) {
+    for it in items {
+        let [v1, v2] = it.d.map(|g| g[3] + g[0] * c.x + g[1] * c.y + g[2] * c.z);
+        (it.lo[6], it.hi[6]) = (fmin(v1, v2), fmax(v1, v2));
+    }
+}
+
+/// The cheapest binned split of `items` (axis, its key's minimum and bin scale, the last bin
+/// of the left part) by [`Bounds::cost`] of the two parts, over the six axes (primal and
+/// normals; a key is the centre of an item's bounds), binned in one pass.
+fn sah(items: &[Item], wn: f64) -> Option<(usize, f64, f64, usize)> {
+    let stride = (items.len() / SAMPLE).max(1);
+    let (mut kmin, mut kmax) = ([f64::INFINITY; 6], [f64::NEG_INFINITY; 6]);
+    for it in items.iter().step_by(stride) {
+        for a in 0..6 {
+            kmin[a] = fmin(kmin[a], it.key(a));
+            kmax[a] = fmax(kmax[a], it.key(a));
+        }
+    }
+    let scale: [f64; 6] =
+        std::array::from_fn(|a| if kmax[a] > kmin[a] { BINS as f64 / (kmax[a] - kmin[a]) } else { 0.0 });
+    let mut bins = [[Bounds::EMPTY; BINS]; 6];
+    for it in items.iter().step_by(stride) {
+        for a in 0..6 {
+            bins[a][bin(it.key(a), kmin[a], scale[a])].add(it);
+        }
+    }
+    let mut best = (f64::INFINITY, None);
+    for (a, bins) in bins.iter().enumerate().filter(|(a, _)| scale[*a] > 0.0) {
+        let mut right = [Bounds::EMPTY; BINS];
+        let mut acc = Bounds::EMPTY;
+        for i in (1..BINS).rev() {
+            acc.merge(&bins[i]);
+            right[i] = acc;
+        }
+        let mut left = Bounds::EMPTY;
+        for cut in 0..BINS - 1 {
+            left.merge(&bins[cut]);
+            let r = &right[cut + 1];
+            if left.n == 0 || r.n == 0 {
+                continue;
+            }
+            let cost = left.cost(wn) + r.cost(wn);
+            if cost < best.0 {
+                best = (cost, Some((a, kmin[a], scale[a], cut)));
+            }
+        }
+    }
+    best.1
+}
+
+/// Splits `items` (of a node centred at `c`, at `depth` in the binary tree) in two non-empty
+/// parts (left first) and returns the left one's length: the binned cost split ([`sah`]),
+/// or the median of the widest axis (normals weighted by [`NORMAL_WEIGHT`]) where that finds none.
+fn split(items: &mut [Item], c: DVec3, mext: f64, depth: usize) -> usize {
+    let n = items.len();
+    if depth < MAX_SAH_DEPTH {
+        set_offsets(items, c);
+        if let Some((axis, kmin, scale, cut)) = sah(items, SPLIT_NORMAL_WEIGHT * mext) {
+            let mut l = 0;
+            for i in 0..n {
+                if bin(items[i].key(axis), kmin, scale) <= cut {
+                    items.swap(i, l);
+                    l += 1;
+                }
+            }
+            if l > 0 && l < n {
+                return l;
+            }
+        }
+    }
+    let mut b = Bounds::EMPTY;
+    items.iter().for_each(|it| b.add(it));
+    let wn = NORMAL_WEIGHT * mext;
+    let ext: [f64; 6] = std::array::from_fn(|k| (b.hi[k] - b.lo[k]) * if k < 3 { 1.0 } else { wn });
+    let axis = (0..6).fold(0, |a, k| if ext[k] > ext[a] { k } else { a });
+    let mid = n / 2;
+    items.select_nth_unstable_by(mid, |x, y| x.key(axis).total_cmp(&y.key(axis)).then(x.id.cmp(&y.id)));
+    mid
+}
 
 /// A contour edge of a shading point, in normalised scene coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -114,6 +324,8 @@ struct BuildNode {
     /// `order`); inner: children `first`, `first+1`.
     first: u32,
     count: u32,
+    /// The number of edges below.
+    size: u32,
 }
 
 /// A node of the 4-wide hierarchy: up to four boxes tested together (the grandchildren of a
@@ -172,7 +384,7 @@ impl Node4 {
     }
 }
 
-/// Plane components per edge in a [`Leaf8`]: both triangles' normals and offsets.
+/// Plane components per edge in a [`LeafPlanes`]: both triangles' normals and offsets.
 const PLANE_COMPONENTS: usize = 8;
 
 /// A leaf's edges for the f32 pre-filter, structure of arrays (lane `j`: the leaf's `j`-th
@@ -183,7 +395,7 @@ const PLANE_COMPONENTS: usize = 8;
 /// the f64 filter's and each still takes it: the contour set (and its order) is unchanged.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-struct Leaf8 {
+struct LeafPlanes {
     /// `[half][component][lane]` (lane `4·half + j`): `g₁x g₁y g₁z o₁ g₂x g₂y g₂z o₂`, in
     /// halves of four lanes (one SIMD register each).
     g: [[Vec4; PLANE_COMPONENTS]; LEAF / 4],
@@ -193,15 +405,15 @@ struct Leaf8 {
     first: u32,
 }
 
-impl Leaf8 {
-    fn new(c: DVec3, first: u32, items: &[(u32, [[f64; 4]; 2], f64)]) -> Leaf8 {
+impl LeafPlanes {
+    fn new(c: DVec3, first: u32, items: &[Item]) -> LeafPlanes {
         let mut g = [[Vec4::ZERO; PLANE_COMPONENTS]; LEAF / 4];
         for h in &mut g {
             h[3] = Vec4::INFINITY;
             h[7] = Vec4::INFINITY;
         }
         let mut pad = [Vec4::ZERO; LEAF / 4];
-        for (lane, (_, d, pd)) in items.iter().enumerate() {
+        for (lane, Item { d, pad: pd, .. }) in items.iter().enumerate() {
             let (h, j) = (lane / 4, lane % 4);
             for (t, plane) in d.iter().enumerate() {
                 for k in 0..3 {
@@ -211,7 +423,7 @@ impl Leaf8 {
             }
             pad[h][j] = up(*pd);
         }
-        Leaf8 { g, pad, c: [c.x as f32, c.y as f32, c.z as f32], first }
+        LeafPlanes { g, pad, c: [c.x as f32, c.y as f32, c.z as f32], first }
     }
 }
 
@@ -228,22 +440,33 @@ fn collapse(b: &[BuildNode]) -> Vec<Node4> {
     let mut work = vec![(0usize, 0usize)];
     while let Some((bi, oi)) = work.pop() {
         let x = b[bi];
+        // x's children, then, while there are fewer than four, the inner slot with the most
+        // edges replaced by its two children.
+        let (mut slots, mut len) = ([x.first as usize, x.first as usize + 1, 0, 0], 2);
+        while len < 4 {
+            let inner = (0..len).filter(|&i| b[slots[i]].count == 0);
+            let Some(i) = inner.fold(None, |m: Option<usize>, i| match m {
+                Some(m) if b[slots[m]].size >= b[slots[i]].size => Some(m),
+                _ => Some(i),
+            }) else {
+                break;
+            };
+            let s = slots[i];
+            (slots[i], slots[len]) = (b[s].first as usize, b[s].first as usize + 1);
+            len += 1;
+        }
         let mut node = Node4::default();
         let mut j = 0;
-        for ch in [x.first as usize, x.first as usize + 1] {
-            let slots =
-                if b[ch].count > 0 { [ch, usize::MAX] } else { [b[ch].first as usize, b[ch].first as usize + 1] };
-            for s in slots.into_iter().filter(|&s| s != usize::MAX) {
-                let first = if b[s].count > 0 {
-                    b[s].first
-                } else {
-                    out.push(Node4::default());
-                    work.push((s, out.len() - 1));
-                    (out.len() - 1) as u32
-                };
-                node.set(j, &b[s], first);
-                j += 1;
-            }
+        for &s in &slots[..len] {
+            let first = if b[s].count > 0 {
+                b[s].first
+            } else {
+                out.push(Node4::default());
+                work.push((s, out.len() - 1));
+                (out.len() - 1) as u32
+            };
+            node.set(j, &b[s], first);
+            j += 1;
         }
         node.len = j as u32;
         out[oi] = node;
@@ -265,7 +488,7 @@ struct NodeQuery {
     slack: f32,
     /// Rounding margin of the tangent-plane test; infinite: no tangent-plane cull (`tol < 0`).
     margin: f32,
-    /// Rounding slack of the leaves' f32 plane test ([`Leaf8`]).
+    /// Rounding slack of the leaves' f32 plane test ([`LeafPlanes`]).
     leaf_slack: f32,
 }
 
@@ -336,7 +559,7 @@ impl NodeQuery {
     /// Also the lanes certainly on opposite sides (each plane beyond the edge's pad, with
     /// opposite signs: the f64 filter's certain contour of weight ±2) and, of those, the
     /// ones with `g₁·(p, 1) > 0` (weight +2): `(survivors, opposite, positive)`.
-    fn leaf_edges(&self, leaf: &Leaf8) -> (u32, u32, u32) {
+    fn leaf_edges(&self, leaf: &LeafPlanes) -> (u32, u32, u32) {
         let q = [self.p[0] - leaf.c[0], self.p[1] - leaf.c[1], self.p[2] - leaf.c[2]];
         let (mut keep, mut opposite, mut positive) = (0, 0, 0);
         for (h, (g, pad)) in leaf.g.iter().zip(&leaf.pad).enumerate() {
@@ -380,7 +603,7 @@ pub struct DualEdges {
     /// others (decided exactly).
     always_plane: Vec<([f64; 4], f64)>,
     nodes: Vec<Node4>,
-    leaves: Vec<Leaf8>,
+    leaves: Vec<LeafPlanes>,
     /// The primal box of all hierarchy edges (the query's rounding margins).
     root_box: (DVec3, DVec3),
     /// Edges of the hierarchy in leaf order, with their dual endpoints and rounding pad.
@@ -493,7 +716,7 @@ impl DualEdges {
     }
 
     fn build_hierarchy(&mut self) {
-        let mut items: Vec<(u32, [[f64; 4]; 2], f64)> = Vec::new();
+        let mut items: Vec<Item> = Vec::new();
         for (id, e) in self.edges.iter().enumerate() {
             if e.count != 2 {
                 continue;
@@ -504,7 +727,7 @@ impl DualEdges {
             match (signed_plane(a, b, c1), signed_plane(a, b, c2)) {
                 (Some((g1, p1)), Some((g2, p2))) => {
                     let neg = [-g2[0], -g2[1], -g2[2], -g2[3]];
-                    items.push((id as u32, [g1, neg], p1.max(p2)));
+                    items.push(Item::new(id as u32, [g1, neg], p1.max(p2), a, b));
                 }
                 _ => self.always.push(id as u32),
             }
@@ -516,13 +739,13 @@ impl DualEdges {
             return;
         }
         let mut nodes =
-            vec![BuildNode { lo: [0.0; 4], hi: [0.0; 4], c: DVec3::ZERO, r: DVec3::ZERO, first: 0, count: 0 }];
-        let mut stack = vec![(0usize, 0usize, items.len())];
-        while let Some((node, begin, end)) = stack.pop() {
+            vec![BuildNode { lo: [0.0; 4], hi: [0.0; 4], c: DVec3::ZERO, r: DVec3::ZERO, first: 0, count: 0, size: 0 }];
+        let mut stack = vec![(0usize, 0usize, items.len(), 0usize)];
+        while let Some((node, begin, end, depth)) = stack.pop() {
             let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
             let (mut plo, mut phi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
             let mut mext = 0.0f64;
-            for (id, d, pad) in &items[begin..end] {
+            for Item { id, d, pad, .. } in &items[begin..end] {
                 mext = mext.max(self.mesh_extent[*id as usize]);
                 for g in d {
                     for k in 0..4 {
@@ -546,7 +769,7 @@ impl DualEdges {
             let r = (phi - c).max(c - plo) * (1.0 + 4.0 * f64::EPSILON);
             {
                 let (mut dlo, mut dhi) = (f64::INFINITY, f64::NEG_INFINITY);
-                for (_, d, pad) in &items[begin..end] {
+                for Item { d, pad, .. } in &items[begin..end] {
                     for g in d {
                         let v = g[3] + g[0] * c.x + g[1] * c.y + g[2] * c.z;
                         let err = DOT_ROUNDING * (g[3].abs() + c.abs().element_sum()) + pad;
@@ -564,46 +787,24 @@ impl DualEdges {
             }
             let n = end - begin;
             if n <= LEAF {
-                self.leaves.push(Leaf8::new(c, self.order.len() as u32, &items[begin..end]));
-                nodes[node] = BuildNode { lo, hi, c, r, first: self.leaves.len() as u32 - 1, count: n as u32 };
-                for (id, d, pad) in &items[begin..end] {
+                self.leaves.push(LeafPlanes::new(c, self.order.len() as u32, &items[begin..end]));
+                nodes[node] =
+                    BuildNode { lo, hi, c, r, first: self.leaves.len() as u32 - 1, count: n as u32, size: n as u32 };
+                for Item { id, d, pad, .. } in &items[begin..end] {
                     self.order.push(*id);
                     self.dual.push(*d);
                     self.pad.push(*pad);
                 }
                 continue;
             }
-            // Split at the median of the widest of the 3 primal extents and the normals' 3
-            // extents times NORMAL_WEIGHT × the meshes' extent (the offsets are not split on:
-            // relative to the node's centre they shrink with its primal extent).
-            let wn = NORMAL_WEIGHT * mext;
-            let ext: [f64; 7] = [
-                wn * (hi[0] - lo[0]),
-                wn * (hi[1] - lo[1]),
-                wn * (hi[2] - lo[2]),
-                0.0,
-                phi.x - plo.x,
-                phi.y - plo.y,
-                phi.z - plo.z,
-            ];
-            let axis = (0..7).fold(0, |b, k| if ext[k] > ext[b] { k } else { b });
-            let key = |it: &(u32, [[f64; 4]; 2], f64)| -> f64 {
-                if axis < 4 {
-                    it.1[0][axis] + it.1[1][axis]
-                } else {
-                    let e = self.edges[it.0 as usize];
-                    (self.verts[e.a as usize] + self.verts[e.b as usize])[axis - 4]
-                }
-            };
-            let mid = n / 2;
-            items[begin..end].select_nth_unstable_by(mid, |x, y| key(x).total_cmp(&key(y)).then(x.0.cmp(&y.0)));
+            let mid = split(&mut items[begin..end], c, mext, depth);
             let first = nodes.len();
-            let empty = BuildNode { lo, hi, c, r, first: 0, count: 0 };
+            let empty = BuildNode { lo, hi, c, r, first: 0, count: 0, size: 0 };
             nodes.push(empty);
             nodes.push(empty);
-            nodes[node] = BuildNode { lo, hi, c, r, first: first as u32, count: 0 };
-            stack.push((first + 1, begin + mid, end));
-            stack.push((first, begin, begin + mid));
+            nodes[node] = BuildNode { lo, hi, c, r, first: first as u32, count: 0, size: n as u32 };
+            stack.push((first + 1, begin + mid, end, depth + 1));
+            stack.push((first, begin, begin + mid, depth + 1));
         }
         self.nodes = collapse(&nodes);
     }
@@ -688,7 +889,7 @@ impl DualEdges {
             return QueryCost { edges: examined, nodes: 0 };
         }
         let query = NodeQuery::new(p, n, tol, self.root_box, self.dmax, self.cmax);
-        let mut stack = [0u32; 128];
+        let mut stack = [0u32; 256];
         let mut sp = 1;
         while sp > 0 {
             sp -= 1;
@@ -700,7 +901,7 @@ impl DualEdges {
                 mask &= mask - 1;
                 let (first, count) = (node.first[j], node.count[j]);
                 if count == 0 {
-                    // Deeper than the stack is impossible for a median split of < 2^80 edges.
+                    // Deeper than the stack is impossible: see MAX_SAH_DEPTH.
                     assert!(sp < stack.len(), "dual-edge hierarchy deeper than its traversal stack");
                     stack[sp] = first;
                     sp += 1;
