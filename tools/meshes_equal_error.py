@@ -3,7 +3,7 @@
 scenes under an environment (issues 37 item 2 and 38 item 2), generated from `penumbra sweep`.
 
     python3 tools/meshes_equal_error.py --references REF    # pbrt-v3 ground truth (minutes)
-    python3 tools/meshes_equal_error.py --run OUT REF       # the sweeps (quiet machine!)
+    python3 tools/meshes_equal_error.py --run OUT REF [NAME]  # the sweeps (quiet machine!)
     python3 tools/meshes_equal_error.py OUT > docs/integrators/meshes-equal-error.md
 
 Scenes (256², 2 threads): scenes/meshes/killeroos-sky (66.5k triangles, uniform white sky:
@@ -39,8 +39,8 @@ AO = ("ambientocclusion", "ambientocclusion", ["nsamples=1"], 40, None)
 SHEARED = ("sheared-ao", "sheared-ao", [], 40, None)
 SCENES = [
     ("killeroos-sky", 4096, [
-        AO,
-        ("silhouette", "silhouette", ["mode=ao"], 120, [1, 2, 4, 8]),
+        ("ambientocclusion", "ambientocclusion", ["nsamples=1"], 150, None),
+        ("silhouette", "silhouette", ["mode=ao"], 240, [1, 2, 4, 8, 16, 32]),
         SHEARED,
     ]),
     ("staircase-sky", 4096, [
@@ -49,8 +49,8 @@ SCENES = [
         SHEARED,
     ]),
     ("killeroos-studio", 1024, [
-        ("directlighting", "directlighting", [], 40, None),
-        ("silhouette", "silhouette", [], 120, [1, 2, 4]),
+        ("directlighting", "directlighting", [], 200, None),
+        ("silhouette", "silhouette", [], 160, [1, 2, 4, 8]),
     ]),
     ("blinds", None, [AO, SHEARED]),
     ("spheres-on-plane", None, [AO, SHEARED]),
@@ -96,8 +96,10 @@ def integrator_of(name):
     return next(runs[0][1] for n, _, runs in SCENES if n == name)
 
 
-def run(out, ref):
+def run(out, ref, only=None):
     for name, spp, runs in SCENES:
+        if only and name != only:
+            continue
         for label, integrator, params, limit, budgets in runs:
             cmd = [EXE, "sweep", scene_path(name, spp), "--reference",
                    reference_path(ref, name, spp), "-i", integrator, "--time-limit", str(limit),
@@ -155,8 +157,8 @@ def table(out):
 if __name__ == "__main__":
     if len(sys.argv) == 3 and sys.argv[1] == "--references":
         references(sys.argv[2])
-    elif len(sys.argv) == 4 and sys.argv[1] == "--run":
-        run(sys.argv[2], sys.argv[3])
+    elif len(sys.argv) in (4, 5) and sys.argv[1] == "--run":
+        run(sys.argv[2], sys.argv[3], sys.argv[4] if len(sys.argv) == 5 else None)
     elif len(sys.argv) == 2:
         table(sys.argv[1])
     else:
