@@ -231,10 +231,11 @@ fn sah(items: &[Item], wn: f64) -> Option<(usize, f64, f64, usize)> {
     best.1
 }
 
-/// Splits `items` (of a node centred at `c`, at `depth` in the binary tree) in two non-empty
-/// parts (left first) and returns the left one's length: the binned cost split ([`sah`]),
-/// or the median of the widest axis (normals weighted by [`NORMAL_WEIGHT`]) where that finds none.
-fn split(items: &mut [Item], c: DVec3, mext: f64, depth: usize) -> usize {
+/// Splits `items` (of a node centred at `c` whose items' bounds are `b`, at `depth` in the
+/// binary tree) in two non-empty parts (left first) and returns the left one's length: the
+/// binned cost split ([`sah`]), or the median of the widest axis (normals weighted by
+/// [`NORMAL_WEIGHT`]) where that finds none.
+fn split(items: &mut [Item], b: &Bounds, c: DVec3, mext: f64, depth: usize) -> usize {
     let n = items.len();
     if depth < MAX_SAH_DEPTH {
         set_offsets(items, c);
@@ -251,8 +252,6 @@ fn split(items: &mut [Item], c: DVec3, mext: f64, depth: usize) -> usize {
             }
         }
     }
-    let mut b = Bounds::EMPTY;
-    items.iter().for_each(|it| b.add(it));
     let wn = NORMAL_WEIGHT * mext;
     let ext: [f64; 6] = std::array::from_fn(|k| (b.hi[k] - b.lo[k]) * if k < 3 { 1.0 } else { wn });
     let axis = (0..6).fold(0, |a, k| if ext[k] > ext[a] { k } else { a });
@@ -742,25 +741,17 @@ impl DualEdges {
             vec![BuildNode { lo: [0.0; 4], hi: [0.0; 4], c: DVec3::ZERO, r: DVec3::ZERO, first: 0, count: 0, size: 0 }];
         let mut stack = vec![(0usize, 0usize, items.len(), 0usize)];
         while let Some((node, begin, end, depth)) = stack.pop() {
-            let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
-            let (mut plo, mut phi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            // The node's primal box and normals' ranges are the union of its items' (the
+            // offsets' range, lo[3] and hi[3], is taken about the node's centre below).
+            let mut b = Bounds::EMPTY;
             let mut mext = 0.0f64;
-            for Item { id, d, pad, .. } in &items[begin..end] {
-                mext = mext.max(self.mesh_extent[*id as usize]);
-                for g in d {
-                    for k in 0..4 {
-                        lo[k] = lo[k].min(g[k]);
-                        hi[k] = hi[k].max(g[k]);
-                    }
-                }
-                lo[3] = lo[3].min(d[0][3].min(d[1][3]) - pad);
-                hi[3] = hi[3].max(d[0][3].max(d[1][3]) + pad);
-                let e = self.edges[*id as usize];
-                for v in [e.a, e.b] {
-                    plo = plo.min(self.verts[v as usize]);
-                    phi = phi.max(self.verts[v as usize]);
-                }
+            for it in &items[begin..end] {
+                b.add(it);
+                mext = mext.max(self.mesh_extent[it.id as usize]);
             }
+            let (plo, phi) = (DVec3::from_slice(&b.lo[..3]), DVec3::from_slice(&b.hi[..3]));
+            let mut lo = [b.lo[3], b.lo[4], b.lo[5], 0.0];
+            let mut hi = [b.hi[3], b.hi[4], b.hi[5], 0.0];
             // The offsets relative to the node's centre `c` (in f32, as the query reads it):
             // g·(p, 1) = n·(p − c) + (g₃ + n·c), and the second term ranges over about the
             // node's size, where g₃ ranged over |n|·|c| more.
@@ -797,7 +788,7 @@ impl DualEdges {
                 }
                 continue;
             }
-            let mid = split(&mut items[begin..end], c, mext, depth);
+            let mid = split(&mut items[begin..end], &b, c, mext, depth);
             let first = nodes.len();
             let empty = BuildNode { lo, hi, c, r, first: 0, count: 0, size: 0 };
             nodes.push(empty);
