@@ -822,10 +822,14 @@ WorldEnd
 }
 
 /// `"shading" "pixel"` (the default with an environment) against `"sample"`: identical at 1 spp;
-/// at 16 spp the same image up to the variation of the Lambertian environment term inside a
-/// pixel, from fewer evaluations of it (at each surface's central and farthest sample, at every
-/// sample where the two differ by over 10 %; the split bright regions' shadow rays stay per
-/// sample).
+/// at more samples the same image up to the variation of the Lambertian environment term inside
+/// a pixel, from fewer evaluations of it (at ⌈√m⌉ of each surface's m samples, at every sample
+/// where those differ by over 5–10 %; the split bright regions' shadow rays stay per sample),
+/// and converging to it. Measured (48², relative RMSE at 16 → 64 spp; evaluations): studio
+/// 0.048 → 0.014 % (0.42, 0.32), sky-sun 0.080 → 0.025 % (0.42, 0.33); bounds 0.12 % and
+/// 0.05 %, 64's at most half of 16's, evaluations under half. Shading each surface at its
+/// central and farthest sample alone kept a floor (studio 0.083 → 0.066 %, sky-sun 0.150 →
+/// 0.119 %) and fails the 64-spp bound and the convergence (issue 37).
 #[test]
 fn pixel_shading_matches_sample_shading() {
     const P: [[&str; 1]; 2] = [["shading=pixel"], ["shading=sample"]];
@@ -840,13 +844,18 @@ fn pixel_shading_matches_sample_shading() {
         };
         let (p1, s1) = (common::render_path(&path, &o(1, 0)), common::render_path(&path, &o(1, 1)));
         assert_eq!(p1.image.data, s1.image.data, "{name}: 1 spp must be identical");
-        let (p, s) = (common::render_path(&path, &o(16, 0)), common::render_path(&path, &o(16, 1)));
-        let e = common::rmse(&p.image, &s.image) / common::mean(&s.image);
-        let receivers = |r: &common::Render| r.stats.counters["shexp.receivers"];
-        let ratio = receivers(&p) / receivers(&s);
-        eprintln!("{name}: pixel vs sample shading, 16 spp, relative RMSE {e:.4}, evaluations {ratio:.3}");
-        assert!(e < 0.03, "{name}: relative RMSE {e}");
-        assert!(ratio < 0.4, "{name}: {ratio} of sample shading's evaluations");
+        let mut errors = Vec::new();
+        for (spp, bound) in [(16, 0.0012), (64, 0.0005)] {
+            let (p, s) = (common::render_path(&path, &o(spp, 0)), common::render_path(&path, &o(spp, 1)));
+            let e = common::rmse(&p.image, &s.image) / common::mean(&s.image);
+            let receivers = |r: &common::Render| r.stats.counters["shexp.receivers"];
+            let ratio = receivers(&p) / receivers(&s);
+            eprintln!("{name}: pixel vs sample shading, {spp} spp, relative RMSE {e:.5}, evaluations {ratio:.3}");
+            assert!(e < bound, "{name}, {spp} spp: relative RMSE {e} (bound {bound})");
+            assert!(ratio < 0.5, "{name}, {spp} spp: {ratio} of sample shading's evaluations");
+            errors.push(e);
+        }
+        assert!(errors[1] <= 0.5 * errors[0], "{name}: pixel shading does not converge: {errors:?}");
     }
 }
 

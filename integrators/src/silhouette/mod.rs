@@ -41,12 +41,15 @@
 //! `"string shading"` `pixel` (default; `ao` and `shade`): the integrals are noise-free, so a
 //! pixel's camera samples only resolve which surfaces it sees and where their edges run; each
 //! surface seen in a pixel (a cluster of [`crate::common::pixel_shading`]) is integrated at
-//! its most central and its farthest sample, and at every sample where the two differ by more
-//! than [`REFINE`](crate::common::pixel_shading::REFINE), 5 % (a shadow edge or highlight
-//! crossing the pixel; each sample then takes a blend of the central value and its own, its
-//! own alone from a difference of [`REFINE_FULL`](crate::common::pixel_shading::REFINE_FULL),
-//! 10 %); the other samples reuse the central value (`shade`: the irradiance over π,
-//! multiplied by each sample's own albedo, and the SH-shaded lobes' radiance; the estimator's
+//! ⌈√m⌉ of its m samples ([`shading_points`](crate::common::pixel_shading::shading_points):
+//! the most central, then each the farthest on the film from those taken), the others taking
+//! the nearest one's value, so that the pixel converges to sample shading's value as the
+//! samples grow; and at every sample where those differ from the central one by more than
+//! [`REFINE`](crate::common::pixel_shading::REFINE), 5 % (a shadow edge or highlight crossing
+//! the pixel; each sample then takes a blend of its neighbour's value and its own, its own
+//! alone from a difference of [`REFINE_FULL`](crate::common::pixel_shading::REFINE_FULL),
+//! 10 %) (`shade`: the irradiance over π, multiplied by each sample's own albedo, and the
+//! SH-shaded lobes' radiance; the estimator's
 //! lights, emission and specular recursion stay per sample). `sample`: every camera sample is
 //! integrated, as `prt` always is.
 

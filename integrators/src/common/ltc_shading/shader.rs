@@ -356,9 +356,8 @@ pub const LIGHT_TRIANGLE_BUDGET: usize = 256;
 /// highlight (a sharp reflection of the light's outline) moves across the pixel by about that
 /// angle, while the lobe is `~2α` wide.
 const SHARP_EVERY: f32 = 0.5;
-/// … and narrower than this many times (partly from twice as wide), at the representative and
-/// the farthest member too, and at every member as far as the two differ
-/// ([`crate::common::pixel_shading::REFINE`]).
+/// … and narrower than this many times (partly from twice as wide), at every member as far as
+/// the cluster's shading points differ ([`crate::common::pixel_shading::REFINE`]).
 const SHARP_COMPARE: f32 = 8.0;
 
 /// A shading point's query: where it is and whether occluders are searched.
@@ -466,8 +465,8 @@ impl LtcShader {
 
     /// How finely pixel shading shades a cluster at `p` ([`Refine::ramps`]): every member near
     /// a light (the cluster's extent at [`NEAR_FIELD`] of its distance) or for a lobe far
-    /// sharper than the cluster's angle ([`SHARP_EVERY`]); compared with its farthest member for
-    /// a sharp one ([`SHARP_COMPARE`]); once otherwise.
+    /// sharper than the cluster's angle ([`SHARP_EVERY`]); its shading points compared for
+    /// a sharp one ([`SHARP_COMPARE`]); at its shading points alone otherwise.
     fn refine(&self, scene: &Scene, p: &SurfacePoint, extent: ClusterExtent) -> Refine {
         let near = if extent.world > 0.0 {
             extent.world / (NEAR_FIELD * self.nearest_light_distance(p.si.p.as_dvec3()))
