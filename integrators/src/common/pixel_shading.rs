@@ -19,7 +19,7 @@ use penumbra_parser::Diagnostic;
 pub const SHADING: ParamSpec = ParamSpec::choice(
     "shading",
     &["pixel", "sample"],
-    "shade each surface a pixel sees once (camera samples only anti-alias), or every camera sample",
+    "shade each surface a pixel sees at ⌈√m⌉ of its m camera samples (the others take the nearest one's value), or every camera sample",
 );
 
 /// Pixel shading's refinement band (`ltc`, `silhouette`, `shexp`): a cluster whose two shaded

@@ -95,7 +95,7 @@ pub mod sheared_filter;
 
 use crate::common::image_pass::ImageBuffer;
 use crate::common::params::{ParamSpec, Params, Range};
-use crate::common::pixel_shading::{parse_shading, SHADING};
+use crate::common::pixel_shading::parse_shading;
 use crate::common::SH_TRANSFER;
 use glam::{IVec2, Vec2};
 use penumbra_core::camera::CameraSample;
@@ -132,6 +132,14 @@ pub struct ShearedAo {
 }
 
 /// The parameters `sheared-ao` reads.
+/// `"string shading"`: `sheared-ao`'s own sense of pixel shading (the filter once per surface,
+/// not [`crate::common::pixel_shading::shade_clusters`]'s shading points).
+const SHADING: ParamSpec = ParamSpec::choice(
+    "shading",
+    &["pixel", "sample"],
+    "filter once per surface a pixel sees (each camera sample keeps its own brute-forced cells), or at every camera sample",
+);
+
 pub const PARAMS: &[ParamSpec] = &[
     ParamSpec::int("nsamples", 8, "occlusion rays per camera sample, cached in image space (rounded by the sampler)")
         .range(1, 1024),
