@@ -22,9 +22,10 @@ pub const SHADING: ParamSpec = ParamSpec::choice(
     "shade each surface a pixel sees at ⌈√m⌉ of its m camera samples (the others take the nearest one's value), or every camera sample",
 );
 
-/// Pixel shading's refinement band (`ltc`, `silhouette`, `shexp`): a cluster whose two shaded
-/// samples differ by `d` (the largest difference in any colour as a fraction of the larger
-/// value, [`rgb_difference`]) gives each member `(1 − w)` of the shared value plus `w` of its
+/// Pixel shading's refinement band (`ltc`, `silhouette`, `shexp`): a cluster one of whose shaded
+/// samples differs from the central one by `d` (the largest difference in any colour as a
+/// fraction of the larger value, [`rgb_difference`]; the largest such `d`) gives each member
+/// `(1 − w)` of its shaded neighbour's value plus `w` of its
 /// own, `w` rising linearly from 0 at `d =` [`REFINE`] to 1 at `d =` [`REFINE_FULL`]
 /// ([`refine_weight`]). A hard switch at 10 % let rounding decide between the shared value and
 /// the member's own: `env/objects-sky-sun` scaled by 1e4 or turned changed single `shexp`
