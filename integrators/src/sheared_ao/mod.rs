@@ -131,7 +131,6 @@ pub struct ShearedAo {
     pub pixel_shading: bool,
 }
 
-/// The parameters `sheared-ao` reads.
 /// `"string shading"`: `sheared-ao`'s own sense of pixel shading (the filter once per surface,
 /// not [`crate::common::pixel_shading::shade_clusters`]'s shading points).
 const SHADING: ParamSpec = ParamSpec::choice(
@@ -140,6 +139,7 @@ const SHADING: ParamSpec = ParamSpec::choice(
     "filter once per surface a pixel sees (each camera sample keeps its own brute-forced cells), or at every camera sample",
 );
 
+/// The parameters `sheared-ao` reads.
 pub const PARAMS: &[ParamSpec] = &[
     ParamSpec::int("nsamples", 8, "occlusion rays per camera sample, cached in image space (rounded by the sampler)")
         .range(1, 1024),
