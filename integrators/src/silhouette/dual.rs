@@ -292,6 +292,22 @@ impl Contour {
     }
 }
 
+/// A hierarchy edge's index and ends, stored in leaf order so that a leaf's survivors read
+/// neighbouring records, which the query asks the cache for as soon as a node's test lets the
+/// leaf through ([`Node4::order`]), rather than an [`EdgeRec`] and two vertices each from
+/// anywhere in the scene: those three cache misses per surviving edge took about 30 % of the
+/// contour search's cycles on the killeroos (`perf annotate`, 64², 1 spp). The records
+/// alone saved 2 % of the render; with the leaves and records fetched ahead, 10 %
+/// (docs/integrators/silhouette.md).
+#[derive(Clone, Copy, Debug)]
+struct OrderEdge {
+    a: DVec3,
+    b: DVec3,
+    va: u32,
+    vb: u32,
+    id: u32,
+}
+
 #[derive(Clone, Copy, Debug)]
 struct EdgeRec {
     a: u32,
@@ -346,6 +362,9 @@ struct Node4 {
     first: [u32; 4],
     /// Leaf slot: its edge count; inner slot: 0.
     count: [u32; 4],
+    /// Leaf slot: its first edge in `DualEdges::order` (what [`LeafPlanes::first`] says, here
+    /// so the records can be fetched before the leaf is read).
+    order: [u32; 4],
     /// Slots in use (1..=4).
     len: u32,
 }
@@ -369,7 +388,8 @@ fn up(x: f64) -> f32 {
 }
 
 impl Node4 {
-    fn set(&mut self, j: usize, b: &BuildNode, first: u32) {
+    fn set(&mut self, j: usize, b: &BuildNode, first: u32, order: u32) {
+        self.order[j] = order;
         for k in 0..4 {
             self.lo[k][j] = down(b.lo[k]);
             self.hi[k][j] = up(b.hi[k]);
@@ -429,10 +449,10 @@ impl LeafPlanes {
 /// The 4-wide hierarchy of a binary one: each 4-wide node holds the grandchildren of an inner
 /// binary node (a leaf child stands for itself); the root's is node 0, and a tree of one leaf
 /// is one node of one slot.
-fn collapse(b: &[BuildNode]) -> Vec<Node4> {
+fn collapse(b: &[BuildNode], leaves: &[LeafPlanes]) -> Vec<Node4> {
     let mut out = vec![Node4::default()];
     if b[0].count > 0 {
-        out[0].set(0, &b[0], b[0].first);
+        out[0].set(0, &b[0], b[0].first, leaves[b[0].first as usize].first);
         out[0].len = 1;
         return out;
     }
@@ -457,20 +477,34 @@ fn collapse(b: &[BuildNode]) -> Vec<Node4> {
         let mut node = Node4::default();
         let mut j = 0;
         for &s in &slots[..len] {
-            let first = if b[s].count > 0 {
-                b[s].first
+            let (first, order) = if b[s].count > 0 {
+                (b[s].first, leaves[b[s].first as usize].first)
             } else {
                 out.push(Node4::default());
                 work.push((s, out.len() - 1));
-                (out.len() - 1) as u32
+                ((out.len() - 1) as u32, 0)
             };
-            node.set(j, &b[s], first);
+            node.set(j, &b[s], first, order);
             j += 1;
         }
         node.len = j as u32;
         out[oi] = node;
     }
     out
+}
+
+/// Asks the cache for the `lines` 64-byte lines from `x` on (a hint: no effect on results;
+/// nothing on targets without it).
+#[inline(always)]
+fn prefetch<T>(x: &T, lines: usize) {
+    #[cfg(target_arch = "x86_64")]
+    for k in 0..lines {
+        let p = (x as *const T as *const i8).wrapping_add(64 * k);
+        // SAFETY: a prefetch reads nothing and cannot fault, whatever the address.
+        unsafe { std::arch::x86_64::_mm_prefetch(p, std::arch::x86_64::_MM_HINT_T0) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (x, lines);
 }
 
 /// Unit roundoff of f32.
@@ -605,8 +639,9 @@ pub struct DualEdges {
     leaves: Vec<LeafPlanes>,
     /// The primal box of all hierarchy edges (the query's rounding margins).
     root_box: (DVec3, DVec3),
-    /// Edges of the hierarchy in leaf order, with their dual endpoints and rounding pad.
-    order: Vec<u32>,
+    /// Edges of the hierarchy in leaf order: their ends ([`OrderEdge`]), dual endpoints and
+    /// rounding pad.
+    order: Vec<OrderEdge>,
     dual: Vec<[[f64; 4]; 2]>,
     pad: Vec<f64>,
     pub boundary_edges: usize,
@@ -782,7 +817,9 @@ impl DualEdges {
                 nodes[node] =
                     BuildNode { lo, hi, c, r, first: self.leaves.len() as u32 - 1, count: n as u32, size: n as u32 };
                 for Item { id, d, pad, .. } in &items[begin..end] {
-                    self.order.push(*id);
+                    let e = self.edges[*id as usize];
+                    let (a, b) = (self.verts[e.a as usize], self.verts[e.b as usize]);
+                    self.order.push(OrderEdge { a, b, va: e.a, vb: e.b, id: *id });
                     self.dual.push(*d);
                     self.pad.push(*pad);
                 }
@@ -797,7 +834,7 @@ impl DualEdges {
             stack.push((first + 1, begin + mid, end, depth + 1));
             stack.push((first, begin, begin + mid, depth + 1));
         }
-        self.nodes = collapse(&nodes);
+        self.nodes = collapse(&nodes, &self.leaves);
     }
 
     /// The signed plane of a boundary edge's one triangle and its pad ([`signed_plane`]);
@@ -857,6 +894,18 @@ impl DualEdges {
         }
     }
 
+    /// [`Self::emit`] of a hierarchy edge, from its leaf-order record.
+    #[inline(always)]
+    fn emit_ordered(&self, e: &OrderEdge, p: DVec3, cull: &Cull, w: Option<i32>, out: &mut Vec<Contour>) {
+        if cull.behind(e.a) && cull.behind(e.b) {
+            return;
+        }
+        let w = w.unwrap_or_else(|| self.weight(e.id, p));
+        if w != 0 {
+            out.push(Contour { edge: e.id, va: e.va, vb: e.vb, a: e.a, b: e.b, w });
+        }
+    }
+
     /// The contour edges of `p` (normalised coordinates) not wholly behind the plane through
     /// `p` with normal `n` (within `tol`, see [`Cull`]), appended to `out` in the hierarchy's
     /// order (the traversal's result does not depend on the order; sorting them by edge cost a
@@ -887,6 +936,19 @@ impl DualEdges {
             let node = &self.nodes[stack[sp] as usize];
             visited += node.len as usize;
             let mut mask = query.visits(node);
+            // Ask for every surviving slot's data before the first is read, so the fetches
+            // overlap (the hierarchy is larger than the core's cache: each is a miss).
+            let mut ahead = mask;
+            while ahead != 0 {
+                let j = ahead.trailing_zeros() as usize;
+                ahead &= ahead - 1;
+                if node.count[j] == 0 {
+                    prefetch(&self.nodes[node.first[j] as usize], 5);
+                } else {
+                    prefetch(&self.leaves[node.first[j] as usize], 10);
+                    prefetch(&self.order[node.order[j] as usize], node.count[j] as usize);
+                }
+            }
             while mask != 0 {
                 let j = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
@@ -910,7 +972,7 @@ impl DualEdges {
                         // What the f64 test below decides for it (the f32 test's slack covers
                         // both roundings): a contour, of weight ±2 where the pads hold.
                         let w = if (positive >> j) & 1 != 0 { 2 } else { -2 };
-                        self.emit(self.order[i], p, &cull, near.then_some(w), out);
+                        self.emit_ordered(&self.order[i], p, &cull, near.then_some(w), out);
                         continue;
                     }
                     let [g1, g2] = &self.dual[i];
@@ -924,7 +986,7 @@ impl DualEdges {
                         continue;
                     }
                     let certain = (near && v1.abs() > pad && v2.abs() > pad).then_some(if v1 > 0.0 { 2 } else { -2 });
-                    self.emit(self.order[i], p, &cull, certain, out);
+                    self.emit_ordered(&self.order[i], p, &cull, certain, out);
                 }
             }
         }
