@@ -335,10 +335,12 @@ struct BuildNode {
     /// extents, rounded up: `[c − r, c + r]` contains the node's edges.
     c: DVec3,
     r: DVec3,
-    /// Leaf: `count > 0`, its index in `leaves` (items `leaves[first].first..+count` of
-    /// `order`); inner: children `first`, `first+1`.
+    /// Leaf: `count > 0`, its index in `leaves` (items `order..order + count` of `order`);
+    /// inner: children `first`, `first+1`.
     first: u32,
     count: u32,
+    /// Leaf: its first edge in `DualEdges::order`; inner: 0.
+    order: u32,
     /// The number of edges below.
     size: u32,
 }
@@ -362,8 +364,8 @@ struct Node4 {
     first: [u32; 4],
     /// Leaf slot: its edge count; inner slot: 0.
     count: [u32; 4],
-    /// Leaf slot: its first edge in `DualEdges::order` (what [`LeafPlanes::first`] says, here
-    /// so the records can be fetched before the leaf is read).
+    /// Leaf slot: its first edge in `DualEdges::order` (here, not in the leaf, so the records
+    /// can be fetched before the leaf is read); inner slot: 0.
     order: [u32; 4],
     /// Slots in use (1..=4).
     len: u32,
@@ -388,8 +390,8 @@ fn up(x: f64) -> f32 {
 }
 
 impl Node4 {
-    fn set(&mut self, j: usize, b: &BuildNode, first: u32, order: u32) {
-        self.order[j] = order;
+    fn set(&mut self, j: usize, b: &BuildNode, first: u32) {
+        self.order[j] = b.order;
         for k in 0..4 {
             self.lo[k][j] = down(b.lo[k]);
             self.hi[k][j] = up(b.hi[k]);
@@ -420,12 +422,10 @@ struct LeafPlanes {
     g: [[Vec4; PLANE_COMPONENTS]; LEAF / 4],
     pad: [Vec4; LEAF / 4],
     c: [f32; 3],
-    /// The leaf's first edge in `order`.
-    first: u32,
 }
 
 impl LeafPlanes {
-    fn new(c: DVec3, first: u32, items: &[Item]) -> LeafPlanes {
+    fn new(c: DVec3, items: &[Item]) -> LeafPlanes {
         let mut g = [[Vec4::ZERO; PLANE_COMPONENTS]; LEAF / 4];
         for h in &mut g {
             h[3] = Vec4::INFINITY;
@@ -442,17 +442,17 @@ impl LeafPlanes {
             }
             pad[h][j] = up(*pd);
         }
-        LeafPlanes { g, pad, c: [c.x as f32, c.y as f32, c.z as f32], first }
+        LeafPlanes { g, pad, c: [c.x as f32, c.y as f32, c.z as f32] }
     }
 }
 
 /// The 4-wide hierarchy of a binary one: each 4-wide node holds the grandchildren of an inner
 /// binary node (a leaf child stands for itself); the root's is node 0, and a tree of one leaf
 /// is one node of one slot.
-fn collapse(b: &[BuildNode], leaves: &[LeafPlanes]) -> Vec<Node4> {
+fn collapse(b: &[BuildNode]) -> Vec<Node4> {
     let mut out = vec![Node4::default()];
     if b[0].count > 0 {
-        out[0].set(0, &b[0], b[0].first, leaves[b[0].first as usize].first);
+        out[0].set(0, &b[0], b[0].first);
         out[0].len = 1;
         return out;
     }
@@ -477,14 +477,14 @@ fn collapse(b: &[BuildNode], leaves: &[LeafPlanes]) -> Vec<Node4> {
         let mut node = Node4::default();
         let mut j = 0;
         for &s in &slots[..len] {
-            let (first, order) = if b[s].count > 0 {
-                (b[s].first, leaves[b[s].first as usize].first)
+            let first = if b[s].count > 0 {
+                b[s].first
             } else {
                 out.push(Node4::default());
                 work.push((s, out.len() - 1));
-                ((out.len() - 1) as u32, 0)
+                (out.len() - 1) as u32
             };
-            node.set(j, &b[s], first, order);
+            node.set(j, &b[s], first);
             j += 1;
         }
         node.len = j as u32;
@@ -772,8 +772,16 @@ impl DualEdges {
         if items.is_empty() {
             return;
         }
-        let mut nodes =
-            vec![BuildNode { lo: [0.0; 4], hi: [0.0; 4], c: DVec3::ZERO, r: DVec3::ZERO, first: 0, count: 0, size: 0 }];
+        let mut nodes = vec![BuildNode {
+            lo: [0.0; 4],
+            hi: [0.0; 4],
+            c: DVec3::ZERO,
+            r: DVec3::ZERO,
+            first: 0,
+            count: 0,
+            order: 0,
+            size: 0,
+        }];
         let mut stack = vec![(0usize, 0usize, items.len(), 0usize)];
         while let Some((node, begin, end, depth)) = stack.pop() {
             // The node's primal box and normals' ranges are the union of its items' (the
@@ -813,13 +821,11 @@ impl DualEdges {
             }
             let n = end - begin;
             if n <= LEAF {
-                self.leaves.push(LeafPlanes::new(c, self.order.len() as u32, &items[begin..end]));
-                nodes[node] =
-                    BuildNode { lo, hi, c, r, first: self.leaves.len() as u32 - 1, count: n as u32, size: n as u32 };
+                self.leaves.push(LeafPlanes::new(c, &items[begin..end]));
+                let (first, order) = (self.leaves.len() as u32 - 1, self.order.len() as u32);
+                nodes[node] = BuildNode { lo, hi, c, r, first, count: n as u32, order, size: n as u32 };
                 for Item { id, d, pad, .. } in &items[begin..end] {
-                    let e = self.edges[*id as usize];
-                    let (a, b) = (self.verts[e.a as usize], self.verts[e.b as usize]);
-                    self.order.push(OrderEdge { a, b, va: e.a, vb: e.b, id: *id });
+                    self.order.push(self.order_edge(*id));
                     self.dual.push(*d);
                     self.pad.push(*pad);
                 }
@@ -827,14 +833,14 @@ impl DualEdges {
             }
             let mid = split(&mut items[begin..end], &b, c, mext, depth);
             let first = nodes.len();
-            let empty = BuildNode { lo, hi, c, r, first: 0, count: 0, size: 0 };
+            let empty = BuildNode { lo, hi, c, r, first: 0, count: 0, order: 0, size: 0 };
             nodes.push(empty);
             nodes.push(empty);
-            nodes[node] = BuildNode { lo, hi, c, r, first: first as u32, count: 0, size: n as u32 };
+            nodes[node] = BuildNode { lo, hi, c, r, first: first as u32, count: 0, order: 0, size: n as u32 };
             stack.push((first + 1, begin + mid, end, depth + 1));
             stack.push((first, begin, begin + mid, depth + 1));
         }
-        self.nodes = collapse(&nodes, &self.leaves);
+        self.nodes = collapse(&nodes);
     }
 
     /// The signed plane of a boundary edge's one triangle and its pad ([`signed_plane`]);
@@ -883,18 +889,16 @@ impl DualEdges {
     /// filter already decided it (else the exact predicate does).
     #[inline(always)]
     fn emit(&self, id: u32, p: DVec3, cull: &Cull, w: Option<i32>, out: &mut Vec<Contour>) {
-        let e = self.edges[id as usize];
-        let (a, b) = (self.verts[e.a as usize], self.verts[e.b as usize]);
-        if cull.behind(a) && cull.behind(b) {
-            return;
-        }
-        let w = w.unwrap_or_else(|| self.weight(id, p));
-        if w != 0 {
-            out.push(Contour { edge: id, va: e.a, vb: e.b, a, b, w });
-        }
+        self.emit_ordered(&self.order_edge(id), p, cull, w, out);
     }
 
-    /// [`Self::emit`] of a hierarchy edge, from its leaf-order record.
+    /// Edge `id`'s record: its index, vertex indices and ends.
+    fn order_edge(&self, id: u32) -> OrderEdge {
+        let e = self.edges[id as usize];
+        OrderEdge { a: self.verts[e.a as usize], b: self.verts[e.b as usize], va: e.a, vb: e.b, id }
+    }
+
+    /// [`Self::emit`] from the edge's record (a hierarchy edge's, in leaf order).
     #[inline(always)]
     fn emit_ordered(&self, e: &OrderEdge, p: DVec3, cull: &Cull, w: Option<i32>, out: &mut Vec<Contour>) {
         if cull.behind(e.a) && cull.behind(e.b) {
@@ -952,7 +956,7 @@ impl DualEdges {
             while mask != 0 {
                 let j = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                let (first, count) = (node.first[j], node.count[j]);
+                let (first, count, records) = (node.first[j], node.count[j], node.order[j] as usize);
                 if count == 0 {
                     // Deeper than the stack is impossible: see MAX_SAH_DEPTH.
                     assert!(sp < stack.len(), "dual-edge hierarchy deeper than its traversal stack");
@@ -966,7 +970,7 @@ impl DualEdges {
                 let mut lanes = lanes & ((1u32 << count) - 1);
                 while lanes != 0 {
                     let j = lanes.trailing_zeros();
-                    let i = leaf.first as usize + j as usize;
+                    let i = records + j as usize;
                     lanes &= lanes - 1;
                     if (opposite >> j) & 1 != 0 {
                         // What the f64 test below decides for it (the f32 test's slack covers
