@@ -11,7 +11,9 @@ Scenes (256², 2 threads): scenes/meshes/killeroos-sky (66.5k triangles, uniform
 pbrt-v3's `ambientocclusion` value), scenes/meshes/staircase-sky (12 box steps and a wall, the
 same three), scenes/meshes/killeroos-studio (the studio map: `silhouette`'s default `shade`
 against `directlighting`) and, for `sheared-ao` against `ambientocclusion`, the suite's
-scenes/suite/ao/blinds and spheres-on-plane (their references: ../shared/references/ao/).
+scenes/suite/ao/blinds and spheres-on-plane (their references: ../shared/references/ao/); and
+`silhouette` on killeroos-sky against `ambientocclusion --param nsamples=64` on a copy of the
+scene with `Sampler "random"` (independent rays, the paper's kind of QMC: VARIANTS).
 References: the real pbrt-v3 (../shared/tools/pbrt-v3/pbrt) at 4096 spp (`ambientocclusion`
 nsamples 1, cossample) and 1024 spp (studio, `directlighting`), written as PFM and converted to
 EXR by `penumbra convert` (REF/NAME.exr, 256², for the sweeps; and box-downsampled 4×4 to 64²
@@ -54,6 +56,15 @@ SCENES = [
     ]),
     ("blinds", None, [AO, SHEARED]),
     ("spheres-on-plane", None, [AO, SHEARED]),
+]
+# The paper's QMC used "independent sampling sets at each pixel": the same scene with the
+# sampler replaced by pbrt-v3's "random" (independent uniform samples; a copy next to the
+# original, with only that line changed), against which the listed integrators' renders of
+# the original are compared: (scene, sampler, baseline (label, integrator, params, time
+# limit, budgets), the integrators' labels).
+VARIANTS = [
+    ("killeroos-sky", "random",
+     ("ambientocclusion-random", "ambientocclusion", ["nsamples=64"], 300, None), ["silhouette"]),
 ]
 
 
@@ -109,6 +120,23 @@ def run(out, ref, only=None):
             for p in params:
                 cmd += ["--param", p]
             subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    for name, sampler, (label, integrator, params, limit, _), _ in VARIANTS:
+        if only and name != only:
+            continue
+        text = open(scene_path(name, 1)).read()
+        text, n = re.subn(r'Sampler "\w+"', f'Sampler "{sampler}"', text)
+        assert n == 1, f"{name}: one Sampler line expected"
+        copy = os.path.join("scenes/meshes", f".{sampler}-{name}.pbrt")
+        open(copy, "w").write(text)
+        cmd = [EXE, "sweep", copy, "--reference", reference_path(ref, name, 1), "-i", integrator,
+               "--time-limit", str(limit), "--threads", "2", "--no-flip", "-q", "-o",
+               f"{out}/{name}/{label}"]
+        for p in params:
+            cmd += ["--param", p]
+        try:
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+        finally:
+            os.remove(copy)
 
 
 def rows(out, name, label):
@@ -144,6 +172,31 @@ def table(out):
                       f"{r['total_s']:.3g} | `{base}` | {ts} | {rs} |")
                 first = False
     print()
+    print("Against independent rays (the paper's kind of QMC): the same renders against "
+          "`ambientocclusion` on the scene with `Sampler \"random\"` in place of its Halton "
+          "sampler (a copy with only that line changed).")
+    print()
+    print("| scene | integrator | spp | RMSE | time (s) | against | its time to that RMSE (s) "
+          "| time ratio |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, sampler, (base, _, bparams, _, _), labels in VARIANTS:
+        o = rows(out, name, base)
+        ox = [r["total_s"] for r in o]
+        oy = [r["rmse"] for r in o]
+        bp = "".join(f" `{x}`" for x in bparams)
+        runs = next(r for n, _, r in SCENES if n == name)
+        first = True
+        for label, _, params, _, _ in runs:
+            if label not in labels:
+                continue
+            p = "".join(f" `{x}`" for x in params)
+            for r in rows(out, name, label):
+                ts, rs, _ = time_to(ox, oy, r, "< its first render")
+                print(f"| {name if first else ''} | `{label}`{p} | {r['spp']} | {r['rmse']:.3g} | "
+                      f"{r['total_s']:.3g} | `ambientocclusion`{bp}, {sampler} sampler | {ts} | "
+                      f"{rs} |")
+                first = False
+    print()
     print("The ray tracers' renders (spp: RMSE at seconds):")
     print()
     for name, _, runs in SCENES:
@@ -152,6 +205,11 @@ def table(out):
         line = ", ".join(f"{r['spp']}: {r['rmse']:.3g} at {r['total_s']:.3g}"
                          for r in rows(out, name, label))
         print(f"- {name}, `{label}`{p}: {line}")
+    for name, sampler, (label, _, params, _, _), _ in VARIANTS:
+        p = "".join(f" `{x}`" for x in params)
+        line = ", ".join(f"{r['spp']}: {r['rmse']:.3g} at {r['total_s']:.3g}"
+                         for r in rows(out, name, label))
+        print(f"- {name} with the {sampler} sampler, `ambientocclusion`{p}: {line}")
 
 
 if __name__ == "__main__":
