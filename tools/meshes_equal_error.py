@@ -107,20 +107,24 @@ def integrator_of(name):
     return next(runs[0][1] for n, _, runs in SCENES if n == name)
 
 
+def sweep(scene, reference, out, integrator, params, limit, budgets):
+    cmd = [EXE, "sweep", scene, "--reference", reference, "-i", integrator, "--time-limit",
+           str(limit), "--threads", "2", "--no-flip", "-q", "-o", out]
+    if budgets:
+        cmd += ["--budgets", ",".join(map(str, budgets))]
+    for p in params:
+        cmd += ["--param", p]
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+
+
 def run(out, ref, only=None):
     for name, spp, runs in SCENES:
         if only and name != only:
             continue
         for label, integrator, params, limit, budgets in runs:
-            cmd = [EXE, "sweep", scene_path(name, spp), "--reference",
-                   reference_path(ref, name, spp), "-i", integrator, "--time-limit", str(limit),
-                   "--threads", "2", "--no-flip", "-q", "-o", f"{out}/{name}/{label}"]
-            if budgets:
-                cmd += ["--budgets", ",".join(map(str, budgets))]
-            for p in params:
-                cmd += ["--param", p]
-            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-    for name, sampler, (label, integrator, params, limit, _), _ in VARIANTS:
+            sweep(scene_path(name, spp), reference_path(ref, name, spp), f"{out}/{name}/{label}",
+                  integrator, params, limit, budgets)
+    for name, sampler, (label, integrator, params, limit, budgets), _ in VARIANTS:
         if only and name != only:
             continue
         text = open(scene_path(name, 1)).read()
@@ -128,19 +132,42 @@ def run(out, ref, only=None):
         assert n == 1, f"{name}: one Sampler line expected"
         copy = os.path.join("scenes/meshes", f".{sampler}-{name}.pbrt")
         open(copy, "w").write(text)
-        cmd = [EXE, "sweep", copy, "--reference", reference_path(ref, name, 1), "-i", integrator,
-               "--time-limit", str(limit), "--threads", "2", "--no-flip", "-q", "-o",
-               f"{out}/{name}/{label}"]
-        for p in params:
-            cmd += ["--param", p]
         try:
-            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            sweep(copy, reference_path(ref, name, 1), f"{out}/{name}/{label}", integrator, params,
+                  limit, budgets)
         finally:
             os.remove(copy)
 
 
 def rows(out, name, label):
     return json.load(open(f"{out}/{name}/{label}/sweep.json"))["rows"]
+
+
+def ticked(params):
+    return "".join(f" `{x}`" for x in params)
+
+
+def compare(out, name, base, runs, against):
+    """Table rows: each render of `runs` (label, params) against the sweep `base`."""
+    o = rows(out, name, base)
+    ox = [r["total_s"] for r in o]
+    oy = [r["rmse"] for r in o]
+    first = True
+    for label, params in runs:
+        for r in rows(out, name, label):
+            ts, rs, _ = time_to(ox, oy, r, "< its first render")
+            print(f"| {name if first else ''} | `{label}`{ticked(params)} | {r['spp']} | "
+                  f"{r['rmse']:.3g} | {r['total_s']:.3g} | {against} | {ts} | {rs} |")
+            first = False
+
+
+def renders(out, name, label):
+    return ", ".join(f"{r['spp']}: {r['rmse']:.3g} at {r['total_s']:.3g}"
+                     for r in rows(out, name, label))
+
+
+HEADER = ("| scene | integrator | spp | RMSE | time (s) | against | its time to that RMSE (s) "
+          "| time ratio |\n|---|---|---|---|---|---|---|---|")
 
 
 def table(out):
@@ -155,61 +182,29 @@ def table(out):
           "between its two renders that bracket it; ~ marks an extrapolation past its largest "
           "budget) and the ratio of the two (below 1: ahead of the ray tracer).")
     print()
-    print("| scene | integrator | spp | RMSE | time (s) | against | its time to that RMSE (s) "
-          "| time ratio |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(HEADER)
     for name, _, runs in SCENES:
         base = runs[0][0]
-        o = rows(out, name, base)
-        ox = [r["total_s"] for r in o]
-        oy = [r["rmse"] for r in o]
-        first = True
-        for label, _, params, _, _ in runs[1:]:
-            p = "".join(f" `{x}`" for x in params)
-            for r in rows(out, name, label):
-                ts, rs, _ = time_to(ox, oy, r, "< its first render")
-                print(f"| {name if first else ''} | `{label}`{p} | {r['spp']} | {r['rmse']:.3g} | "
-                      f"{r['total_s']:.3g} | `{base}` | {ts} | {rs} |")
-                first = False
+        compare(out, name, base, [(r[0], r[2]) for r in runs[1:]], f"`{base}`")
     print()
     print("Against independent rays (the paper's kind of QMC): the same renders against "
           "`ambientocclusion` on the scene with `Sampler \"random\"` in place of its Halton "
           "sampler (a copy with only that line changed).")
     print()
-    print("| scene | integrator | spp | RMSE | time (s) | against | its time to that RMSE (s) "
-          "| time ratio |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(HEADER)
     for name, sampler, (base, _, bparams, _, _), labels in VARIANTS:
-        o = rows(out, name, base)
-        ox = [r["total_s"] for r in o]
-        oy = [r["rmse"] for r in o]
-        bp = "".join(f" `{x}`" for x in bparams)
         runs = next(r for n, _, r in SCENES if n == name)
-        first = True
-        for label, _, params, _, _ in runs:
-            if label not in labels:
-                continue
-            p = "".join(f" `{x}`" for x in params)
-            for r in rows(out, name, label):
-                ts, rs, _ = time_to(ox, oy, r, "< its first render")
-                print(f"| {name if first else ''} | `{label}`{p} | {r['spp']} | {r['rmse']:.3g} | "
-                      f"{r['total_s']:.3g} | `ambientocclusion`{bp}, {sampler} sampler | {ts} | "
-                      f"{rs} |")
-                first = False
+        compare(out, name, base, [(r[0], r[2]) for r in runs if r[0] in labels],
+                f"`ambientocclusion`{ticked(bparams)}, {sampler} sampler")
     print()
     print("The ray tracers' renders (spp: RMSE at seconds):")
     print()
     for name, _, runs in SCENES:
         label, _, params, _, _ = runs[0]
-        p = "".join(f" `{x}`" for x in params)
-        line = ", ".join(f"{r['spp']}: {r['rmse']:.3g} at {r['total_s']:.3g}"
-                         for r in rows(out, name, label))
-        print(f"- {name}, `{label}`{p}: {line}")
+        print(f"- {name}, `{label}`{ticked(params)}: {renders(out, name, label)}")
     for name, sampler, (label, _, params, _, _), _ in VARIANTS:
-        p = "".join(f" `{x}`" for x in params)
-        line = ", ".join(f"{r['spp']}: {r['rmse']:.3g} at {r['total_s']:.3g}"
-                         for r in rows(out, name, label))
-        print(f"- {name} with the {sampler} sampler, `ambientocclusion`{p}: {line}")
+        print(f"- {name} with the {sampler} sampler, `ambientocclusion`{ticked(params)}: "
+              f"{renders(out, name, label)}")
 
 
 if __name__ == "__main__":
