@@ -52,7 +52,7 @@ SCENES = [
     ]),
     ("killeroos-studio", 1024, [
         ("directlighting", "directlighting", [], 200, None),
-        ("silhouette", "silhouette", [], 160, [1, 2, 4, 8]),
+        ("silhouette", "silhouette", [], 260, [1, 2, 4, 8, 16]),
     ]),
     ("blinds", None, [AO, SHEARED]),
     ("spheres-on-plane", None, [AO, SHEARED]),
